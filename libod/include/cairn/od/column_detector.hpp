@@ -1,0 +1,31 @@
+// The column-wise baseline (Matthies 1996, Bellutta 2000: the DEMO III XUV detector).
+//
+// Slope and height are measured along each image column's range profile only: a pixel is
+// an obstacle point when some pixel of the same column is compatible with it by the same
+// pair test as the cone detector (HT, Hmax, theta). The obstacle mask is then blob-coloured
+// in 2-D (8-connected) and blobs smaller than `min_blob_pixels` are dropped. It misses steep
+// faces whose normal points away from the column's slicing plane, which is the case the
+// cone detector was made for; it is kept as the reference every evaluation shows beside it.
+#pragma once
+
+#include "cairn/od/detector.hpp"
+
+namespace cairn::od {
+
+struct ColumnConfig {
+  double min_height_m = 0.3;                  ///< HT [m]
+  double max_height_m = 1.0;                  ///< Hmax [m]
+  double min_slope_rad = 0.7853981633974483;  ///< theta [rad]
+  int min_blob_pixels = 0;  ///< blobs with fewer pixels are rejected (0: keep all)
+
+  /// The same pair parameters as a cone detector config, blob rejection off.
+  static ColumnConfig From(const DetectorConfig& config);
+  Status Validate() const;
+};
+
+/// Result in the cone detector's form: labels are the 8-connected blobs that survive the
+/// area rejection, numbered in row-major order of their first pixel; features are computed
+/// with the same definitions (slopes over the column pairs found inside each blob).
+Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& config);
+
+}  // namespace cairn::od

@@ -1,0 +1,122 @@
+// The cone detector of Talukder, Manduchi, Rankin and Matthies (IEEE IV 2002) on one range
+// image: OD-2 (obstacle points by scanning the projected upper cone of each pixel) and OS-2
+// (segments as the connected components of the compatibility graph) in one pass.
+//
+// Definitions (heights h along gravity's up vector, points in the level frame):
+//  - p1, p2 are compatible when HT < |h2 - h1| < Hmax and |h2 - h1| / |p2 - p1| > sin(theta),
+//    i.e. the line joining them is steeper than theta from the horizontal;
+//  - an obstacle point has at least one compatible partner;
+//  - a segment is a connected component of the graph whose edges are the compatible pairs.
+// Each pair is found once, from its lower point, by scanning the pixels onto which that
+// point's upper cone (height HT..Hmax above it, half-angle 90 deg - theta about `up`) can
+// project. In `kExact` mode that region is computed from the point, the sensor model and
+// the tilt, with a margin: the result equals DetectBruteForce's, pair for pair.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "cairn/od/expected.hpp"
+#include "cairn/od/range_image.hpp"
+
+namespace cairn::od {
+
+enum class SearchMode {
+  kExact,        ///< the whole projection of each pixel's upper cone (default)
+  kPaperWindow,  ///< the paper's square window above the pixel: an approximation
+};
+
+struct DetectorConfig {
+  double min_height_m = 0.3;               ///< HT: least height of an obstacle [m]
+  double max_height_m = 1.0;               ///< Hmax: bounds the search, splits obstacles [m]
+  double min_slope_rad = 0.7853981633974483;  ///< theta, from the horizontal [rad] (45 deg)
+  SearchMode search = SearchMode::kExact;
+  /// kPaperWindow: the window's side is this many times the image size of an HT-tall
+  /// object at the pixel's range (the paper uses 4-5); it spans from the pixel upwards and
+  /// is centred on its column.
+  double window_scale = 4.5;
+  /// kExact: the cone is bounded by this many height slabs, each by the bounding box of its
+  /// projection; more slabs give a tighter region and cost more per pixel. Exactness does
+  /// not depend on it.
+  int region_slabs = 4;
+
+  /// Names the first bad field by its config-file key (min_height, max_height, min_slope in
+  /// degrees, window_scale, region_slabs): 0 < HT < Hmax, 0 < theta < 90 deg, window_scale > 0,
+  /// region_slabs >= 1, all finite.
+  Status Validate() const;
+};
+
+/// 3-D measures of one segment, computed from its points and its compatible pairs.
+/// Coordinates are in the level frame of the image (sensor-centred, z up along gravity).
+struct SegmentFeatures {
+  int id = 0;                 ///< segment id, 1..n (0 is "no segment")
+  int point_count = 0;        ///< obstacle points (pixels) in the segment
+  std::int64_t pair_count = 0;  ///< compatible pairs joining its points
+  Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero();  ///< axis-aligned box, level frame [m]
+  Eigen::Vector3d bbox_max = Eigen::Vector3d::Zero();
+  /// Perimeter of the box's footprint on the horizontal plane: 2 (dx + dy) [m].
+  double bbox_perimeter_m = 0.0;
+  /// Volume of the box: dx * dy * dz [m^3].
+  double bbox_volume_m3 = 0.0;
+  /// Slope of a pair: atan(|dh| / horizontal distance), in (theta, 90 deg], computed to
+  /// within 2e-5 rad. Mean and max over the segment's pairs [rad].
+  double slope_mean_rad = 0.0;
+  double slope_max_rad = 0.0;
+  /// Ground under the segment: the height of its lowest point, where its lowest compatible
+  /// pair meets the terrain [m, level frame].
+  double ground_height_m = 0.0;
+  /// Height of the segment's points above ground_height_m: mean and max [m]. The max is the
+  /// obstacle's height as the vehicle meets it.
+  double height_mean_m = 0.0;
+  double height_max_m = 0.0;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  ///< mean of its points [m]
+  /// Distance of its points from the sensor: mean and min [m].
+  double range_mean_m = 0.0;
+  double range_min_m = 0.0;
+  /// Image extent, inclusive [px].
+  int row_min = 0, row_max = 0, col_min = 0, col_max = 0;
+};
+
+/// Counters that show how much work a detection did.
+struct DetectionStats {
+  std::int64_t pairs_tested = 0;     ///< candidate pairs on which the test ran
+  std::int64_t pairs_compatible = 0;  ///< compatible pairs found
+  int obstacle_points = 0;
+};
+
+struct Detection {
+  int width = 0;
+  int height = 0;
+  /// Segment id per pixel, row-major; 0 where the pixel is no obstacle point. Ids are
+  /// numbered 1..n in the order of each segment's first pixel in row-major order.
+  std::vector<std::int32_t> labels;
+  /// segments[id - 1] describes segment `id`.
+  std::vector<SegmentFeatures> segments;
+  DetectionStats stats;
+
+  bool is_obstacle(int index) const { return labels[index] != 0; }
+};
+
+/// OD-2 + OS-2 on one range image. Fails only when the config does not validate.
+Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config);
+
+/// The definition, by testing every pair of valid points: O(N^2), for tests and benchmarks.
+/// Ignores config.search.
+Expected<Detection> DetectBruteForce(const RangeImage& image, const DetectorConfig& config);
+
+/// True when p_upper lies in the upper cone of p_lower (level-frame coordinates, z up):
+/// HT < dz < Hmax and dz^2 > tan^2(theta) (dx^2 + dy^2). Shared by every detector so that
+/// they agree bit for bit; NaN coordinates are never compatible.
+struct PairTest {
+  float min_height;
+  float max_height;
+  float tan2_theta;
+  explicit PairTest(const DetectorConfig& config);
+  bool operator()(float dx, float dy, float dz) const {
+    return dz > min_height && dz < max_height && dz * dz > tan2_theta * (dx * dx + dy * dy);
+  }
+};
+
+}  // namespace cairn::od

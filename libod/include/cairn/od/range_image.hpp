@@ -1,0 +1,62 @@
+// RangeImage: an organised grid of 3-D points with a validity mask and its sensor model.
+//
+// Storage is structure-of-arrays, row-major (index = row * width + col), points in the
+// sensor frame [m]. Invalid cells (no return) hold NaN coordinates and valid = 0. The up
+// vector (unit, sensor frame) gives every point its height; it comes from config, an IMU
+// or a pose, and is replaced, not patched, when a refined tilt is known.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "cairn/od/expected.hpp"
+#include "cairn/od/sensor_model.hpp"
+
+namespace cairn::od {
+
+class RangeImage {
+ public:
+  RangeImage() = default;
+
+  /// From a z-depth image [m] (row-major, width*height values; 0, negative or non-finite
+  /// means no return) and gravity's up vector in the optical frame. Fails on a size
+  /// mismatch, an invalid model or a zero / non-finite up vector.
+  static Expected<RangeImage> FromDepth(const std::vector<float>& depth_m,
+                                        const PinholeModel& model,
+                                        const Eigen::Vector3d& up_sensor);
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+  int size() const { return width_ * height_; }
+  const SensorModel& model() const { return model_; }
+
+  /// Unit up vector in the sensor frame.
+  const Eigen::Vector3d& up() const { return up_; }
+  /// Replaces the tilt (e.g. with a refined estimate). Fails on a zero / non-finite vector.
+  Status SetUp(const Eigen::Vector3d& up_sensor);
+  /// R_level_sensor: maps sensor-frame points into the level frame (see leveling.hpp).
+  const Eigen::Matrix3d& R_level_sensor() const { return R_level_sensor_; }
+
+  bool valid(int index) const { return valid_[index] != 0; }
+  Eigen::Vector3d point(int index) const { return {x_[index], y_[index], z_[index]}; }
+  /// Euclidean distance from the sensor origin [m] (NaN when invalid).
+  double range(int index) const { return point(index).norm(); }
+
+  const std::vector<float>& x() const { return x_; }
+  const std::vector<float>& y() const { return y_; }
+  const std::vector<float>& z() const { return z_; }
+  const std::vector<std::uint8_t>& valid_mask() const { return valid_; }
+  int valid_count() const;
+
+ private:
+  int width_ = 0;
+  int height_ = 0;
+  SensorModel model_;
+  Eigen::Vector3d up_ = Eigen::Vector3d(0.0, -1.0, 0.0);
+  Eigen::Matrix3d R_level_sensor_ = Eigen::Matrix3d::Identity();
+  std::vector<float> x_, y_, z_;
+  std::vector<std::uint8_t> valid_;
+};
+
+}  // namespace cairn::od

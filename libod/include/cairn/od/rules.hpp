@@ -1,0 +1,53 @@
+// Rule-based rejection of false obstacles: one threshold per segment measure.
+//
+// A segment is kept when it passes every rule; otherwise it is rejected and the reason
+// names each rule it failed with the measured value and the threshold. A threshold of 0
+// disables its rule.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "cairn/od/detector.hpp"
+#include "cairn/od/expected.hpp"
+
+namespace cairn::od {
+
+struct RuleConfig {
+  int min_points = 0;                 ///< least point_count
+  double min_volume_m3 = 0.0;         ///< least bbox_volume_m3 [m^3]
+  double min_perimeter_m = 0.0;       ///< least bbox_perimeter_m [m]
+  double min_slope_mean_rad = 0.0;    ///< least slope_mean_rad [rad]
+  double min_slope_max_rad = 0.0;     ///< least slope_max_rad [rad]
+  double min_height_mean_m = 0.0;     ///< least height_mean_m [m]
+  double min_height_max_m = 0.0;      ///< least height_max_m [m]
+  std::int64_t min_pairs = 0;         ///< least pair_count
+
+  /// Names the first negative or non-finite threshold.
+  Status Validate() const;
+};
+
+enum class SegmentClass : std::uint8_t { kNone = 0, kKept = 1, kRejected = 2 };
+
+struct SegmentVerdict {
+  int id = 0;
+  SegmentClass cls = SegmentClass::kKept;
+  std::string reason;  ///< empty when kept, e.g. "volume 0.004 m^3 < 0.01"
+};
+
+struct Classification {
+  std::vector<SegmentVerdict> verdicts;  ///< verdicts[id - 1] for segment `id`
+  int kept = 0;
+  int rejected = 0;
+};
+
+/// Applies the rules to every segment of `detection`.
+Expected<Classification> Classify(const Detection& detection, const RuleConfig& rules);
+
+/// Every segment kept (what `--no-rules` means).
+Classification KeepAll(const Detection& detection);
+
+/// Class per pixel (SegmentClass values), row-major, for `detection`'s grid.
+std::vector<std::uint8_t> ClassImage(const Detection& detection, const Classification& c);
+
+}  // namespace cairn::od

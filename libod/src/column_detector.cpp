@@ -1,0 +1,101 @@
+#include "cairn/od/column_detector.hpp"
+
+#include <string>
+
+#include "detection_internal.hpp"
+#include "search_region.hpp"
+
+namespace cairn::od {
+
+ColumnConfig ColumnConfig::From(const DetectorConfig& config) {
+  ColumnConfig c;
+  c.min_height_m = config.min_height_m;
+  c.max_height_m = config.max_height_m;
+  c.min_slope_rad = config.min_slope_rad;
+  return c;
+}
+
+namespace {
+
+DetectorConfig PairParameters(const ColumnConfig& config) {
+  DetectorConfig d;
+  d.min_height_m = config.min_height_m;
+  d.max_height_m = config.max_height_m;
+  d.min_slope_rad = config.min_slope_rad;
+  return d;
+}
+
+}  // namespace
+
+Status ColumnConfig::Validate() const {
+  if (Status s = PairParameters(*this).Validate(); !s) {
+    return Error{"column config: " + s.message().substr(s.message().find('\'') )};
+  }
+  if (min_blob_pixels < 0) {
+    return Error{"column config: 'min_blob_pixels' must be >= 0 (got " +
+                 std::to_string(min_blob_pixels) + ")"};
+  }
+  return Status::Ok();
+}
+
+Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& config) {
+  if (Status s = config.Validate(); !s) return s.error();
+  const DetectorConfig pair_config = PairParameters(config);
+  const int n = image.size(), width = image.width(), height = image.height();
+  const internal::LevelPoints level(image);
+  const PairTest test(pair_config);
+  internal::PairAccumulator pairs(n);
+  DetectionStats stats;
+
+  // 1. Column profiles: partners of each pixel among the pixels of its own column, limited
+  //    to the rows its upper cone can reach (which is every row where a partner can be).
+  if (image.valid_count() > 0) {
+    const auto& model = std::get<PinholeModel>(image.model());
+    const internal::PinholeConeRegion region(model, image.up(), pair_config,
+                                             internal::NearestDepth(image));
+    internal::RowSpans spans(height);
+    for (int p = 0; p < n; ++p) {
+      if (!image.valid(p)) continue;
+      region.Compute(image.point(p), spans);
+      const int col = p % width;
+      for (int r = spans.row_begin; r < spans.row_end; ++r) {
+        if (col < spans.col_begin[r] || col >= spans.col_end[r]) continue;
+        const int q = r * width + col;
+        ++stats.pairs_tested;
+        const float dx = level.x[q] - level.x[p], dy = level.y[q] - level.y[p],
+                    dz = level.z[q] - level.z[p];
+        if (!test(dx, dy, dz)) continue;
+        ++stats.pairs_compatible;
+        pairs.Add(p, q, dx, dy, dz);
+      }
+    }
+  }
+
+  // 2. Blob colouring of the obstacle mask, 8-connected.
+  internal::UnionFind blobs(n);
+  for (int r = 0; r < height; ++r) {
+    for (int c = 0; c < width; ++c) {
+      const int i = r * width + c;
+      if (!pairs.obstacle[i]) continue;
+      // Earlier neighbours: left, and the three above.
+      if (c > 0 && pairs.obstacle[i - 1]) blobs.Union(i, i - 1);
+      if (r == 0) continue;
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int cc = c + dc;
+        if (cc >= 0 && cc < width && pairs.obstacle[i - width + dc]) blobs.Union(i, i - width + dc);
+      }
+    }
+  }
+
+  // 3. Blob-area rejection, then the same assembly as the cone detector.
+  std::vector<std::int32_t> component(n, -1), area(n, 0);
+  for (int i = 0; i < n; ++i) {
+    if (pairs.obstacle[i]) ++area[component[i] = blobs.Find(i)];
+  }
+  for (int i = 0; i < n; ++i) {
+    if (component[i] >= 0 && area[component[i]] < config.min_blob_pixels) component[i] = -1;
+  }
+  return internal::BuildDetection(image, level, component, pairs, stats);
+}
+
+}  // namespace cairn::od

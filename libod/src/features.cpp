@@ -1,0 +1,145 @@
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "detection_internal.hpp"
+
+namespace cairn::od::internal {
+
+LevelPoints::LevelPoints(const RangeImage& image)
+    : x(image.size()), y(image.size()), z(image.size()) {
+  const Eigen::Matrix3f R = image.R_level_sensor().cast<float>();
+  for (int i = 0; i < image.size(); ++i) {
+    const Eigen::Vector3f p(image.x()[i], image.y()[i], image.z()[i]);
+    const Eigen::Vector3f q = R * p;  // NaN stays NaN
+    x[i] = q.x();
+    y[i] = q.y();
+    z[i] = q.z();
+  }
+}
+
+RowTiles::RowTiles(const LevelPoints& level, int width, int height)
+    : tiles_per_row((width + kTileWidth - 1) / kTileWidth),
+      z_min(static_cast<std::size_t>(tiles_per_row) * height,
+            std::numeric_limits<float>::infinity()),
+      z_max(z_min.size(), -std::numeric_limits<float>::infinity()) {
+  for (int r = 0; r < height; ++r) {
+    for (int c = 0; c < width; ++c) {
+      const float z = level.z[r * width + c];
+      if (std::isnan(z)) continue;
+      const int t = r * tiles_per_row + c / kTileWidth;
+      z_min[t] = std::min(z_min[t], z);
+      z_max[t] = std::max(z_max[t], z);
+    }
+  }
+}
+
+UnionFind::UnionFind(int n) : parent_(n) {
+  for (int i = 0; i < n; ++i) parent_[i] = i;
+}
+
+int UnionFind::Find(int i) {
+  while (parent_[i] != i) {
+    parent_[i] = parent_[parent_[i]];  // path halving
+    i = parent_[i];
+  }
+  return i;
+}
+
+void UnionFind::Union(int i, int j) {
+  i = Find(i);
+  j = Find(j);
+  if (i == j) return;
+  if (i < j) {
+    parent_[j] = i;
+  } else {
+    parent_[i] = j;
+  }
+}
+
+namespace {
+
+struct SegmentSums {
+  double sx = 0, sy = 0, sz = 0, s_range = 0, slope_sum = 0;
+  double z_min = std::numeric_limits<double>::infinity();
+};
+
+}  // namespace
+
+Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
+                         const std::vector<std::int32_t>& component, const PairAccumulator& pairs,
+                         const DetectionStats& stats) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const int n = image.size(), width = image.width();
+  Detection det;
+  det.width = width;
+  det.height = image.height();
+  det.labels.assign(n, 0);
+  det.stats = stats;
+  det.stats.obstacle_points = 0;
+
+  // Ids in row-major order of first pixels; id_of_rep maps a representative to its id.
+  std::vector<std::int32_t> id_of_rep(n, 0);
+  std::vector<SegmentSums> sums;
+  for (int i = 0; i < n; ++i) {
+    const int rep = component[i];
+    if (rep < 0) continue;
+    if (id_of_rep[rep] == 0) {
+      id_of_rep[rep] = static_cast<std::int32_t>(det.segments.size()) + 1;
+      SegmentFeatures f;
+      f.id = id_of_rep[rep];
+      f.bbox_min = Eigen::Vector3d::Constant(kInf);
+      f.bbox_max = Eigen::Vector3d::Constant(-kInf);
+      f.range_min_m = kInf;
+      f.row_min = f.col_min = std::numeric_limits<int>::max();
+      f.row_max = f.col_max = -1;
+      det.segments.push_back(f);
+      sums.emplace_back();
+    }
+    const int id = id_of_rep[rep];
+    det.labels[i] = id;
+    ++det.stats.obstacle_points;
+    SegmentFeatures& f = det.segments[id - 1];
+    SegmentSums& s = sums[id - 1];
+    const Eigen::Vector3d p(level.x[i], level.y[i], level.z[i]);
+    const double range = image.range(i);
+    ++f.point_count;
+    f.pair_count += pairs.count[i];
+    f.bbox_min = f.bbox_min.cwiseMin(p);
+    f.bbox_max = f.bbox_max.cwiseMax(p);
+    f.slope_max_rad = std::max(f.slope_max_rad, static_cast<double>(pairs.slope_max[i]));
+    f.range_min_m = std::min(f.range_min_m, range);
+    const int r = i / width, c = i % width;
+    f.row_min = std::min(f.row_min, r);
+    f.row_max = std::max(f.row_max, r);
+    f.col_min = std::min(f.col_min, c);
+    f.col_max = std::max(f.col_max, c);
+    s.sx += p.x();
+    s.sy += p.y();
+    s.sz += p.z();
+    s.s_range += range;
+    s.slope_sum += pairs.slope_sum[i];
+    s.z_min = std::min(s.z_min, p.z());
+  }
+  for (std::size_t k = 0; k < det.segments.size(); ++k) {
+    SegmentFeatures& f = det.segments[k];
+    const SegmentSums& s = sums[k];
+    const double np = f.point_count;
+    const Eigen::Vector3d extent = f.bbox_max - f.bbox_min;
+    f.bbox_perimeter_m = 2.0 * (extent.x() + extent.y());
+    f.bbox_volume_m3 = extent.x() * extent.y() * extent.z();
+    // The float slope approximation may overshoot a vertical pair's 90 deg by an ulp.
+    constexpr double kHalfPi = 1.5707963267948966;
+    f.slope_max_rad = std::min(f.slope_max_rad, kHalfPi);
+    f.slope_mean_rad = f.pair_count > 0 ? std::min(s.slope_sum / f.pair_count, kHalfPi) : 0.0;
+    f.centroid = Eigen::Vector3d(s.sx, s.sy, s.sz) / np;
+    f.ground_height_m = s.z_min;
+    f.height_mean_m = f.centroid.z() - s.z_min;
+    f.height_max_m = f.bbox_max.z() - s.z_min;
+    f.range_mean_m = s.s_range / np;
+  }
+  return det;
+}
+
+}  // namespace cairn::od::internal
