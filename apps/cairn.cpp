@@ -1,0 +1,39 @@
+// cairn: obstacle detection and terrain mapping for off-road robots.
+//
+// main() only parses and dispatches; every error a user can cause comes back from the
+// library as a message and leaves through stderr with a non-zero exit, and anything else
+// that escapes is caught here rather than crashing.
+#include <CLI/CLI.hpp>
+#include <exception>
+#include <iostream>
+#include <vector>
+
+#include "subcommands.hpp"
+
+int main(int argc, char** argv) {
+  using namespace cairn::apps;
+  try {
+    CLI::App app{
+        "cairn: finds obstacles in range images of cross-country terrain "
+        "(the cone detector of Talukder et al., IEEE IV 2002)",
+        "cairn"};
+    app.set_version_flag("--version", CAIRN_VERSION);
+    app.require_subcommand(1);
+    const std::vector<Subcommand> commands = {AddDetectCommand(app)};
+    try {
+      app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+      return app.exit(e);
+    }
+    for (const Subcommand& command : commands) {
+      if (command.app->parsed()) return command.run();
+    }
+    std::cerr << "cairn: no subcommand given (see cairn --help)\n";
+    return kExitFailure;
+  } catch (const std::exception& e) {
+    std::cerr << "cairn: internal error: " << e.what() << "\n";
+  } catch (...) {
+    std::cerr << "cairn: internal error: unknown exception\n";
+  }
+  return kExitInternal;
+}

@@ -1,0 +1,24 @@
+// The `cairn` subcommands. Each lives in its own file and registers itself on the top-level
+// CLI11 app: it declares its options, and hands back what to run once they are parsed.
+// A run returns the process exit code and reports on stdout (results) and stderr (errors).
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <functional>
+
+namespace cairn::apps {
+
+/// Exit codes shared by every subcommand.
+constexpr int kExitOk = 0;
+constexpr int kExitFailure = 1;    ///< bad input, unreadable file, failed write
+constexpr int kExitInternal = 70;  ///< a bug: an exception escaped (EX_SOFTWARE)
+
+struct Subcommand {
+  CLI::App* app = nullptr;   ///< owned by the parent app
+  std::function<int()> run;  ///< called when `app` was the subcommand given
+};
+
+/// `cairn detect`: obstacles in one depth frame, written as images and JSON.
+Subcommand AddDetectCommand(CLI::App& parent);
+
+}  // namespace cairn::apps

@@ -1,0 +1,17 @@
+// Crash-safe file writing: the bytes go to a temporary file in the destination's directory,
+// are flushed to disk, and the temporary is renamed over the destination. A reader sees the
+// old file or the new one, never a half-written one, and a failed write leaves no temporary.
+#pragma once
+
+#include <filesystem>
+#include <string_view>
+
+#include "cairn/od/expected.hpp"
+
+namespace cairn::od::io {
+
+/// Writes `bytes` to `path` atomically (POSIX rename). The directory must exist. Errors
+/// name the file and the system's reason.
+Status WriteFileAtomic(const std::filesystem::path& path, std::string_view bytes);
+
+}  // namespace cairn::od::io

@@ -1,0 +1,50 @@
+// The detection settings file of `cairn detect --config`: detector, rules and column
+// baseline parameters. Degrees in the file, radians in the structs.
+//
+// Strict: an unknown section or key, a duplicate key, a value of the wrong type or a
+// non-finite number is an error naming the file and the field, so that a typo never falls
+// back silently to a default. Absent keys keep the struct defaults. An out-of-range value
+// gets the stage's own Validate() message, prefixed with the file and the field.
+//
+//   detector:
+//     min_height: 0.3        # HT [m]
+//     max_height: 1.0        # Hmax [m]
+//     min_slope: 45          # theta [deg]
+//     search: exact          # exact | paper_window
+//     window_scale: 4.5      # paper_window only [x object size]
+//     region_slabs: 4        # exact only
+//   rules:                   # 0 disables a rule
+//     min_points: 10         min_volume: 0.005 [m^3]   min_perimeter [m]
+//     min_slope_mean [deg]   min_slope_max [deg]       min_height_mean [m]
+//     min_height_max [m]     min_pairs
+//   column:
+//     min_blob_pixels: 0     # column baseline blob-area rejection [px]
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "cairn/od/detector.hpp"
+#include "cairn/od/expected.hpp"
+#include "cairn/od/rules.hpp"
+
+namespace cairn::od::io {
+
+/// Everything `--config` sets for one detection run.
+struct DetectSettings {
+  DetectorConfig detector;
+  RuleConfig rules;
+  int min_blob_pixels = 0;  ///< ColumnConfig::min_blob_pixels for the column baseline [px]
+};
+
+/// Reads and validates a settings file (see above).
+Expected<DetectSettings> LoadDetectSettings(const std::filesystem::path& path);
+
+/// The same from YAML text; `source` names it in error messages.
+Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
+                                             const std::string& source);
+
+/// "exact" | "paper_window".
+const char* SearchModeName(SearchMode mode);
+
+}  // namespace cairn::od::io

@@ -1,0 +1,197 @@
+#include "cairn/od/io/detect_config.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "cairn/od/column_detector.hpp"
+#include "yaml_fields.hpp"
+
+namespace cairn::od::io {
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+/// How a file value becomes a struct value: numbers as they are (metres, m^3, factors),
+/// degrees to radians, integers range-checked, names to enums.
+enum class Kind { kNumber, kDegrees, kInt, kInt64, kSearchMode };
+
+/// One settable value: its key in the file and the struct member it lands in. `member`
+/// is the struct's field name, used to find which key a Validate() message is about.
+struct Field {
+  const char* key;
+  Kind kind;
+  const char* member;
+  void* target;
+};
+
+std::vector<Field> DetectorFields(DetectorConfig& c) {
+  return {{"min_height", Kind::kNumber, "min_height_m", &c.min_height_m},
+          {"max_height", Kind::kNumber, "max_height_m", &c.max_height_m},
+          {"min_slope", Kind::kDegrees, "min_slope_rad", &c.min_slope_rad},
+          {"search", Kind::kSearchMode, "search", &c.search},
+          {"window_scale", Kind::kNumber, "window_scale", &c.window_scale},
+          {"region_slabs", Kind::kInt, "region_slabs", &c.region_slabs}};
+}
+
+std::vector<Field> RuleFields(RuleConfig& c) {
+  return {{"min_points", Kind::kInt, "min_points", &c.min_points},
+          {"min_volume", Kind::kNumber, "min_volume_m3", &c.min_volume_m3},
+          {"min_perimeter", Kind::kNumber, "min_perimeter_m", &c.min_perimeter_m},
+          {"min_slope_mean", Kind::kDegrees, "min_slope_mean_rad", &c.min_slope_mean_rad},
+          {"min_slope_max", Kind::kDegrees, "min_slope_max_rad", &c.min_slope_max_rad},
+          {"min_height_mean", Kind::kNumber, "min_height_mean_m", &c.min_height_mean_m},
+          {"min_height_max", Kind::kNumber, "min_height_max_m", &c.min_height_max_m},
+          {"min_pairs", Kind::kInt64, "min_pairs", &c.min_pairs}};
+}
+
+std::vector<Field> ColumnFields(DetectSettings& s) {
+  return {{"min_blob_pixels", Kind::kInt, "min_blob_pixels", &s.min_blob_pixels}};
+}
+
+std::vector<std::string> Keys(const std::vector<Field>& fields) {
+  std::vector<std::string> keys;
+  for (const Field& f : fields) keys.emplace_back(f.key);
+  return keys;
+}
+
+Status ReadField(const detail::FieldReader& reader, const YAML::Node& node, const std::string& name,
+                 const Field& f) {
+  switch (f.kind) {
+    case Kind::kNumber:
+    case Kind::kDegrees: {
+      Expected<double> v = reader.Double(node, name);
+      if (!v) return v.error();
+      *static_cast<double*>(f.target) = f.kind == Kind::kDegrees ? *v * kDegToRad : *v;
+      return Status::Ok();
+    }
+    case Kind::kInt:
+    case Kind::kInt64: {
+      Expected<std::int64_t> v = reader.Integer(node, name);
+      if (!v) return v.error();
+      if (f.kind == Kind::kInt64) {
+        *static_cast<std::int64_t*>(f.target) = *v;
+      } else {
+        if (*v < std::numeric_limits<int>::min() || *v > std::numeric_limits<int>::max()) {
+          return reader.Fail(name, "integer out of range, got " + detail::Describe(node));
+        }
+        *static_cast<int*>(f.target) = static_cast<int>(*v);
+      }
+      return Status::Ok();
+    }
+    case Kind::kSearchMode: {
+      Expected<std::string> v = reader.String(node, name);
+      if (!v) return v.error();
+      if (*v == "exact") {
+        *static_cast<SearchMode*>(f.target) = SearchMode::kExact;
+      } else if (*v == "paper_window") {
+        *static_cast<SearchMode*>(f.target) = SearchMode::kPaperWindow;
+      } else {
+        return reader.Fail(name, "expected exact or paper_window, got " + detail::Describe(node));
+      }
+      return Status::Ok();
+    }
+  }
+  return Status::Ok();
+}
+
+/// Reads the keys present in `section` (a mapping, or null for "nothing set").
+Status ReadSection(const detail::FieldReader& reader, const YAML::Node& root,
+                   const std::string& section, const std::vector<Field>& fields) {
+  const YAML::Node node = root[section];
+  if (!node || node.IsNull()) return Status::Ok();
+  if (Status s = reader.CheckMapping(node, section, Keys(fields)); !s) return s;
+  for (const Field& f : fields) {
+    const YAML::Node value = node[f.key];
+    if (!value) continue;
+    if (Status s = ReadField(reader, value, section + "." + f.key, f); !s) return s;
+  }
+  return Status::Ok();
+}
+
+/// Where `name` first occurs in `message` as a whole identifier ("min_height" is not inside
+/// "min_height_mean"), or npos.
+std::size_t FindIdentifier(const std::string& message, const std::string& name) {
+  const auto is_ident = [&](std::size_t i) {
+    const char ch = message[i];
+    return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_';
+  };
+  for (std::size_t pos = message.find(name); pos != std::string::npos;
+       pos = message.find(name, pos + 1)) {
+    const std::size_t end = pos + name.size();
+    if ((pos == 0 || !is_ident(pos - 1)) && (end == message.size() || !is_ident(end))) {
+      return pos;
+    }
+  }
+  return std::string::npos;
+}
+
+/// A Validate() failure, prefixed with the file and the key it is about: the field whose
+/// key or struct member the message names first (the section when it names none).
+Error Located(const detail::FieldReader& reader, const std::string& section,
+              const std::vector<Field>& fields, const std::string& message) {
+  const Field* best = nullptr;
+  std::size_t best_pos = std::string::npos;
+  for (const Field& f : fields) {
+    const std::size_t pos =
+        std::min(FindIdentifier(message, f.key), FindIdentifier(message, f.member));
+    if (pos < best_pos) {
+      best_pos = pos;
+      best = &f;
+    }
+  }
+  return reader.Fail(best ? section + "." + best->key : section, message);
+}
+
+}  // namespace
+
+const char* SearchModeName(SearchMode mode) {
+  switch (mode) {
+    case SearchMode::kExact:
+      return "exact";
+    case SearchMode::kPaperWindow:
+      return "paper_window";
+  }
+  return "unknown";
+}
+
+Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
+                                             const std::string& source) {
+  Expected<YAML::Node> root = detail::ParseYaml(yaml_text, source);
+  if (!root) return root.error();
+  const detail::FieldReader reader(source);
+  if (Status s = reader.CheckMapping(*root, "", {"detector", "rules", "column"}); !s) {
+    return s.error();
+  }
+
+  DetectSettings settings;
+  const std::vector<Field> detector = DetectorFields(settings.detector);
+  const std::vector<Field> rules = RuleFields(settings.rules);
+  const std::vector<Field> column = ColumnFields(settings);
+  if (Status s = ReadSection(reader, *root, "detector", detector); !s) return s.error();
+  if (Status s = ReadSection(reader, *root, "rules", rules); !s) return s.error();
+  if (Status s = ReadSection(reader, *root, "column", column); !s) return s.error();
+
+  if (Status s = settings.detector.Validate(); !s) {
+    return Located(reader, "detector", detector, s.message());
+  }
+  if (Status s = settings.rules.Validate(); !s) {
+    return Located(reader, "rules", rules, s.message());
+  }
+  ColumnConfig column_config = ColumnConfig::From(settings.detector);
+  column_config.min_blob_pixels = settings.min_blob_pixels;
+  if (Status s = column_config.Validate(); !s) {
+    return Located(reader, "column", column, s.message());
+  }
+  return settings;
+}
+
+Expected<DetectSettings> LoadDetectSettings(const std::filesystem::path& path) {
+  Expected<std::string> text = detail::ReadTextFile(path);
+  if (!text) return text.error();
+  return ParseDetectSettings(*text, path.string());
+}
+
+}  // namespace cairn::od::io

@@ -1,0 +1,136 @@
+#include "cairn/od/io/intrinsics.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include "cairn/od/leveling.hpp"
+#include "yaml_fields.hpp"
+
+namespace cairn::od::io {
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+Expected<int> PositiveSize(const detail::FieldReader& reader, const YAML::Node& node,
+                           const std::string& field) {
+  if (!node) return reader.Fail(field, "missing (expected a positive integer [px])");
+  Expected<std::int64_t> value = reader.Integer(node, field);
+  if (!value) return value.error();
+  if (*value <= 0 || *value > std::numeric_limits<int>::max()) {
+    return reader.Fail(field, "expected a positive integer [px], got " + detail::Describe(node));
+  }
+  return static_cast<int>(*value);
+}
+
+Expected<double> RequiredDouble(const detail::FieldReader& reader, const YAML::Node& node,
+                                const std::string& field, const char* unit) {
+  if (!node) return reader.Fail(field, std::string("missing (expected a number ") + unit + ")");
+  return reader.Double(node, field);
+}
+
+Expected<Eigen::Vector3d> UpVector(const detail::FieldReader& reader, const YAML::Node& node) {
+  if (!node.IsSequence() || node.size() != 3) {
+    return reader.Fail("up",
+                       "expected a sequence of 3 numbers [x, y, z] in the optical frame, "
+                       "got " +
+                           detail::Describe(node) +
+                           (node.IsSequence() ? " of " + std::to_string(node.size()) : ""));
+  }
+  Eigen::Vector3d up;
+  for (int i = 0; i < 3; ++i) {
+    Expected<double> v = reader.Double(node[i], "up[" + std::to_string(i) + "]");
+    if (!v) return v.error();
+    up[i] = *v;
+  }
+  const double norm = up.norm();
+  if (!(norm > 1e-9) || !std::isfinite(norm)) {
+    return reader.Fail("up", "must not be the zero vector (it is gravity's up direction)");
+  }
+  return Eigen::Vector3d(up / norm);
+}
+
+}  // namespace
+
+Expected<CameraIntrinsics> ParseIntrinsics(const std::string& yaml_text,
+                                           const std::string& source) {
+  Expected<YAML::Node> root = detail::ParseYaml(yaml_text, source);
+  if (!root) return root.error();
+  const detail::FieldReader reader(source);
+  if (Status s = reader.CheckMapping(*root, "",
+                                     {"width", "height", "fx", "fy", "cx", "cy", "depth_scale",
+                                      "up", "pitch_deg", "roll_deg"});
+      !s) {
+    return s.error();
+  }
+  const YAML::Node& node = *root;
+
+  CameraIntrinsics out;
+  PinholeModel& m = out.model;
+  {
+    Expected<int> w = PositiveSize(reader, node["width"], "width");
+    if (!w) return w.error();
+    Expected<int> h = PositiveSize(reader, node["height"], "height");
+    if (!h) return h.error();
+    m.width = *w;
+    m.height = *h;
+  }
+  struct NumberField {
+    const char* key;
+    const char* unit;
+    double* target;
+  };
+  const NumberField numbers[] = {{"fx", "[px]", &m.fx},
+                                 {"fy", "[px]", &m.fy},
+                                 {"cx", "[px]", &m.cx},
+                                 {"cy", "[px]", &m.cy},
+                                 {"depth_scale", "[m per unit]", &out.depth_scale_m}};
+  for (const NumberField& f : numbers) {
+    Expected<double> v = RequiredDouble(reader, node[f.key], f.key, f.unit);
+    if (!v) return v.error();
+    *f.target = *v;
+  }
+  if (!(m.fx > 0.0)) return reader.Fail("fx", "expected a positive focal length [px]");
+  if (!(m.fy > 0.0)) return reader.Fail("fy", "expected a positive focal length [px]");
+  if (!(out.depth_scale_m > 0.0)) {
+    return reader.Fail("depth_scale", "expected a positive number of metres per PNG unit");
+  }
+  if (Status s = m.Validate(); !s) return Error{source + ": " + s.message()};
+
+  const bool has_up = static_cast<bool>(node["up"]);
+  const bool has_pitch = static_cast<bool>(node["pitch_deg"]);
+  const bool has_roll = static_cast<bool>(node["roll_deg"]);
+  if (has_up && (has_pitch || has_roll)) {
+    return reader.Fail(has_pitch ? "pitch_deg" : "roll_deg",
+                       "give either up or pitch_deg/roll_deg, not both");
+  }
+  if (has_up) {
+    Expected<Eigen::Vector3d> up = UpVector(reader, node["up"]);
+    if (!up) return up.error();
+    out.up = *up;
+  } else if (has_pitch) {
+    Expected<double> pitch = reader.Double(node["pitch_deg"], "pitch_deg");
+    if (!pitch) return pitch.error();
+    double roll = 0.0;
+    if (has_roll) {
+      Expected<double> r = reader.Double(node["roll_deg"], "roll_deg");
+      if (!r) return r.error();
+      roll = *r;
+    }
+    out.up = CameraUpFromPitchRoll(*pitch * kDegToRad, roll * kDegToRad);
+  } else if (has_roll) {
+    return reader.Fail("pitch_deg", "missing: roll_deg is given, pitch_deg must be too");
+  } else {
+    return reader.Fail("up",
+                       "missing (expected up: [x, y, z] in the optical frame, or "
+                       "pitch_deg and optionally roll_deg)");
+  }
+  return out;
+}
+
+Expected<CameraIntrinsics> LoadIntrinsics(const std::filesystem::path& path) {
+  Expected<std::string> text = detail::ReadTextFile(path);
+  if (!text) return text.error();
+  return ParseIntrinsics(*text, path.string());
+}
+
+}  // namespace cairn::od::io

@@ -1,0 +1,113 @@
+#include "png.hpp"
+
+#include <cstdint>
+#include <cstring>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+#include "cairn/od/io/atomic_file.hpp"
+#include "yaml_fields.hpp"
+
+namespace cairn::od::io::detail {
+
+namespace {
+
+std::uint32_t BigEndian32(const unsigned char* p) {
+  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) |
+         std::uint32_t{p[3]};
+}
+
+/// Walks the chunk list after the signature: IHDR first, every chunk whole, IEND reached.
+/// Catching truncation here keeps libpng from printing its own complaint to stderr.
+const char* CheckChunks(const std::string& bytes) {
+  const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+  std::size_t at = 8;
+  bool first = true;
+  while (true) {
+    if (bytes.size() - at < 12) return "truncated";
+    const std::uint32_t length = BigEndian32(data + at);
+    const std::string type(bytes, at + 4, 4);
+    if (first && type != "IHDR") return "no IHDR header";
+    first = false;
+    if (length > bytes.size() - at - 12) return "truncated";
+    at += 12 + static_cast<std::size_t>(length);
+    if (type == "IEND") return nullptr;
+  }
+}
+
+}  // namespace
+
+std::string DescribeType(int type) {
+  std::string depth;
+  switch (CV_MAT_DEPTH(type)) {
+    case CV_8U:
+      depth = "8-bit";
+      break;
+    case CV_8S:
+      depth = "8-bit signed";
+      break;
+    case CV_16U:
+      depth = "16-bit";
+      break;
+    case CV_16S:
+      depth = "16-bit signed";
+      break;
+    case CV_32S:
+      depth = "32-bit integer";
+      break;
+    case CV_32F:
+      depth = "32-bit float";
+      break;
+    case CV_64F:
+      depth = "64-bit float";
+      break;
+    default:
+      depth = "unknown-depth";
+      break;
+  }
+  const int channels = CV_MAT_CN(type);
+  return depth + (channels == 1 ? " single-channel" : " " + std::to_string(channels) + "-channel");
+}
+
+Status WritePngAtomic(const std::filesystem::path& path, const cv::Mat& image) {
+  std::vector<unsigned char> buffer;
+  try {
+    if (!cv::imencode(".png", image, buffer)) {
+      return Error{path.string() + ": PNG encoding failed for a " + DescribeType(image.type()) +
+                   " image"};
+    }
+  } catch (const cv::Exception& e) {
+    return Error{path.string() + ": PNG encoding failed: " + e.what()};
+  }
+  return WriteFileAtomic(
+      path, std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
+}
+
+Expected<cv::Mat> ReadPng(const std::filesystem::path& path, int expected_type,
+                          const char* expected) {
+  const std::string name = path.string();
+  Expected<std::string> bytes = ReadTextFile(path);
+  if (!bytes) return bytes.error();
+  static const char kSignature[] = "\x89PNG\r\n\x1a\n";
+  if (bytes->size() < 8 || std::memcmp(bytes->data(), kSignature, 8) != 0) {
+    return Error{name + ": not a PNG file (expected a " + expected + " PNG)"};
+  }
+  if (const char* problem = CheckChunks(*bytes)) {
+    return Error{name + ": unreadable PNG (" + problem + ")"};
+  }
+  cv::Mat image;
+  try {
+    const cv::Mat raw(1, static_cast<int>(bytes->size()), CV_8UC1, bytes->data());
+    image = cv::imdecode(raw, cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    return Error{name + ": unreadable PNG: " + e.what()};
+  }
+  if (image.empty()) return Error{name + ": unreadable PNG (corrupt or truncated)"};
+  if (image.type() != expected_type) {
+    return Error{name + ": expected a " + expected + " PNG, got " + DescribeType(image.type())};
+  }
+  return image;
+}
+
+}  // namespace cairn::od::io::detail

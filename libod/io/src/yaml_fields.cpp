@@ -1,0 +1,118 @@
+#include "yaml_fields.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <set>
+#include <sstream>
+
+namespace cairn::od::io::detail {
+
+Expected<std::string> ReadTextFile(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    return Error{path.string() + ": no such file"};
+  }
+  if (std::filesystem::is_directory(path, ec)) {
+    return Error{path.string() + ": is a directory, expected a file"};
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Error{path.string() + ": cannot open for reading"};
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) return Error{path.string() + ": read error"};
+  return text.str();
+}
+
+Expected<YAML::Node> ParseYaml(const std::string& text, const std::string& source) {
+  try {
+    return YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    // yaml-cpp's marks are 0-based.
+    return Error{source + ":" + std::to_string(e.mark.line + 1) + ":" +
+                 std::to_string(e.mark.column + 1) + ": invalid YAML: " + e.msg};
+  }
+}
+
+std::string Describe(const YAML::Node& node) {
+  switch (node.Type()) {
+    case YAML::NodeType::Null:
+      return "nothing (null)";
+    case YAML::NodeType::Scalar:
+      return "'" + node.Scalar() + "'";
+    case YAML::NodeType::Sequence:
+      return "a sequence";
+    case YAML::NodeType::Map:
+      return "a mapping";
+    case YAML::NodeType::Undefined:
+      break;
+  }
+  return "nothing";
+}
+
+Error FieldReader::Fail(const std::string& field, const std::string& what) const {
+  return Error{source_ + ": " + field + ": " + what};
+}
+
+Status FieldReader::CheckMapping(const YAML::Node& node, const std::string& where,
+                                 const std::vector<std::string>& known) const {
+  const std::string prefix = where.empty() ? "" : where + ".";
+  if (!node.IsMap()) {
+    std::string expected = "expected a mapping of";
+    for (const std::string& k : known) expected += " " + k + ",";
+    expected.pop_back();
+    expected += "; got " + Describe(node);
+    if (where.empty()) return Error{source_ + ": " + expected};
+    return Fail(where, expected);
+  }
+  std::set<std::string> seen;
+  for (const auto& entry : node) {
+    if (!entry.first.IsScalar()) {
+      return Error{source_ + ": " + (where.empty() ? std::string("top level") : where) +
+                   ": keys must be plain names, got " + Describe(entry.first)};
+    }
+    const std::string key = entry.first.Scalar();
+    bool is_known = false;
+    for (const std::string& k : known) is_known = is_known || k == key;
+    if (!is_known) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+      return Fail(prefix + key, std::string("unknown ") +
+                                    (where.empty() ? "key" : "key in " + where) +
+                                    " (expected one of: " + list + ")");
+    }
+    if (!seen.insert(key).second) return Fail(prefix + key, "given twice");
+  }
+  return Status::Ok();
+}
+
+Expected<double> FieldReader::Double(const YAML::Node& node, const std::string& field) const {
+  if (!node.IsScalar()) return Fail(field, "expected a number, got " + Describe(node));
+  double value = 0.0;
+  try {
+    value = node.as<double>();
+  } catch (const YAML::Exception&) {
+    return Fail(field, "expected a number, got " + Describe(node));
+  }
+  if (!std::isfinite(value)) {
+    return Fail(field, "expected a finite number, got " + Describe(node));
+  }
+  return value;
+}
+
+Expected<std::int64_t> FieldReader::Integer(const YAML::Node& node,
+                                            const std::string& field) const {
+  if (!node.IsScalar()) return Fail(field, "expected an integer, got " + Describe(node));
+  try {
+    return node.as<std::int64_t>();
+  } catch (const YAML::Exception&) {
+    return Fail(field, "expected an integer, got " + Describe(node));
+  }
+}
+
+Expected<std::string> FieldReader::String(const YAML::Node& node, const std::string& field) const {
+  if (!node.IsScalar()) return Fail(field, "expected a name, got " + Describe(node));
+  return node.Scalar();
+}
+
+}  // namespace cairn::od::io::detail

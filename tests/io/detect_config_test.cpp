@@ -1,0 +1,168 @@
+#include "cairn/od/io/detect_config.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "temp_dir.hpp"
+
+namespace cairn::od::io {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+testing::AssertionResult StartsWith(const std::string& text, const std::string& prefix) {
+  if (text.rfind(prefix, 0) == 0) return testing::AssertionSuccess();
+  return testing::AssertionFailure()
+         << "\"" << text << "\" does not start with \"" << prefix << "\"";
+}
+
+TEST(DetectSettings, ReadsEveryKeyDegreesToRadians) {
+  const std::string yaml = R"(
+detector:
+  min_height: 0.25
+  max_height: 1.2
+  min_slope: 30
+  search: paper_window
+  window_scale: 5
+  region_slabs: 8
+rules:
+  min_points: 12
+  min_volume: 0.01
+  min_perimeter: 0.5
+  min_slope_mean: 50
+  min_slope_max: 60
+  min_height_mean: 0.1
+  min_height_max: 0.3
+  min_pairs: 100
+column:
+  min_blob_pixels: 25
+)";
+  Expected<DetectSettings> s = ParseDetectSettings(yaml, "cfg.yaml");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  EXPECT_DOUBLE_EQ(s->detector.min_height_m, 0.25);
+  EXPECT_DOUBLE_EQ(s->detector.max_height_m, 1.2);
+  EXPECT_DOUBLE_EQ(s->detector.min_slope_rad, 30 * kPi / 180);
+  EXPECT_EQ(s->detector.search, SearchMode::kPaperWindow);
+  EXPECT_DOUBLE_EQ(s->detector.window_scale, 5.0);
+  EXPECT_EQ(s->detector.region_slabs, 8);
+  EXPECT_EQ(s->rules.min_points, 12);
+  EXPECT_DOUBLE_EQ(s->rules.min_volume_m3, 0.01);
+  EXPECT_DOUBLE_EQ(s->rules.min_perimeter_m, 0.5);
+  EXPECT_DOUBLE_EQ(s->rules.min_slope_mean_rad, 50 * kPi / 180);
+  EXPECT_DOUBLE_EQ(s->rules.min_slope_max_rad, 60 * kPi / 180);
+  EXPECT_DOUBLE_EQ(s->rules.min_height_mean_m, 0.1);
+  EXPECT_DOUBLE_EQ(s->rules.min_height_max_m, 0.3);
+  EXPECT_EQ(s->rules.min_pairs, 100);
+  EXPECT_EQ(s->min_blob_pixels, 25);
+}
+
+TEST(DetectSettings, AbsentKeysAndEmptySectionsKeepTheDefaults) {
+  Expected<DetectSettings> s =
+      ParseDetectSettings("detector:\n  min_height: 0.4\nrules:\n", "cfg.yaml");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  const DetectSettings defaults;
+  EXPECT_DOUBLE_EQ(s->detector.min_height_m, 0.4);
+  EXPECT_DOUBLE_EQ(s->detector.max_height_m, defaults.detector.max_height_m);
+  EXPECT_DOUBLE_EQ(s->detector.min_slope_rad, defaults.detector.min_slope_rad);
+  EXPECT_EQ(s->detector.search, SearchMode::kExact);
+  EXPECT_EQ(s->rules.min_points, defaults.rules.min_points);
+  EXPECT_EQ(s->min_blob_pixels, defaults.min_blob_pixels);
+}
+
+TEST(DetectSettings, UnknownKeyIsRejectedWithItsName) {
+  Expected<DetectSettings> s = ParseDetectSettings("detector:\n  min_heigth: 0.2\n", "cfg.yaml");
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(StartsWith(s.error().message, "cfg.yaml: detector.min_heigth: unknown key"));
+}
+
+TEST(DetectSettings, UnknownSectionIsRejectedWithItsName) {
+  Expected<DetectSettings> s = ParseDetectSettings("rule:\n  min_points: 3\n", "cfg.yaml");
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(StartsWith(s.error().message, "cfg.yaml: rule: unknown key"));
+}
+
+TEST(DetectSettings, KeyOfAnotherSectionIsRejected) {
+  Expected<DetectSettings> s = ParseDetectSettings("rules:\n  min_height: 0.3\n", "cfg.yaml");
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(StartsWith(s.error().message, "cfg.yaml: rules.min_height: unknown key"));
+}
+
+TEST(DetectSettings, DuplicateKeyIsRejected) {
+  Expected<DetectSettings> s =
+      ParseDetectSettings("detector:\n  min_height: 0.2\n  min_height: 0.4\n", "cfg.yaml");
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(StartsWith(s.error().message, "cfg.yaml: detector.min_height: given twice"));
+}
+
+struct BadCase {
+  const char* yaml;
+  const char* prefix;  ///< the message starts with it
+};
+
+class DetectSettingsBad : public ::testing::TestWithParam<BadCase> {};
+
+TEST_P(DetectSettingsBad, NamesFileAndField) {
+  Expected<DetectSettings> s = ParseDetectSettings(GetParam().yaml, "cfg.yaml");
+  ASSERT_FALSE(s.ok()) << GetParam().yaml;
+  EXPECT_TRUE(StartsWith(s.error().message, GetParam().prefix));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, DetectSettingsBad,
+    ::testing::Values(
+        // Wrong types and non-finite numbers.
+        BadCase{"detector:\n  min_height: low\n", "cfg.yaml: detector.min_height: expected a"},
+        BadCase{"detector:\n  max_height: .inf\n", "cfg.yaml: detector.max_height: expected a"},
+        BadCase{"detector:\n  search: fast\n", "cfg.yaml: detector.search: expected exact"},
+        BadCase{"detector:\n  region_slabs: 2.5\n", "cfg.yaml: detector.region_slabs: expected"},
+        BadCase{"rules:\n  min_points: 1.5\n", "cfg.yaml: rules.min_points: expected an integer"},
+        BadCase{"rules:\n  min_volume: [1]\n", "cfg.yaml: rules.min_volume: expected a number"},
+        BadCase{"column:\n  min_blob_pixels: many\n", "cfg.yaml: column.min_blob_pixels: "},
+        BadCase{"detector: 3\n", "cfg.yaml: detector: expected a mapping"},
+        BadCase{"- detector\n", "cfg.yaml: expected a mapping"},
+        // Out of range: Validate()'s message, located.
+        BadCase{"detector:\n  min_height: 0.5\n  max_height: 0.3\n",
+                "cfg.yaml: detector.max_height: "},
+        BadCase{"detector:\n  min_height: -0.1\n", "cfg.yaml: detector.min_height: "},
+        BadCase{"detector:\n  min_slope: 90\n", "cfg.yaml: detector.min_slope: "},
+        BadCase{"detector:\n  window_scale: 0\n", "cfg.yaml: detector.window_scale: "},
+        BadCase{"detector:\n  region_slabs: 0\n", "cfg.yaml: detector.region_slabs: "},
+        BadCase{"rules:\n  min_volume: -1\n", "cfg.yaml: rules.min_volume: "},
+        BadCase{"rules:\n  min_height_max: -0.3\n", "cfg.yaml: rules.min_height_max: "},
+        BadCase{"rules:\n  min_pairs: -1\n", "cfg.yaml: rules.min_pairs: "},
+        BadCase{"column:\n  min_blob_pixels: -4\n", "cfg.yaml: column.min_blob_pixels: "}));
+
+TEST(DetectSettings, LoadNamesTheFile) {
+  test::TempDir dir;
+  const auto path = dir.Write("cfg.yaml", "detector:\n  typo: 1\n");
+  Expected<DetectSettings> s = LoadDetectSettings(path);
+  ASSERT_FALSE(s.ok());
+  EXPECT_TRUE(StartsWith(s.error().message, path.string() + ": detector.typo"));
+  Expected<DetectSettings> missing = LoadDetectSettings(dir / "none.yaml");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_TRUE(StartsWith(missing.error().message, (dir / "none.yaml").string() + ": no such"));
+}
+
+}  // namespace
+}  // namespace cairn::od::io
+
+namespace cairn::od::io {
+namespace {
+
+// The preset the demo uses parses and says what its comments say.
+TEST(DetectSettings, DefaultPresetParses) {
+  Expected<DetectSettings> s =
+      LoadDetectSettings(std::filesystem::path(CAIRN_SOURCE_DIR) / "config" / "default.yaml");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  EXPECT_DOUBLE_EQ(s->detector.min_height_m, 0.3);
+  EXPECT_DOUBLE_EQ(s->detector.max_height_m, 1.0);
+  EXPECT_DOUBLE_EQ(s->detector.min_slope_rad, 45 * kPi / 180);
+  EXPECT_EQ(s->detector.search, SearchMode::kExact);
+  EXPECT_EQ(s->rules.min_points, 10);
+  EXPECT_DOUBLE_EQ(s->rules.min_volume_m3, 0.005);
+  EXPECT_DOUBLE_EQ(s->rules.min_height_max_m, 0.3);
+}
+
+}  // namespace
+}  // namespace cairn::od::io
