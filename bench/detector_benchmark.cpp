@@ -1,0 +1,88 @@
+// Detector speed on rendered cross-country frames. Each frame is timed with the brute-force
+// reference (small frames only), the exact cone search, the paper's window and the column
+// baseline, so ratios come from one run on one machine. Quote medians:
+//   cairn_detector_benchmark --benchmark_repetitions=5 --benchmark_report_aggregates_only
+#include <benchmark/benchmark.h>
+
+#include <map>
+
+#include "cairn/od/column_detector.hpp"
+#include "cairn/od/detector.hpp"
+#include "cairn/sim/random_scene.hpp"
+#include "cairn/sim/render.hpp"
+
+namespace {
+
+using cairn::od::RangeImage;
+
+// A seeded random view rendered at width x (3/4 width), cached across benchmarks.
+const RangeImage& Frame(int width) {
+  static std::map<int, RangeImage> cache;
+  auto it = cache.find(width);
+  if (it != cache.end()) return it->second;
+  cairn::sim::RandomSceneOptions options;
+  options.width = width;
+  options.height = width * 3 / 4;
+  options.min_objects = options.max_objects = 12;
+  const cairn::sim::RandomView view = cairn::sim::MakeRandomView(2002, options);
+  const auto frame = cairn::sim::RenderDepth(view.scene, view.camera);
+  auto image = RangeImage::FromDepth(frame->depth_m, frame->model, frame->up_optical);
+  return cache.emplace(width, std::move(*image)).first->second;
+}
+
+void Report(benchmark::State& state, const cairn::od::Detection& d, const RangeImage& image) {
+  state.counters["pixels"] = image.size();
+  state.counters["pairs_tested"] = static_cast<double>(d.stats.pairs_tested);
+  state.counters["obstacle_points"] = d.stats.obstacle_points;
+  state.counters["segments"] = static_cast<double>(d.segments.size());
+}
+
+void BM_BruteForce(benchmark::State& state) {
+  const RangeImage& image = Frame(static_cast<int>(state.range(0)));
+  cairn::od::DetectorConfig config;
+  for (auto _ : state) {
+    auto d = cairn::od::DetectBruteForce(image, config);
+    benchmark::DoNotOptimize(d);
+    Report(state, *d, image);
+  }
+}
+
+void BM_DetectExact(benchmark::State& state) {
+  const RangeImage& image = Frame(static_cast<int>(state.range(0)));
+  cairn::od::DetectorConfig config;
+  for (auto _ : state) {
+    auto d = cairn::od::Detect(image, config);
+    benchmark::DoNotOptimize(d);
+    Report(state, *d, image);
+  }
+}
+
+void BM_DetectPaperWindow(benchmark::State& state) {
+  const RangeImage& image = Frame(static_cast<int>(state.range(0)));
+  cairn::od::DetectorConfig config;
+  config.search = cairn::od::SearchMode::kPaperWindow;
+  for (auto _ : state) {
+    auto d = cairn::od::Detect(image, config);
+    benchmark::DoNotOptimize(d);
+    Report(state, *d, image);
+  }
+}
+
+void BM_DetectColumns(benchmark::State& state) {
+  const RangeImage& image = Frame(static_cast<int>(state.range(0)));
+  const auto config = cairn::od::ColumnConfig::From(cairn::od::DetectorConfig{});
+  for (auto _ : state) {
+    auto d = cairn::od::DetectColumns(image, config);
+    benchmark::DoNotOptimize(d);
+    Report(state, *d, image);
+  }
+}
+
+BENCHMARK(BM_BruteForce)->Arg(80)->Arg(160)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DetectExact)->Arg(80)->Arg(160)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DetectPaperWindow)->Arg(80)->Arg(160)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DetectColumns)->Arg(80)->Arg(160)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
