@@ -19,7 +19,13 @@ int main(int argc, char** argv) {
         "cairn"};
     app.set_version_flag("--version", CAIRN_VERSION);
     app.require_subcommand(1);
-    const std::vector<Subcommand> commands = {AddDetectCommand(app)};
+    std::vector<Subcommand> commands = {AddDetectCommand(app)};
+#ifdef CAIRN_HAVE_SYNTH
+    commands.push_back(AddSynthCommand(app));
+#endif
+#ifdef CAIRN_HAVE_EVAL
+    commands.push_back(AddEvalCommand(app));
+#endif
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -20,5 +20,9 @@ struct Subcommand {
 
 /// `cairn detect`: obstacles in one depth frame, written as images and JSON.
 Subcommand AddDetectCommand(CLI::App& parent);
+/// `cairn synth`: renders a world into frames or a rawlog sequence with ground truth.
+Subcommand AddSynthCommand(CLI::App& parent);
+/// `cairn eval`: scores detection methods against ground truth, writes a report.
+Subcommand AddEvalCommand(CLI::App& parent);
 
 }  // namespace cairn::apps
