@@ -2,6 +2,7 @@
 // (labels and segment features) from it.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -17,15 +18,26 @@ struct LevelPoints {
   explicit LevelPoints(const RangeImage& image);
 };
 
-/// Height bounds of short runs of pixels along each row (tiles of kTileWidth columns), so a
-/// scan can skip a run none of whose points lies in the height band of a pair. Exact: a
+/// Bounds of short runs of pixels along each row (tiles of kTileWidth columns): the range of
+/// their level-frame x, y and z. A scan skips a run when no point in that box can be a
+/// partner: too low, too high, or too far sideways for the slope. The bound is evaluated
+/// with the pair test's own float operations, which are monotonic, so it is exact: a
 /// skipped run holds no compatible partner.
 struct RowTiles {
   static constexpr int kTileWidth = 8;
   int tiles_per_row = 0;
-  std::vector<float> z_min, z_max;  // [row * tiles_per_row + tile]; +inf / -inf when empty
+  // [row * tiles_per_row + tile]; min = +inf and max = -inf when the tile has no point.
+  std::vector<float> x_min, x_max, y_min, y_max, z_min, z_max;
 
   RowTiles(const LevelPoints& level, int width, int height);
+
+  bool MayHoldPartner(std::size_t tile, float px, float py, float pz, const PairTest& test) const {
+    const float dz_hi = std::min(z_max[tile] - pz, test.max_height);
+    if (!(dz_hi > test.min_height) || !(z_min[tile] - pz < test.max_height)) return false;
+    const float dx = x_min[tile] > px ? x_min[tile] - px : (px > x_max[tile] ? px - x_max[tile] : 0.0f);
+    const float dy = y_min[tile] > py ? y_min[tile] - py : (py > y_max[tile] ? py - y_max[tile] : 0.0f);
+    return dz_hi * dz_hi > test.tan2_theta * (dx * dx + dy * dy);
+  }
 };
 
 /// Union-find over pixels; the root of a set is its smallest index, so the result does not

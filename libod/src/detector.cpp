@@ -18,7 +18,7 @@ Error BadField(const char* field, const std::string& expected, double value) {
 }
 
 // Scans `spans` for partners of the lower point `p`, testing each pair once; runs of
-// pixels whose heights all lie outside (z_p + HT, z_p + Hmax) are skipped whole.
+// pixels whose bounds (RowTiles) rule out every partner are skipped whole.
 void ScanSpans(int p, const internal::RowSpans& spans, int width,
                const internal::LevelPoints& level, const internal::RowTiles& tiles,
                const PairTest& test, internal::UnionFind& sets, internal::PairAccumulator& pairs,
@@ -27,13 +27,11 @@ void ScanSpans(int p, const internal::RowSpans& spans, int width,
   const float px = level.x[p], py = level.y[p], pz = level.z[p];
   for (int r = spans.row_begin; r < spans.row_end; ++r) {
     const int row = r * width;
-    const float* tile_min = &tiles.z_min[static_cast<std::size_t>(r) * tiles.tiles_per_row];
-    const float* tile_max = &tiles.z_max[static_cast<std::size_t>(r) * tiles.tiles_per_row];
+    const std::size_t row_tiles = static_cast<std::size_t>(r) * tiles.tiles_per_row;
     for (int c = spans.col_begin[r]; c < spans.col_end[r];) {
       const int tile = c / kTile;
       const int stop = std::min(spans.col_end[r], (tile + 1) * kTile);
-      // Float subtraction is monotonic, so this bound is exact for the test below.
-      if (tile_max[tile] - pz > test.min_height && tile_min[tile] - pz < test.max_height) {
+      if (tiles.MayHoldPartner(row_tiles + tile, px, py, pz, test)) {
         stats.pairs_tested += stop - c;
         for (int q = row + c; q < row + stop; ++q) {
           const float dx = level.x[q] - px, dy = level.y[q] - py, dz = level.z[q] - pz;

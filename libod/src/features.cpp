@@ -20,17 +20,22 @@ LevelPoints::LevelPoints(const RangeImage& image)
 }
 
 RowTiles::RowTiles(const LevelPoints& level, int width, int height)
-    : tiles_per_row((width + kTileWidth - 1) / kTileWidth),
-      z_min(static_cast<std::size_t>(tiles_per_row) * height,
-            std::numeric_limits<float>::infinity()),
-      z_max(z_min.size(), -std::numeric_limits<float>::infinity()) {
+    : tiles_per_row((width + kTileWidth - 1) / kTileWidth) {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  const std::size_t n = static_cast<std::size_t>(tiles_per_row) * height;
+  for (auto* v : {&x_min, &y_min, &z_min}) v->assign(n, kInf);
+  for (auto* v : {&x_max, &y_max, &z_max}) v->assign(n, -kInf);
   for (int r = 0; r < height; ++r) {
     for (int c = 0; c < width; ++c) {
-      const float z = level.z[r * width + c];
-      if (std::isnan(z)) continue;
-      const int t = r * tiles_per_row + c / kTileWidth;
-      z_min[t] = std::min(z_min[t], z);
-      z_max[t] = std::max(z_max[t], z);
+      const int i = r * width + c;
+      if (std::isnan(level.z[i])) continue;
+      const std::size_t t = static_cast<std::size_t>(r) * tiles_per_row + c / kTileWidth;
+      x_min[t] = std::min(x_min[t], level.x[i]);
+      x_max[t] = std::max(x_max[t], level.x[i]);
+      y_min[t] = std::min(y_min[t], level.y[i]);
+      y_max[t] = std::max(y_max[t], level.y[i]);
+      z_min[t] = std::min(z_min[t], level.z[i]);
+      z_max[t] = std::max(z_max[t], level.z[i]);
     }
   }
 }

@@ -13,16 +13,19 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // the sub-pixel offset of a point from its cell centre.
 constexpr double kMarginPx = 1.0;
 
-// Angles t in [0, 2 pi) where a cos t + b sin t + c = 0 (at most two), appended to `out`.
+// Points (cos t, sin t) of the unit circle where a cos t + b sin t + c = 0 (at most two),
+// written to `out` as cos, sin pairs; in closed form, without trigonometric calls:
+// (cos t, sin t) = (-c (a, b) -+ sqrt(a^2 + b^2 - c^2) (b, -a)) / (a^2 + b^2).
 int SolveTrig(double a, double b, double c, double* out) {
-  const double r = std::hypot(a, b);
-  if (r < 1e-300) return 0;
-  const double k = -c / r;
-  if (k < -1.0 - 1e-12 || k > 1.0 + 1e-12) return 0;
-  const double base = std::atan2(b, a);
-  const double delta = std::acos(std::clamp(k, -1.0, 1.0));
-  out[0] = base + delta;
-  out[1] = base - delta;
+  const double r2 = a * a + b * b;
+  if (r2 < 1e-300) return 0;
+  double disc = r2 - c * c;
+  if (disc < -1e-12 * r2) return 0;
+  disc = std::sqrt(std::max(0.0, disc));
+  out[0] = (-c * a - disc * b) / r2;
+  out[1] = (-c * b + disc * a) / r2;
+  out[2] = (-c * a + disc * b) / r2;
+  out[3] = (-c * b - disc * a) / r2;
   return 2;
 }
 
@@ -66,9 +69,7 @@ void PinholeConeRegion::AddDisk(const Eigen::Vector3d& center, double radius, Bo
   const double vn0 = model_.fy * center.y() + model_.cy * d0;
   const double vn1 = model_.fy * ra.y() + model_.cy * d1;
   const double vn2 = model_.fy * rb.y() + model_.cy * d2;
-  const auto extend = [&](double t, double z) {
-    const double c = std::cos(t), s = std::sin(t);
-    if (z <= 0.0) z = d0 + d1 * c + d2 * s;
+  const auto extend = [&](double c, double s, double z) {
     const double u = (un0 + un1 * c + un2 * s) / z;
     const double v = (vn0 + vn1 * c + vn2 * s) / z;
     box.u_min = std::min(box.u_min, u);
@@ -77,18 +78,20 @@ void PinholeConeRegion::AddDisk(const Eigen::Vector3d& center, double radius, Bo
     box.v_max = std::max(box.v_max, v);
   };
 
-  double ts[4];
-  int n = SolveTrig(un2 * d0 - un0 * d2, un0 * d1 - un1 * d0, un2 * d1 - un1 * d2, ts);
-  n += SolveTrig(vn2 * d0 - vn0 * d2, vn0 * d1 - vn1 * d0, vn2 * d1 - vn1 * d2, ts + n);
+  double cs[8];
+  int n = SolveTrig(un2 * d0 - un0 * d2, un0 * d1 - un1 * d0, un2 * d1 - un1 * d2, cs);
+  n += SolveTrig(vn2 * d0 - vn0 * d2, vn0 * d1 - vn1 * d0, vn2 * d1 - vn1 * d2, cs + 2 * n);
   for (int i = 0; i < n; ++i) {
+    const double c = cs[2 * i], s = cs[2 * i + 1];
     // Critical points on the clipped-away part of the circle are not in the region.
-    if (d0 + d1 * std::cos(ts[i]) + d2 * std::sin(ts[i]) >= z_near_) extend(ts[i], 0.0);
+    const double z = d0 + d1 * c + d2 * s;
+    if (z >= z_near_) extend(c, s, z);
   }
   if (d0 - z_reach < z_near_) {
     // Chord ends: Z(t) = z_near exactly (used as is, so rounding cannot drop them).
-    double chord[2];
+    double chord[4];
     const int m = SolveTrig(d1, d2, d0 - z_near_, chord);
-    for (int i = 0; i < m; ++i) extend(chord[i], z_near_);
+    for (int i = 0; i < m; ++i) extend(chord[2 * i], chord[2 * i + 1], z_near_);
   }
 }
 
@@ -99,13 +102,21 @@ void PinholeConeRegion::Compute(const Eigen::Vector3d& p, RowSpans& spans) const
   int count = 0;
   spans.row_begin = rows;
   spans.row_end = 0;
-  for (std::size_t i = 0; i + 1 < slab_heights_.size() && count < kMaxSlabs; ++i) {
-    Box box{kInf, -kInf, kInf, -kInf};
+  // Each rim bounds two slabs: project it once.
+  Box rims[kMaxSlabs + 1];
+  const int slabs = std::min(kMaxSlabs, static_cast<int>(slab_heights_.size()) - 1);
+  for (int i = 0; i <= slabs; ++i) {
+    rims[i] = Box{kInf, -kInf, kInf, -kInf};
+    AddDisk(p + slab_heights_[i] * up_, slab_heights_[i] / tan_theta_, rims[i]);
+  }
+  for (int i = 0; i < slabs; ++i) {
+    const Box& b0 = rims[i];
+    const Box& b1 = rims[i + 1];
+    Box box{std::min(b0.u_min, b1.u_min), std::max(b0.u_max, b1.u_max),
+            std::min(b0.v_min, b1.v_min), std::max(b0.v_max, b1.v_max)};
     const double h0 = slab_heights_[i], h1 = slab_heights_[i + 1];
     const Eigen::Vector3d c0 = p + h0 * up_, c1 = p + h1 * up_;
     const double r0 = h0 / tan_theta_, r1 = h1 / tan_theta_;
-    AddDisk(c0, r0, box);
-    AddDisk(c1, r1, box);
     // A slab that reaches nearer than z_near has extreme points on the plane z = z_near
     // too; bound that cross-section by the slab's axis-aligned box.
     const Eigen::Vector3d e0 = r0 * half_extent_per_radius_, e1 = r1 * half_extent_per_radius_;
