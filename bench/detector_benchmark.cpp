@@ -37,6 +37,7 @@ void Report(benchmark::State& state, const cairn::od::Detection& d, const RangeI
   state.counters["segments"] = static_cast<double>(d.segments.size());
 }
 
+// Every benchmark but the threaded one runs on one core so that ratios compare methods.
 void BM_BruteForce(benchmark::State& state) {
   const RangeImage& image = Frame(static_cast<int>(state.range(0)));
   cairn::od::DetectorConfig config;
@@ -47,9 +48,11 @@ void BM_BruteForce(benchmark::State& state) {
   }
 }
 
+// range(1): worker threads (1: one core; 0: every hardware thread).
 void BM_DetectExact(benchmark::State& state) {
   const RangeImage& image = Frame(static_cast<int>(state.range(0)));
   cairn::od::DetectorConfig config;
+  config.threads = static_cast<int>(state.range(1));
   for (auto _ : state) {
     auto d = cairn::od::Detect(image, config);
     benchmark::DoNotOptimize(d);
@@ -61,6 +64,7 @@ void BM_DetectPaperWindow(benchmark::State& state) {
   const RangeImage& image = Frame(static_cast<int>(state.range(0)));
   cairn::od::DetectorConfig config;
   config.search = cairn::od::SearchMode::kPaperWindow;
+  config.threads = 1;
   for (auto _ : state) {
     auto d = cairn::od::Detect(image, config);
     benchmark::DoNotOptimize(d);
@@ -79,7 +83,11 @@ void BM_DetectColumns(benchmark::State& state) {
 }
 
 BENCHMARK(BM_BruteForce)->Arg(80)->Arg(160)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_DetectExact)->Arg(80)->Arg(160)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DetectExact)
+    ->ArgsProduct({{80, 160, 320, 640}, {1, 0}})
+    ->ArgNames({"width", "threads"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK(BM_DetectPaperWindow)->Arg(80)->Arg(160)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DetectColumns)->Arg(80)->Arg(160)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
 

@@ -225,6 +225,20 @@ TEST(Detector, ExactModeEqualsBruteForceOnRandomScenes) {
   EXPECT_GE(segments, kRandomScenes);
 }
 
+TEST(Detector, SameResultWhateverTheThreadCount) {
+  for (int seed = 0; seed < 6; ++seed) {
+    RandomCase c = MakeRandomCase(100 + seed);
+    c.config.threads = 1;
+    const od::Detection one = RunCone(c.view.image, c.config);
+    for (int threads : {2, 3, 7}) {
+      c.config.threads = threads;
+      const od::Detection many = RunCone(c.view.image, c.config);
+      ExpectSameDetection(many, one, c.name + ", " + std::to_string(threads) + " threads");
+      EXPECT_EQ(many.stats.pairs_tested, one.stats.pairs_tested) << c.name;
+    }
+  }
+}
+
 TEST(Detector, PaperWindowFindsASubsetOfTheExactPairs) {
   int missed_somewhere = 0;
   for (int seed = 0; seed < kRandomScenes; ++seed) {

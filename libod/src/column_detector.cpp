@@ -45,6 +45,7 @@ Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& c
   const internal::LevelPoints level(image);
   const PairTest test(pair_config);
   internal::PairAccumulator pairs(n);
+  std::vector<std::uint8_t> obstacle(n, 0);
   DetectionStats stats;
 
   // 1. Column profiles: partners of each pixel among the pixels of its own column, limited
@@ -66,7 +67,8 @@ Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& c
                     dz = level.z[q] - level.z[p];
         if (!test(dx, dy, dz)) continue;
         ++stats.pairs_compatible;
-        pairs.Add(p, q, dx, dy, dz);
+        pairs.Add(p, dx, dy, dz);
+        obstacle[p] = obstacle[q] = 1;
       }
     }
   }
@@ -76,13 +78,13 @@ Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& c
   for (int r = 0; r < height; ++r) {
     for (int c = 0; c < width; ++c) {
       const int i = r * width + c;
-      if (!pairs.obstacle[i]) continue;
+      if (!obstacle[i]) continue;
       // Earlier neighbours: left, and the three above.
-      if (c > 0 && pairs.obstacle[i - 1]) blobs.Union(i, i - 1);
+      if (c > 0 && obstacle[i - 1]) blobs.Union(i, i - 1);
       if (r == 0) continue;
       for (int dc = -1; dc <= 1; ++dc) {
         const int cc = c + dc;
-        if (cc >= 0 && cc < width && pairs.obstacle[i - width + dc]) blobs.Union(i, i - width + dc);
+        if (cc >= 0 && cc < width && obstacle[i - width + dc]) blobs.Union(i, i - width + dc);
       }
     }
   }
@@ -90,7 +92,7 @@ Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& c
   // 3. Blob-area rejection, then the same assembly as the cone detector.
   std::vector<std::int32_t> component(n, -1), area(n, 0);
   for (int i = 0; i < n; ++i) {
-    if (pairs.obstacle[i]) ++area[component[i] = blobs.Find(i)];
+    if (obstacle[i]) ++area[component[i] = blobs.Find(i)];
   }
   for (int i = 0; i < n; ++i) {
     if (component[i] >= 0 && area[component[i]] < config.min_blob_pixels) component[i] = -1;

@@ -41,12 +41,16 @@ struct RowTiles {
 };
 
 /// Union-find over pixels; the root of a set is its smallest index, so the result does not
-/// depend on the order in which pairs are found.
+/// depend on the order in which pairs are found (nor on how threads split the work).
 class UnionFind {
  public:
   explicit UnionFind(int n);
   int Find(int i);
   void Union(int i, int j);
+  /// Adds every union of `other` (over the same pixels) to this one.
+  void Merge(UnionFind& other);
+  /// Representative per pixel, or -1 for a pixel alone in its set (no partner).
+  std::vector<std::int32_t> Components();
 
  private:
   std::vector<std::int32_t> parent_;
@@ -71,17 +75,15 @@ struct PairAccumulator {
   std::vector<double> slope_sum;     // [rad]
   std::vector<float> slope_max;      // [rad]
   std::vector<std::int32_t> count;
-  std::vector<std::uint8_t> obstacle;  // pixel has at least one partner
 
-  explicit PairAccumulator(int n) : slope_sum(n, 0.0), slope_max(n, 0.0f), count(n, 0),
-                                    obstacle(n, 0) {}
-  void Add(int lower, int upper, float dx, float dy, float dz) {
+  // Writes only the lower point's entries, so threads scanning disjoint lower points share
+  // one accumulator safely.
+  explicit PairAccumulator(int n) : slope_sum(n, 0.0), slope_max(n, 0.0f), count(n, 0) {}
+  void Add(int lower, float dx, float dy, float dz) {
     const float slope = PairSlope(dz, std::sqrt(dx * dx + dy * dy));
     slope_sum[lower] += slope;
     if (slope > slope_max[lower]) slope_max[lower] = slope;
     ++count[lower];
-    obstacle[lower] = 1;
-    obstacle[upper] = 1;
   }
 };
 

@@ -1,7 +1,9 @@
 #include "cairn/od/detector.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <thread>
 #include <string>
 
 #include "detection_internal.hpp"
@@ -37,7 +39,7 @@ void ScanSpans(int p, const internal::RowSpans& spans, int width,
           const float dx = level.x[q] - px, dy = level.y[q] - py, dz = level.z[q] - pz;
           if (!test(dx, dy, dz)) continue;
           ++stats.pairs_compatible;
-          pairs.Add(p, q, dx, dy, dz);
+          pairs.Add(p, dx, dy, dz);
           sets.Union(p, q);
         }
       }
@@ -49,11 +51,7 @@ void ScanSpans(int p, const internal::RowSpans& spans, int width,
 Detection Finish(const RangeImage& image, const internal::LevelPoints& level,
                  internal::UnionFind& sets, const internal::PairAccumulator& pairs,
                  const DetectionStats& stats) {
-  std::vector<std::int32_t> component(image.size(), -1);
-  for (int i = 0; i < image.size(); ++i) {
-    if (pairs.obstacle[i]) component[i] = sets.Find(i);
-  }
-  return internal::BuildDetection(image, level, component, pairs, stats);
+  return internal::BuildDetection(image, level, sets.Components(), pairs, stats);
 }
 
 }  // namespace
@@ -72,6 +70,9 @@ Status DetectorConfig::Validate() const {
   if (!std::isfinite(window_scale) || window_scale <= 0.0) {
     return BadField("window_scale", "a finite factor > 0", window_scale);
   }
+  if (threads < 0 || threads > 256) {
+    return BadField("threads", "an integer in 0..256 (0: all hardware threads)", threads);
+  }
   if (region_slabs < 1 || region_slabs > 64) {
     return BadField("region_slabs", "an integer in 1..64", region_slabs);
   }
@@ -86,28 +87,61 @@ PairTest::PairTest(const DetectorConfig& config)
 
 Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config) {
   if (Status s = config.Validate(); !s) return s.error();
-  const int n = image.size(), width = image.width();
+  const int n = image.size(), width = image.width(), height = image.height();
   const internal::LevelPoints level(image);
   const PairTest test(config);
-  internal::UnionFind sets(n);
   internal::PairAccumulator pairs(n);
+  internal::UnionFind sets(n);
   DetectionStats stats;
-  internal::RowSpans spans(image.height());
-  const internal::RowTiles tiles(level, width, image.height());
   if (image.valid_count() == 0) return Finish(image, level, sets, pairs, stats);
 
   const auto& model = std::get<PinholeModel>(image.model());
   const internal::PinholeConeRegion region(model, image.up(), config,
                                            internal::NearestDepth(image));
-  for (int p = 0; p < n; ++p) {
-    if (!image.valid(p)) continue;
-    if (config.search == SearchMode::kExact) {
-      region.Compute(image.point(p), spans);
-    } else {
-      internal::PaperWindow(model, config, p / width, p % width, image.z()[p], spans);
+  const internal::RowTiles tiles(level, width, height);
+
+  // Workers take blocks of rows of lower points in turn. Each lower point's pairs are found
+  // by one worker, which writes only that point's accumulator entries; unions go into the
+  // worker's own union-find, merged afterwards. The result does not depend on the split.
+  constexpr int kBlockRows = 4;
+  const int blocks = (height + kBlockRows - 1) / kBlockRows;
+  int threads = config.threads > 0 ? config.threads
+                                   : static_cast<int>(std::thread::hardware_concurrency());
+  threads = std::clamp(threads, 1, blocks);
+  struct Worker {
+    internal::UnionFind sets;
+    internal::RowSpans spans;
+    DetectionStats stats;
+  };
+  std::vector<Worker> workers;
+  workers.reserve(threads);
+  for (int t = 0; t < threads; ++t) workers.push_back({internal::UnionFind(t == 0 ? 0 : n),
+                                                       internal::RowSpans(height), {}});
+  std::atomic<int> next_block{0};
+  const auto work = [&](Worker& w, internal::UnionFind& worker_sets) {
+    for (int b = next_block++; b < blocks; b = next_block++) {
+      const int p_end = std::min(height, (b + 1) * kBlockRows) * width;
+      for (int p = b * kBlockRows * width; p < p_end; ++p) {
+        if (!image.valid(p)) continue;
+        if (config.search == SearchMode::kExact) {
+          region.Compute(image.point(p), w.spans);
+        } else {
+          internal::PaperWindow(model, config, p / width, p % width, image.z()[p], w.spans);
+        }
+        ScanSpans(p, w.spans, width, level, tiles, test, worker_sets, pairs, w.stats);
+      }
     }
-    ScanSpans(p, spans, width, level, tiles, test, sets, pairs, stats);
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work, std::ref(workers[t]),
+                                                      std::ref(workers[t].sets));
+  work(workers[0], sets);  // the calling thread works too, straight into the final sets
+  for (std::thread& thread : pool) thread.join();
+  for (const Worker& w : workers) {
+    stats.pairs_tested += w.stats.pairs_tested;
+    stats.pairs_compatible += w.stats.pairs_compatible;
   }
+  for (int t = 1; t < threads; ++t) sets.Merge(workers[t].sets);
   return Finish(image, level, sets, pairs, stats);
 }
 
@@ -131,7 +165,7 @@ Expected<Detection> DetectBruteForce(const RangeImage& image, const DetectorConf
                   dz = level.z[up] - level.z[lo];
       if (!test(dx, dy, dz)) continue;
       ++stats.pairs_compatible;
-      pairs.Add(lo, up, dx, dy, dz);
+      pairs.Add(lo, dx, dy, dz);
       sets.Union(lo, up);
     }
   }

@@ -63,6 +63,23 @@ void UnionFind::Union(int i, int j) {
   }
 }
 
+void UnionFind::Merge(UnionFind& other) {
+  for (int i = 0; i < static_cast<int>(parent_.size()); ++i) {
+    const int root = other.Find(i);
+    if (root != i) Union(i, root);
+  }
+}
+
+std::vector<std::int32_t> UnionFind::Components() {
+  const int n = static_cast<int>(parent_.size());
+  std::vector<std::int32_t> size(n, 0), root(n);
+  for (int i = 0; i < n; ++i) ++size[root[i] = Find(i)];
+  for (int i = 0; i < n; ++i) {
+    if (size[root[i]] == 1) root[i] = -1;
+  }
+  return root;
+}
+
 namespace {
 
 struct SegmentSums {

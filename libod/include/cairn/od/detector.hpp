@@ -41,10 +41,12 @@ struct DetectorConfig {
   /// projection; more slabs give a tighter region and cost more per pixel. Exactness does
   /// not depend on it.
   int region_slabs = 4;
+  /// Worker threads; 0 uses every hardware thread. The result does not depend on it.
+  int threads = 0;
 
   /// Names the first bad field by its config-file key (min_height, max_height, min_slope in
   /// degrees, window_scale, region_slabs): 0 < HT < Hmax, 0 < theta < 90 deg, window_scale > 0,
-  /// region_slabs >= 1, all finite.
+  /// region_slabs in 1..64, threads in 0..256, all finite.
   Status Validate() const;
 };
 
