@@ -26,6 +26,7 @@ detector:
   search: paper_window
   window_scale: 5
   region_slabs: 8
+  threads: 3
 rules:
   min_points: 12
   min_volume: 0.01
@@ -46,6 +47,7 @@ column:
   EXPECT_EQ(s->detector.search, SearchMode::kPaperWindow);
   EXPECT_DOUBLE_EQ(s->detector.window_scale, 5.0);
   EXPECT_EQ(s->detector.region_slabs, 8);
+  EXPECT_EQ(s->detector.threads, 3);
   EXPECT_EQ(s->rules.min_points, 12);
   EXPECT_DOUBLE_EQ(s->rules.min_volume_m3, 0.01);
   EXPECT_DOUBLE_EQ(s->rules.min_perimeter_m, 0.5);

@@ -33,7 +33,8 @@ std::vector<Field> DetectorFields(DetectorConfig& c) {
           {"min_slope", Kind::kDegrees, "min_slope_rad", &c.min_slope_rad},
           {"search", Kind::kSearchMode, "search", &c.search},
           {"window_scale", Kind::kNumber, "window_scale", &c.window_scale},
-          {"region_slabs", Kind::kInt, "region_slabs", &c.region_slabs}};
+          {"region_slabs", Kind::kInt, "region_slabs", &c.region_slabs},
+          {"threads", Kind::kInt, "threads", &c.threads}};
 }
 
 std::vector<Field> RuleFields(RuleConfig& c) {
