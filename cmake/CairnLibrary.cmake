@@ -1,0 +1,19 @@
+# cairn_add_library(<target> EXPORT_NAME <name> SOURCES <src>...)
+#
+# One cairn library: target <target> with alias cairn::<name>, public headers in
+# ${CMAKE_CURRENT_SOURCE_DIR}/include, C++17, the project's warnings, installed and exported
+# into cairn-targets. Link dependencies are added by the caller.
+function(cairn_add_library target)
+  cmake_parse_arguments(ARG "" "EXPORT_NAME" "SOURCES" ${ARGN})
+  add_library(${target} ${ARG_SOURCES})
+  add_library(cairn::${ARG_EXPORT_NAME} ALIAS ${target})
+  set_target_properties(${target} PROPERTIES EXPORT_NAME ${ARG_EXPORT_NAME} OUTPUT_NAME ${target})
+  target_include_directories(${target} PUBLIC
+    $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  target_compile_features(${target} PUBLIC cxx_std_17)
+  cairn_set_warnings(${target})
+  install(TARGETS ${target} EXPORT cairn-targets
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+endfunction()
