@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <random>
+#include <string>
 
 #include "../libod/src/detection_internal.hpp"
 #include "../libod/src/search_region.hpp"
@@ -13,9 +14,29 @@
 namespace cairn::od {
 namespace {
 
-bool Inside(const internal::RowSpans& spans, int row, int col) {
-  return row >= spans.row_begin && row < spans.row_end && col >= spans.col_begin[row] &&
-         col < spans.col_end[row];
+// Checks that every compatible partner of every point lies in that point's search region;
+// returns the number of pairs checked.
+std::int64_t CheckEveryPartnerInside(const RangeImage& image, const DetectorConfig& config,
+                                     const std::string& what) {
+  const internal::LevelPoints level(image);
+  const PairTest test(config);
+  const internal::ConeRegion region(image, config);
+  internal::RowSpans spans(image.height());
+  std::int64_t checked = 0;
+  for (int p = 0; p < image.size(); ++p) {
+    if (!image.valid(p)) continue;
+    region.Compute(p, spans);
+    for (int q = 0; q < image.size(); ++q) {
+      if (!test(level.x[q] - level.x[p], level.y[q] - level.y[p], level.z[q] - level.z[p])) {
+        continue;
+      }
+      ++checked;
+      EXPECT_TRUE(spans.Contains(q / image.width(), q % image.width(), image.width()))
+          << what << ": partner " << q << " of " << p << " outside the region";
+      if (::testing::Test::HasFailure()) return checked;
+    }
+  }
+  return checked;
 }
 
 TEST(SearchRegion, ContainsEveryCompatiblePartner) {
@@ -45,25 +66,103 @@ TEST(SearchRegion, ContainsEveryCompatiblePartner) {
     config.min_slope_rad = 0.1 + 1.3 * u01(rng);
     config.region_slabs = 1 + static_cast<int>(rng() % 6);
 
-    const internal::LevelPoints level(*image);
-    const PairTest test(config);
-    const internal::PinholeConeRegion region(model, image->up(), config,
-                                             internal::NearestDepth(*image));
-    internal::RowSpans spans(model.height);
-    for (int p = 0; p < image->size(); ++p) {
-      if (!image->valid(p)) continue;
-      region.Compute(image->point(p), spans);
-      for (int q = 0; q < image->size(); ++q) {
-        if (!test(level.x[q] - level.x[p], level.y[q] - level.y[p], level.z[q] - level.z[p])) {
-          continue;
-        }
-        ++pairs_checked;
-        ASSERT_TRUE(Inside(spans, q / model.width, q % model.width))
-            << "trial " << trial << ": partner " << q << " of " << p << " outside the region";
-      }
-    }
+    pairs_checked += CheckEveryPartnerInside(*image, config, "pinhole trial " +
+                                                              std::to_string(trial));
   }
   EXPECT_GT(pairs_checked, 100000);  // the property was exercised, not vacuous
+}
+
+// A random spinning-LiDAR scan: every cell returns with probability 0.9 at a random range,
+// its direction jittered off the nominal ring by up to jitter / 200 rad and off the column
+// centre by up to jitter / 2 steps, into neighbouring columns (as
+// beam offsets and motion do), the sensor tilted at random.
+RangeImage RandomScan(std::mt19937& rng, const std::string& preset, int width, double jitter) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const SphericalModel model = *SphericalModel::Preset(preset, width);
+  std::vector<Eigen::Vector3f> points;
+  std::vector<std::int32_t> rows, cols;
+  const double base = 1.0 + 10.0 * u01(rng);
+  for (int r = 0; r < model.height(); ++r) {
+    for (int c = 0; c < width; ++c) {
+      if (u01(rng) < 0.1) continue;
+      const double e = model.ring_elevation_rad[r] + jitter * 0.01 * (u01(rng) - 0.5);
+      const double a = model.ColumnAzimuth(c) + jitter * model.azimuth_step_rad() * (u01(rng) - 0.5);
+      const double range = base * (0.3 + 2.0 * u01(rng));
+      points.emplace_back(range * std::cos(e) * std::cos(a), range * std::cos(e) * std::sin(a),
+                          range * std::sin(e));
+      rows.push_back(r);
+      cols.push_back(c);
+    }
+  }
+  const Eigen::Vector3d up(0.4 * (u01(rng) - 0.5), 0.4 * (u01(rng) - 0.5), 1.0);
+  return *RangeImage::FromPoints(points, model, up, rows, cols);
+}
+
+TEST(SearchRegion, ContainsEveryCompatiblePartnerOnLidarScans) {
+  std::mt19937 rng(2048);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::int64_t pairs_checked = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    const RangeImage image = RandomScan(rng, trial % 2 ? "VLP-16" : "OS1-64", 48 + trial * 4,
+                                        trial % 3 == 0 ? 0.0 : 4.0);
+    DetectorConfig config;
+    config.min_height_m = 0.05 + 0.5 * u01(rng);
+    config.max_height_m = config.min_height_m + 0.1 + 2.0 * u01(rng);
+    config.min_slope_rad = 0.1 + 1.3 * u01(rng);
+    // Many thin slabs leave the least slack, so that the column offsets matter.
+    config.region_slabs = trial % 2 ? 64 : 1 + static_cast<int>(rng() % 6);
+    pairs_checked += CheckEveryPartnerInside(image, config, "lidar trial " + std::to_string(trial));
+  }
+  EXPECT_GT(pairs_checked, 100000);
+}
+
+TEST(SearchRegion, LidarDetectionEqualsBruteForce) {
+  std::mt19937 rng(64);
+  for (int trial = 0; trial < 6; ++trial) {
+    const RangeImage image = RandomScan(rng, "VLP-16", 96, 4.0);
+    DetectorConfig config;
+    config.min_height_m = 0.2;
+    config.max_height_m = 1.5;
+    config.min_slope_rad = 0.6;
+    const Detection exact = *Detect(image, config);
+    const Detection brute = *DetectBruteForce(image, config);
+    EXPECT_EQ(exact.labels, brute.labels) << "trial " << trial;
+    EXPECT_EQ(exact.stats.pairs_compatible, brute.stats.pairs_compatible) << "trial " << trial;
+    EXPECT_GT(brute.stats.pairs_compatible, 0);
+    // The exact search must do less than the brute force's all pairs.
+    EXPECT_LT(exact.stats.pairs_tested, brute.stats.pairs_tested) << "trial " << trial;
+  }
+}
+
+TEST(RangeImage, LidarPointsGoBackToTheirCells) {
+  const SphericalModel model = *SphericalModel::Preset("VLP-16", 360);
+  std::vector<Eigen::Vector3f> points;
+  for (int r = 0; r < model.height(); ++r) {
+    for (int c = 0; c < model.width; c += 7) {
+      const double e = model.ring_elevation_rad[r], a = model.ColumnAzimuth(c);
+      const double range = 2.0 + 0.01 * c;
+      points.emplace_back(range * std::cos(e) * std::cos(a), range * std::cos(e) * std::sin(a),
+                          range * std::sin(e));
+    }
+  }
+  points.emplace_back(0.0f, 0.0f, 0.0f);  // no return
+  // Cells from the model alone (nearest ring, azimuth step): each point back in its cell,
+  // its coordinates stored exactly.
+  const RangeImage image = *RangeImage::FromPoints(points, model, Eigen::Vector3d::UnitZ());
+  std::size_t i = 0;
+  for (int r = 0; r < model.height(); ++r) {
+    for (int c = 0; c < model.width; c += 7, ++i) {
+      ASSERT_EQ(image.cell_of_point()[i], r * model.width + c) << "row " << r << " col " << c;
+      EXPECT_EQ(image.point(r * model.width + c).cast<float>(), points[i]);
+    }
+  }
+  EXPECT_EQ(image.cell_of_point().back(), -1);
+  EXPECT_EQ(image.valid_count(), static_cast<int>(points.size()) - 1);
+  // Cells outside the image are refused, naming the point.
+  const auto bad = RangeImage::FromPoints(points, model, Eigen::Vector3d::UnitZ(),
+                                          std::vector<std::int32_t>(points.size(), 16));
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("point 0"), std::string::npos) << bad.error().message;
 }
 
 TEST(SearchRegion, LevelCameraOnFlatGroundLooksUpwardOnly) {

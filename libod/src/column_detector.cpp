@@ -51,16 +51,14 @@ Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& c
   // 1. Column profiles: partners of each pixel among the pixels of its own column, limited
   //    to the rows its upper cone can reach (which is every row where a partner can be).
   if (image.valid_count() > 0) {
-    const auto& model = std::get<PinholeModel>(image.model());
-    const internal::PinholeConeRegion region(model, image.up(), pair_config,
-                                             internal::NearestDepth(image));
+    const internal::ConeRegion region(image, pair_config);
     internal::RowSpans spans(height);
     for (int p = 0; p < n; ++p) {
       if (!image.valid(p)) continue;
-      region.Compute(image.point(p), spans);
+      region.Compute(p, spans);
       const int col = p % width;
       for (int r = spans.row_begin; r < spans.row_end; ++r) {
-        if (col < spans.col_begin[r] || col >= spans.col_end[r]) continue;
+        if (!spans.Contains(r, col, width)) continue;
         const int q = r * width + col;
         ++stats.pairs_tested;
         const float dx = level.x[q] - level.x[p], dy = level.y[q] - level.y[p],

@@ -30,20 +30,25 @@ void ScanSpans(int p, const internal::RowSpans& spans, int width,
   for (int r = spans.row_begin; r < spans.row_end; ++r) {
     const int row = r * width;
     const std::size_t row_tiles = static_cast<std::size_t>(r) * tiles.tiles_per_row;
-    for (int c = spans.col_begin[r]; c < spans.col_end[r];) {
-      const int tile = c / kTile;
-      const int stop = std::min(spans.col_end[r], (tile + 1) * kTile);
-      if (tiles.MayHoldPartner(row_tiles + tile, px, py, pz, test)) {
-        stats.pairs_tested += stop - c;
-        for (int q = row + c; q < row + stop; ++q) {
-          const float dx = level.x[q] - px, dy = level.y[q] - py, dz = level.z[q] - pz;
-          if (!test(dx, dy, dz)) continue;
-          ++stats.pairs_compatible;
-          pairs.Add(p, dx, dy, dz);
-          sets.Union(p, q);
+    // A wrapped span (spherical images) is scanned as its two runs.
+    const int runs[2][2] = {{spans.col_begin[r], std::min(spans.col_end[r], width)},
+                            {0, spans.col_end[r] - width}};
+    for (const auto& run : runs) {
+      for (int c = run[0]; c < run[1];) {
+        const int tile = c / kTile;
+        const int stop = std::min(run[1], (tile + 1) * kTile);
+        if (tiles.MayHoldPartner(row_tiles + tile, px, py, pz, test)) {
+          stats.pairs_tested += stop - c;
+          for (int q = row + c; q < row + stop; ++q) {
+            const float dx = level.x[q] - px, dy = level.y[q] - py, dz = level.z[q] - pz;
+            if (!test(dx, dy, dz)) continue;
+            ++stats.pairs_compatible;
+            pairs.Add(p, dx, dy, dz);
+            sets.Union(p, q);
+          }
         }
+        c = stop;
       }
-      c = stop;
     }
   }
 }
@@ -95,9 +100,7 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   DetectionStats stats;
   if (image.valid_count() == 0) return Finish(image, level, sets, pairs, stats);
 
-  const auto& model = std::get<PinholeModel>(image.model());
-  const internal::PinholeConeRegion region(model, image.up(), config,
-                                           internal::NearestDepth(image));
+  const internal::ConeRegion region(image, config);
   const internal::RowTiles tiles(level, width, height);
 
   // Workers take blocks of rows of lower points in turn. Each lower point's pairs are found
@@ -123,11 +126,7 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
       const int p_end = std::min(height, (b + 1) * kBlockRows) * width;
       for (int p = b * kBlockRows * width; p < p_end; ++p) {
         if (!image.valid(p)) continue;
-        if (config.search == SearchMode::kExact) {
-          region.Compute(image.point(p), w.spans);
-        } else {
-          internal::PaperWindow(model, config, p / width, p % width, image.z()[p], w.spans);
-        }
+        region.Compute(p, w.spans);
         ScanSpans(p, w.spans, width, level, tiles, test, worker_sets, pairs, w.stats);
       }
     }

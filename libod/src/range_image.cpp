@@ -19,16 +19,10 @@ Expected<RangeImage> RangeImage::FromDepth(const std::vector<float>& depth_m,
                  std::to_string(model.width) + " x " + std::to_string(model.height)};
   }
   RangeImage image;
-  image.width_ = model.width;
-  image.height_ = model.height;
   image.model_ = model;
   if (Status s = image.SetUp(up_sensor); !s) return s.error();
 
-  constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-  image.x_.assign(n, kNaN);
-  image.y_.assign(n, kNaN);
-  image.z_.assign(n, kNaN);
-  image.valid_.assign(n, 0);
+  image.Allocate(model.width, model.height);
   for (int r = 0; r < model.height; ++r) {
     for (int c = 0; c < model.width; ++c) {
       const int i = r * model.width + c;
@@ -44,9 +38,66 @@ Expected<RangeImage> RangeImage::FromDepth(const std::vector<float>& depth_m,
   return image;
 }
 
+Expected<RangeImage> RangeImage::FromPoints(const std::vector<Eigen::Vector3f>& points,
+                                            const SphericalModel& model,
+                                            const Eigen::Vector3d& up_sensor,
+                                            const std::vector<std::int32_t>& rows,
+                                            const std::vector<std::int32_t>& cols) {
+  if (Status s = model.Validate(); !s) return s.error();
+  const auto size_error = [&](const char* what, std::size_t size) {
+    return Error{std::string("point cloud: '") + what + "' has " + std::to_string(size) +
+                 " entries for " + std::to_string(points.size()) + " points"};
+  };
+  if (!rows.empty() && rows.size() != points.size()) return size_error("rows", rows.size());
+  if (!cols.empty() && cols.size() != points.size()) return size_error("cols", cols.size());
+  RangeImage image;
+  image.model_ = model;
+  if (Status s = image.SetUp(up_sensor); !s) return s.error();
+  const int width = model.width, height = model.height();
+  image.Allocate(width, height);
+  image.cell_of_point_.assign(points.size(), -1);
+  std::vector<float> best_range(static_cast<std::size_t>(width) * height,
+                                std::numeric_limits<float>::infinity());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3f& p = points[i];
+    const float range = p.norm();
+    if (!std::isfinite(range) || range <= 0.0f) continue;
+    const int row = rows.empty() ? model.NearestRing(p.cast<double>()) : rows[i];
+    const int col = cols.empty() ? model.Column(p.cast<double>()) : cols[i];
+    if (row < 0 || row >= height || col < 0 || col >= width) {
+      return Error{"point cloud: point " + std::to_string(i) + " has cell (row " +
+                   std::to_string(row) + ", col " + std::to_string(col) + ") outside " +
+                   std::to_string(height) + " x " + std::to_string(width)};
+    }
+    const int cell = row * width + col;
+    image.cell_of_point_[i] = cell;
+    if (range >= best_range[cell]) continue;
+    best_range[cell] = range;
+    image.x_[cell] = p.x();
+    image.y_[cell] = p.y();
+    image.z_[cell] = p.z();
+    image.valid_[cell] = 1;
+  }
+  return image;
+}
+
+void RangeImage::Allocate(int width, int height) {
+  constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+  const std::size_t n = static_cast<std::size_t>(width) * height;
+  width_ = width;
+  height_ = height;
+  x_.assign(n, kNaN);
+  y_.assign(n, kNaN);
+  z_.assign(n, kNaN);
+  valid_.assign(n, 0);
+}
+
 Status RangeImage::SetUp(const Eigen::Vector3d& up_sensor) {
-  // The forward axis of every current model is the optical axis (+z).
-  Expected<Eigen::Matrix3d> R = LevelRotation(up_sensor, Eigen::Vector3d::UnitZ());
+  // Heading: the optical axis (+z) of a camera, +x of a LiDAR.
+  const Eigen::Vector3d forward = std::holds_alternative<PinholeModel>(model_)
+                                      ? Eigen::Vector3d::UnitZ()
+                                      : Eigen::Vector3d::UnitX();
+  Expected<Eigen::Matrix3d> R = LevelRotation(up_sensor, forward);
   if (!R) return Error{"range image: up vector " + R.error().message};
   R_level_sensor_ = *R;
   up_ = up_sensor.normalized();

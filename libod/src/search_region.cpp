@@ -167,20 +167,9 @@ void PinholeConeRegion::Compute(const Eigen::Vector3d& p, RowSpans& spans) const
   }
 }
 
-void PaperWindow(const PinholeModel& model, const DetectorConfig& config, int row, int col,
-                 double depth, RowSpans& spans) {
-  const double side = config.window_scale * model.fy * config.min_height_m / depth;
-  const int half = static_cast<int>(std::ceil(0.5 * side));
-  spans.row_begin = std::max(0, row - static_cast<int>(std::ceil(side)));
-  spans.row_end = row + 1;
-  const int c_lo = std::max(0, col - half);
-  const int c_hi = std::min(model.width, col + half + 1);
-  for (int r = spans.row_begin; r < spans.row_end; ++r) {
-    spans.col_begin[r] = c_lo;
-    spans.col_end[r] = c_hi;
-  }
-}
+namespace {
 
+// Smallest z-depth of a valid point: clipping the cone there loses nothing.
 double NearestDepth(const RangeImage& image) {
   double z_near = kInf;
   for (int i = 0; i < image.size(); ++i) {
@@ -188,6 +177,169 @@ double NearestDepth(const RangeImage& image) {
   }
   // Stored coordinates are floats: step just below the nearest so that nothing is clipped.
   return z_near * (1.0 - 1e-6);
+}
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Wraps an angle into (-pi, pi].
+double WrapPi(double a) {
+  a = std::remainder(a, 2.0 * kPi);
+  return a <= -kPi ? a + 2.0 * kPi : a;
+}
+
+double Elevation(const Eigen::Vector3d& p) { return std::atan2(p.z(), std::hypot(p.x(), p.y())); }
+
+}  // namespace
+
+SphericalConeRegion::SphericalConeRegion(const RangeImage& image, const SphericalModel& model,
+                                         const DetectorConfig& config)
+    : model_(model), up_(image.up()), tan_theta_(std::tan(config.min_slope_rad)),
+      row_elevation_min_(image.height(), kInf), row_elevation_max_(image.height(), -kInf) {
+  const int slabs = std::max(1, config.region_slabs);
+  for (int i = 0; i <= slabs; ++i) {
+    slab_heights_.push_back(config.min_height_m +
+                            (config.max_height_m - config.min_height_m) * i / slabs);
+  }
+  const int width = image.width();
+  for (int i = 0; i < image.size(); ++i) {
+    if (!image.valid(i)) continue;
+    const Eigen::Vector3d p = image.point(i);
+    const int row = i / width, col = i % width;
+    const double e = Elevation(p);
+    row_elevation_min_[row] = std::min(row_elevation_min_[row], e);
+    row_elevation_max_[row] = std::max(row_elevation_max_[row], e);
+    const double offset = WrapPi(std::atan2(p.y(), p.x()) - model_.ColumnAzimuth(col));
+    offset_min_ = std::min(offset_min_, offset);
+    offset_max_ = std::max(offset_max_, offset);
+  }
+}
+
+void SphericalConeRegion::Compute(const Eigen::Vector3d& p, int col, RowSpans& spans) const {
+  const int rows = model_.height(), width = model_.width;
+  const double step = model_.azimuth_step_rad();
+  spans.row_begin = rows;
+  spans.row_end = 0;
+  // Column intervals are unwrapped around the point's own column while slabs are merged.
+  int lo_all = 0, hi_all = -1;
+  bool full_circle = false;
+  double e_lo_all = kInf, e_hi_all = -kInf;
+  for (std::size_t i = 0; i + 1 < slab_heights_.size(); ++i) {
+    const double h0 = slab_heights_[i], h1 = slab_heights_[i + 1];
+    const Eigen::Vector3d c0 = p + h0 * up_, c1 = p + h1 * up_;
+    const Eigen::Vector3d m = 0.5 * (c0 + c1);
+    // The ball about m holding both rim disks (so their hull); widened against rounding.
+    const double half = 0.5 * (h1 - h0);
+    double radius = std::sqrt(half * half + (h1 / tan_theta_) * (h1 / tan_theta_));
+    const double distance = m.norm();
+    radius += 1e-5 * (distance + radius) + 1e-6;
+    if (distance <= radius) {  // the sensor is inside: every direction
+      e_lo_all = -kPi / 2;
+      e_hi_all = kPi / 2;
+      full_circle = true;
+      continue;
+    }
+    const double alpha = std::asin(radius / distance);
+    const double e_centre = std::asin(std::clamp(m.z() / distance, -1.0, 1.0));
+    const double e_lo = e_centre - alpha, e_hi = e_centre + alpha;
+    e_lo_all = std::min(e_lo_all, e_lo);
+    e_hi_all = std::max(e_hi_all, e_hi);
+    if (e_hi >= kPi / 2 || e_lo <= -kPi / 2) {  // the ball's directions hold a pole
+      full_circle = true;
+      continue;
+    }
+    const double spread = std::asin(std::min(1.0, std::sin(alpha) / std::cos(e_centre)));
+    const double az = std::atan2(m.y(), m.x());
+    // Column azimuth a(c) = start - c step must lie in [az - spread - offset_max,
+    // az + spread - offset_min], taken nearest to the point's column.
+    const double c_mid = col + WrapPi(model_.ColumnAzimuth(col) - az) / step;
+    const double c_half = (spread + std::max(offset_max_, -offset_min_)) / step;
+    const int lo = static_cast<int>(std::floor(c_mid - c_half - 1.0));
+    const int hi = static_cast<int>(std::ceil(c_mid + c_half + 1.0));
+    if (hi_all < lo_all) {
+      lo_all = lo;
+      hi_all = hi;
+    } else {
+      lo_all = std::min(lo_all, lo);
+      hi_all = std::max(hi_all, hi);
+    }
+  }
+  if (hi_all - lo_all + 1 >= width) full_circle = true;
+  int begin = 0, end = width;
+  if (!full_circle) {
+    if (hi_all < lo_all) return;  // no slab: empty region
+    begin = ((lo_all % width) + width) % width;
+    end = begin + (hi_all - lo_all + 1);
+  }
+  for (int r = 0; r < rows; ++r) {
+    if (row_elevation_max_[r] < e_lo_all || row_elevation_min_[r] > e_hi_all) continue;
+    spans.row_begin = std::min(spans.row_begin, r);
+    spans.row_end = r + 1;
+  }
+  for (int r = spans.row_begin; r < spans.row_end; ++r) {
+    const bool meets = row_elevation_max_[r] >= e_lo_all && row_elevation_min_[r] <= e_hi_all;
+    spans.col_begin[r] = meets ? begin : 0;
+    spans.col_end[r] = meets ? end : 0;
+  }
+  if (spans.row_begin >= spans.row_end) spans.row_begin = spans.row_end = 0;
+}
+
+ConeRegion::ConeRegion(const RangeImage& image, const DetectorConfig& config)
+    : image_(image), config_(config) {
+  if (config.search != SearchMode::kExact || image.valid_count() == 0) return;
+  if (const auto* pinhole = std::get_if<PinholeModel>(&image.model())) {
+    exact_.emplace<PinholeConeRegion>(*pinhole, image.up(), config, NearestDepth(image));
+  } else {
+    exact_.emplace<SphericalConeRegion>(image, std::get<SphericalModel>(image.model()), config);
+  }
+}
+
+void ConeRegion::Compute(int pixel, RowSpans& spans) const {
+  if (const auto* pinhole = std::get_if<PinholeConeRegion>(&exact_)) {
+    pinhole->Compute(image_.point(pixel), spans);
+  } else if (const auto* spherical = std::get_if<SphericalConeRegion>(&exact_)) {
+    spherical->Compute(image_.point(pixel), pixel % image_.width(), spans);
+  } else {
+    PaperWindow(pixel, spans);
+  }
+}
+
+void ConeRegion::PaperWindow(int pixel, RowSpans& spans) const {
+  const int row = pixel / image_.width(), col = pixel % image_.width();
+  // Side of the window in pixels: rows and columns per radian of the model.
+  double rows_per_rad = 0.0, cols_per_rad = 0.0, distance = 0.0;
+  if (const auto* pinhole = std::get_if<PinholeModel>(&image_.model())) {
+    rows_per_rad = pinhole->fy;
+    cols_per_rad = pinhole->fx;
+    distance = image_.z()[pixel];  // image size of a length L at depth z: f L / z
+  } else {
+    const auto& model = std::get<SphericalModel>(image_.model());
+    const double span = model.ring_elevation_rad.front() - model.ring_elevation_rad.back();
+    rows_per_rad = model.height() > 1 && span > 0 ? (model.height() - 1) / span : 1.0;
+    cols_per_rad = 1.0 / model.azimuth_step_rad();
+    distance = image_.range(pixel);
+  }
+  const double side_rad = config_.window_scale * config_.min_height_m / distance;
+  const int up_rows = static_cast<int>(std::ceil(side_rad * rows_per_rad));
+  const int half_cols = static_cast<int>(std::ceil(0.5 * side_rad * cols_per_rad));
+  const int width = image_.width();
+  const bool wraps = std::holds_alternative<SphericalModel>(image_.model());
+  int c_lo = col - half_cols, c_hi = col + half_cols + 1;
+  if (wraps && c_hi - c_lo >= width) {
+    c_lo = 0;
+    c_hi = width;
+  } else if (wraps) {
+    c_lo = ((c_lo % width) + width) % width;
+    c_hi = c_lo + 2 * half_cols + 1;
+  } else {
+    c_lo = std::max(0, c_lo);
+    c_hi = std::min(width, c_hi);
+  }
+  spans.row_begin = std::max(0, row - up_rows);
+  spans.row_end = row + 1;
+  for (int r = spans.row_begin; r < spans.row_end; ++r) {
+    spans.col_begin[r] = c_lo;
+    spans.col_end[r] = c_hi;
+  }
 }
 
 }  // namespace cairn::od::internal

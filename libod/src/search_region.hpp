@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <variant>
 #include <vector>
 
 #include "cairn/od/detector.hpp"
@@ -14,8 +15,10 @@
 
 namespace cairn::od::internal {
 
-/// Columns [col_begin[r], col_end[r]) of each row r in [row_begin, row_end). Buffers are
-/// sized once to the image height and reused, so nothing is allocated per pixel.
+/// Columns [col_begin[r], col_end[r]) of each row r in [row_begin, row_end). On a
+/// spherical image a span may wrap: col_begin is in [0, width) and col_end may exceed
+/// width, continuing at column 0. Buffers are sized once to the image height and reused,
+/// so nothing is allocated per pixel.
 struct RowSpans {
   int row_begin = 0;
   int row_end = 0;
@@ -24,6 +27,11 @@ struct RowSpans {
 
   explicit RowSpans(int rows) : col_begin(rows), col_end(rows) {}
   bool empty() const { return row_begin >= row_end; }
+  bool Contains(int row, int col, int width) const {
+    if (row < row_begin || row >= row_end) return false;
+    return (col >= col_begin[row] && col < col_end[row]) ||
+           (col + width >= col_begin[row] && col + width < col_end[row]);
+  }
 };
 
 /// Exact search region for a pinhole camera. The truncated cone (heights HT..Hmax above the
@@ -55,12 +63,43 @@ class PinholeConeRegion {
   double z_near_;
 };
 
-/// The paper's square window above a pixel: side = scale * (image height of an HT-tall
-/// object at the point's depth), from the pixel's row upwards, centred on its column.
-void PaperWindow(const PinholeModel& model, const DetectorConfig& config, int row, int col,
-                 double depth, RowSpans& spans);
+/// Exact search region for a spinning LiDAR. Each height slab of the cone lies in a ball;
+/// seen from the sensor, a ball spans an elevation interval and an azimuth interval in
+/// closed form. Rows are kept whose points' elevations (measured on the data, so beam
+/// offsets and motion are covered) meet the interval; columns whose centre azimuth, widened
+/// by the largest offset of any point from its column centre, meets the azimuth interval.
+class SphericalConeRegion {
+ public:
+  SphericalConeRegion(const RangeImage& image, const SphericalModel& model,
+                      const DetectorConfig& config);
 
-/// Smallest z-depth of a valid point (the near clipping depth that loses nothing).
-double NearestDepth(const RangeImage& image);
+  /// Region for the point `p` (sensor frame) stored at column `col`.
+  void Compute(const Eigen::Vector3d& p, int col, RowSpans& spans) const;
+
+ private:
+  SphericalModel model_;
+  Eigen::Vector3d up_;
+  std::vector<double> slab_heights_;
+  double tan_theta_;
+  std::vector<double> row_elevation_min_, row_elevation_max_;  // +inf / -inf: empty row
+  double offset_min_ = 0.0, offset_max_ = 0.0;  // point azimuth - column azimuth [rad]
+};
+
+/// The search region of every pixel of one image, by the config's mode and the image's
+/// sensor model: the exact cone projection, or the paper's square window above the pixel
+/// (side = scale * image size of an HT-tall object at the point's range, centred on its
+/// column).
+class ConeRegion {
+ public:
+  ConeRegion(const RangeImage& image, const DetectorConfig& config);
+  void Compute(int pixel, RowSpans& spans) const;
+
+ private:
+  void PaperWindow(int pixel, RowSpans& spans) const;
+
+  const RangeImage& image_;
+  DetectorConfig config_;
+  std::variant<std::monostate, PinholeConeRegion, SphericalConeRegion> exact_;
+};
 
 }  // namespace cairn::od::internal

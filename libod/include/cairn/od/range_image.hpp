@@ -26,6 +26,23 @@ class RangeImage {
                                         const PinholeModel& model,
                                         const Eigen::Vector3d& up_sensor);
 
+  /// From LiDAR points in the sensor frame (x forward, y left, z up) [m]. `rows` and `cols`
+  /// give each point's cell when the data knows it (ring field, organised scans); either may
+  /// be empty, and is then computed from the model (nearest nominal ring; azimuth step).
+  /// A point at the origin or non-finite is no return. Where several points fall in one
+  /// cell the nearest is stored; cell_of_point() maps every input point to its cell, so
+  /// per-cell results go back to every point. Fails on size mismatches, out-of-range cells,
+  /// an invalid model or a zero / non-finite up vector.
+  static Expected<RangeImage> FromPoints(const std::vector<Eigen::Vector3f>& points,
+                                         const SphericalModel& model,
+                                         const Eigen::Vector3d& up_sensor,
+                                         const std::vector<std::int32_t>& rows = {},
+                                         const std::vector<std::int32_t>& cols = {});
+
+  /// For images made by FromPoints: the cell (row * width + col) of each input point, -1
+  /// for no return. Empty for images made from depth.
+  const std::vector<std::int32_t>& cell_of_point() const { return cell_of_point_; }
+
   int width() const { return width_; }
   int height() const { return height_; }
   int size() const { return width_ * height_; }
@@ -57,6 +74,9 @@ class RangeImage {
   Eigen::Matrix3d R_level_sensor_ = Eigen::Matrix3d::Identity();
   std::vector<float> x_, y_, z_;
   std::vector<std::uint8_t> valid_;
+  std::vector<std::int32_t> cell_of_point_;
+
+  void Allocate(int width, int height);
 };
 
 }  // namespace cairn::od

@@ -7,7 +7,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 #include <variant>
+#include <vector>
 
 #include "cairn/od/expected.hpp"
 
@@ -37,7 +39,37 @@ struct PinholeModel {
   }
 };
 
-/// Every sensor model a RangeImage may carry (a spherical LiDAR model comes next).
-using SensorModel = std::variant<PinholeModel>;
+/// Spinning multi-ring LiDAR in its own frame (x forward, y left, z up): one row per laser
+/// ring, ordered from the top beam down, and one column per azimuth step. Column c looks at
+/// azimuth azimuth_start_rad - c * 2 pi / width (azimuth = atan2(y, x), so columns sweep
+/// clockwise seen from above, as KITTI and Ouster projections do).
+///
+/// The nominal elevations place points that come without a ring number; real sensors'
+/// points scatter around them (beam offsets, motion), which the exact cone search takes
+/// from the data rather than from this model.
+struct SphericalModel {
+  int width = 0;                             ///< azimuth steps per revolution
+  std::vector<double> ring_elevation_rad;    ///< one per row, top beam first [rad]
+  double azimuth_start_rad = 0.0;            ///< azimuth of column 0's centre [rad]
+
+  int height() const { return static_cast<int>(ring_elevation_rad.size()); }
+  double azimuth_step_rad() const;
+  /// Names the first bad field (width < 1, no rings, non-finite or unsorted elevations).
+  Status Validate() const;
+  /// Azimuth of column `col`'s centre [rad].
+  double ColumnAzimuth(double col) const;
+  /// Column of a point's azimuth, in [0, width).
+  int Column(const Eigen::Vector3d& p) const;
+  /// Row of the ring nearest to a point's elevation.
+  int NearestRing(const Eigen::Vector3d& p) const;
+
+  /// Nominal models of common sensors: "HDL-64E", "VLP-16", "VLP-32C", "OS1-64" (rings
+  /// evenly spread over the data sheet's vertical field of view, or its table for the
+  /// VLP-16 and VLP-32C), with `width` azimuth steps.
+  static Expected<SphericalModel> Preset(const std::string& name, int width);
+};
+
+/// Every sensor model a RangeImage may carry.
+using SensorModel = std::variant<PinholeModel, SphericalModel>;
 
 }  // namespace cairn::od
