@@ -4,7 +4,11 @@
 //   cairn_detector_benchmark --benchmark_repetitions=5 --benchmark_report_aggregates_only
 #include <benchmark/benchmark.h>
 
+#include <cstdint>
+#include <fstream>
 #include <map>
+#include <optional>
+#include <vector>
 
 #include "cairn/od/column_detector.hpp"
 #include "cairn/od/detector.hpp"
@@ -82,6 +86,56 @@ void BM_DetectColumns(benchmark::State& state) {
   }
 }
 
+// The RELLIS-3D Ouster OS1-64 scan in ../shared/datasets (64 x 2048, organised: index =
+// col * 64 + ring), or nothing when the folder is absent.
+const RangeImage* RellisScan() {
+  static const std::optional<RangeImage> scan = []() -> std::optional<RangeImage> {
+    std::ifstream in(CAIRN_SHARED_DATASETS "/rellis3d-000104/os1_bin/000104.bin",
+                     std::ios::binary);
+    if (!in) return std::nullopt;
+    std::vector<float> raw(131072 * 4);
+    in.read(reinterpret_cast<char*>(raw.data()), raw.size() * sizeof(float));
+    if (!in) return std::nullopt;
+    std::vector<Eigen::Vector3f> points(131072);
+    std::vector<std::int32_t> rows(points.size()), cols(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      points[i] = {raw[4 * i], raw[4 * i + 1], raw[4 * i + 2]};
+      rows[i] = static_cast<std::int32_t>(i % 64);
+      cols[i] = static_cast<std::int32_t>(i / 64);
+    }
+    auto model = cairn::od::SphericalModel::Preset("OS1-64", 2048);
+    auto image = RangeImage::FromPoints(points, *model, Eigen::Vector3d::UnitZ(), rows, cols);
+    if (!image) return std::nullopt;
+    return std::move(*image);
+  }();
+  return scan ? &*scan : nullptr;
+}
+
+// range(0): 0 the cone detector (exact), 1 the column baseline; range(1): threads.
+void BM_RellisLidar(benchmark::State& state) {
+  const RangeImage* image = RellisScan();
+  if (image == nullptr) {
+    state.SkipWithError("../shared/datasets/rellis3d-000104 is absent");
+    return;
+  }
+  cairn::od::DetectorConfig config;
+  config.threads = static_cast<int>(state.range(1));
+  for (auto _ : state) {
+    auto d = state.range(0) == 0
+                 ? cairn::od::Detect(*image, config)
+                 : cairn::od::DetectColumns(*image, cairn::od::ColumnConfig::From(config));
+    benchmark::DoNotOptimize(d);
+    Report(state, *d, *image);
+  }
+}
+
+BENCHMARK(BM_RellisLidar)
+    ->Args({0, 1})
+    ->Args({0, 0})
+    ->Args({1, 1})
+    ->ArgNames({"column", "threads"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK(BM_BruteForce)->Arg(80)->Arg(160)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DetectExact)
     ->ArgsProduct({{80, 160, 320, 640}, {1, 0}})
