@@ -3,26 +3,29 @@
 #include <cmath>
 #include <string>
 
+#include "parallel.hpp"
+
 namespace cairn::sim {
 
 RayCaster::RayCaster(const Scene& scene) : scene_(scene) {
   prepared_.reserve(scene.objects().size());
-  for (const Object& o : scene.objects()) prepared_.push_back({o.id, Bound(o.shape)});
+  for (const Object& o : scene.objects()) {
+    if (!IsTerrainFeature(o.shape)) prepared_.push_back({&o.shape, o.id, Bound(o.shape)});
+  }
 }
 
 std::optional<RayHit> RayCaster::Cast(const Ray& ray, const RenderOptions& options) const {
   std::optional<RayHit> best;
   double t_max = options.max_range_m;
-  const auto& objects = scene_.objects();
   // Objects first: a near object shortens the terrain march.
-  for (std::size_t i = 0; i < objects.size(); ++i) {
+  for (std::size_t i = 0; i < prepared_.size(); ++i) {
     const BoundingSphere& b = prepared_[i].bound;
     const Eigen::Vector3d oc = b.centre - ray.origin;
     const double along = oc.dot(ray.direction);
     const double r2 = b.radius_m * b.radius_m;
     if (oc.squaredNorm() - along * along > r2) continue;                   // passes beside
     if (along + b.radius_m < 0.0 || along - b.radius_m > t_max) continue;  // behind, beyond
-    if (auto hit = Intersect(objects[i].shape, ray, 0.0, t_max)) {
+    if (auto hit = Intersect(*prepared_[i].shape, ray, 0.0, t_max)) {
       hit->id = prepared_[i].id;
       t_max = hit->t;
       best = hit;
@@ -52,9 +55,9 @@ Expected<DepthFrame> RenderDepth(const Scene& scene, const Camera& camera,
 
   const RayCaster caster(scene);
   const Eigen::Matrix3d& rotation = camera.T_world_camera.linear();
-  Ray ray;
-  ray.origin = camera.T_world_camera.translation();
-  for (int row = 0; row < m.height; ++row) {
+  detail::ParallelRows(m.height, options.threads, [&](int row) {
+    Ray ray;
+    ray.origin = camera.T_world_camera.translation();
     for (int col = 0; col < m.width; ++col) {
       const Eigen::Vector3d d((col - m.cx) / m.fx, (row - m.cy) / m.fy, 1.0);
       const double length = d.norm();
@@ -66,7 +69,7 @@ Expected<DepthFrame> RenderDepth(const Scene& scene, const Camera& camera,
       frame.object_id[i] = hit->id;
       frame.normal[i] = hit->normal.cast<float>();
     }
-  }
+  });
   return frame;
 }
 

@@ -6,6 +6,7 @@
 #include <string>
 #include <unordered_set>
 #include <utility>
+#include <variant>
 
 namespace cairn::sim {
 
@@ -16,10 +17,26 @@ const Object* Scene::Find(int id) const {
   return nullptr;
 }
 
+void Scene::Carve(const Object& object) {
+  if (const auto* ditch = std::get_if<Ditch>(&object.shape)) {
+    terrain_.AddDitch(*ditch, object.id);
+  } else if (const auto* bank = std::get_if<Bank>(&object.shape)) {
+    terrain_.AddBank(*bank, object.id);
+  }
+}
+
+void Scene::set_terrain(Terrain terrain) {
+  base_terrain_ = std::move(terrain);
+  terrain_ = base_terrain_;
+  for (const Object& o : objects_) Carve(o);
+}
+
 int Scene::Add(const Shape& shape, bool is_obstacle, std::string name) {
   int id = 1;
   for (const Object& o : objects_) id = std::max(id, o.id + 1);
+  assert(!IsTerrainFeature(shape) || ValidateShape(shape).ok());
   objects_.push_back(Object{id, is_obstacle, shape, std::move(name)});
+  Carve(objects_.back());
   return id;
 }
 
@@ -35,6 +52,7 @@ Status Scene::Add(Object object) {
     return Error{"object " + std::to_string(object.id) + ": " + s.message()};
   }
   objects_.push_back(std::move(object));
+  Carve(objects_.back());
   return Status::Ok();
 }
 
@@ -73,6 +91,33 @@ int Scene::AddRidge(Ridge ridge, bool is_obstacle, std::string name) {
   ridge.base_centre.z() = base;
   ridge.height_m = top - base;
   return Add(ridge, is_obstacle, std::move(name));
+}
+
+int Scene::AddRod(const Eigen::Vector3d& start_above_ground,
+                  const Eigen::Vector3d& end_above_ground, double radius_m, bool is_obstacle,
+                  std::string name) {
+  assert(radius_m > 0.0 && (end_above_ground - start_above_ground).norm() > 0.0);
+  Eigen::Vector3d start = start_above_ground, end = end_above_ground;
+  start.z() += terrain_.Height(start.x(), start.y());
+  end.z() += terrain_.Height(end.x(), end.y());
+  return Add(Rod{start, end, radius_m}, is_obstacle, std::move(name));
+}
+
+int Scene::AddBush(double x, double y, const Eigen::Vector3d& radii, double height_m,
+                   double yaw_rad, int lumps, double lump_scale, std::uint64_t seed,
+                   bool is_obstacle, std::string name) {
+  assert(radii.minCoeff() > 0.0 && height_m > 0.0 && height_m <= 2.0 * radii.z());
+  const double top = terrain_.Height(x, y) + height_m;
+  return Add(MakeBush(x, y, top, radii, yaw_rad, lumps, lump_scale, seed), is_obstacle,
+             std::move(name));
+}
+
+int Scene::AddDitch(const Ditch& ditch, bool is_obstacle, std::string name) {
+  return Add(ditch, is_obstacle, std::move(name));
+}
+
+int Scene::AddBank(const Bank& bank, bool is_obstacle, std::string name) {
+  return Add(bank, is_obstacle, std::move(name));
 }
 
 Status Scene::Validate() const {

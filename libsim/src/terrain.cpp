@@ -1,7 +1,9 @@
 #include "cairn/sim/terrain.hpp"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -10,12 +12,51 @@ namespace {
 
 constexpr double kTwoPi = 6.283185307179586;
 
-double WaveArgument(const SineWave& w, double x, double y) {
-  return kTwoPi * (x * std::cos(w.direction_rad) + y * std::sin(w.direction_rad)) / w.wavelength_m +
-         w.phase_rad;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+bool SlopeOk(double a) { return std::isfinite(a) && a > 0.0 && a <= kMaxFeatureSlopeRad + 1e-12; }
+
+// Parameters t where x0 + t dx lies in [lo, hi], intersected with [*t0, *t1].
+bool ClipSlab(double x0, double dx, double lo, double hi, double* t0, double* t1) {
+  if (std::abs(dx) < 1e-15) return x0 >= lo && x0 <= hi;
+  double a = (lo - x0) / dx, b = (hi - x0) / dx;
+  if (a > b) std::swap(a, b);
+  *t0 = std::max(*t0, a);
+  *t1 = std::min(*t1, b);
+  return *t0 <= *t1;
 }
 
 }  // namespace
+
+double Ditch::FloorWidth() const { return top_width_m - 2.0 * depth_m / std::tan(wall_slope_rad); }
+
+double Bank::FaceWidth() const { return rise_m / std::tan(face_slope_rad); }
+
+Status ValidateDitch(const Ditch& d) {
+  if (!d.start.allFinite()) return Error{"start: must be finite"};
+  if (!d.end.allFinite()) return Error{"end: must be finite"};
+  if (!(d.end - d.start).allFinite() || (d.end - d.start).norm() <= 0.0) {
+    return Error{"end: must differ from start"};
+  }
+  if (!(std::isfinite(d.depth_m) && d.depth_m > 0.0)) return Error{"depth_m: must be > 0"};
+  if (!(std::isfinite(d.top_width_m) && d.top_width_m > 0.0)) {
+    return Error{"top_width_m: must be > 0"};
+  }
+  if (!SlopeOk(d.wall_slope_rad)) return Error{"wall_slope_rad: must be in (0, 85 deg]"};
+  if (d.FloorWidth() < -1e-9) {
+    return Error{"top_width_m: too narrow for depth_m at wall_slope_rad (no floor): needs >= " +
+                 std::to_string(2.0 * d.depth_m / std::tan(d.wall_slope_rad)) + " m"};
+  }
+  return Status::Ok();
+}
+
+Status ValidateBank(const Bank& b) {
+  if (!b.centre.allFinite()) return Error{"centre: must be finite"};
+  if (!std::isfinite(b.uphill_heading_rad)) return Error{"uphill_heading_rad: must be finite"};
+  if (!(std::isfinite(b.rise_m) && b.rise_m > 0.0)) return Error{"rise_m: must be > 0"};
+  if (!SlopeOk(b.face_slope_rad)) return Error{"face_slope_rad: must be in (0, 85 deg]"};
+  return Status::Ok();
+}
 
 Terrain Terrain::Flat(double height_m) {
   Terrain t;
@@ -36,10 +77,15 @@ Terrain Terrain::Slope(double height_m, double slope_rad, double uphill_heading_
                Eigen::Vector2d(g * std::cos(uphill_heading_rad), g * std::sin(uphill_heading_rad)));
 }
 
+Terrain::Wave Terrain::Prepare(const SineWave& w) {
+  const double k = kTwoPi / w.wavelength_m;
+  return {w.amplitude_m, k * std::cos(w.direction_rad), k * std::sin(w.direction_rad), w.phase_rad};
+}
+
 Terrain Terrain::Hills(double height_m, std::vector<SineWave> waves) {
   Terrain t;
   t.height_m_ = height_m;
-  t.waves_ = std::move(waves);
+  for (const SineWave& w : waves) t.waves_.push_back(Prepare(w));
   return t;
 }
 
@@ -74,6 +120,8 @@ Expected<Terrain> Terrain::FromGrid(HeightGrid grid) {
   Terrain t;
   // Inside a bilinear cell each partial derivative is a convex mix of edge differences.
   t.grid_max_gradient_ = std::hypot(max_dx, max_dy) / grid.resolution_m;
+  t.grid_max_slope_x_ = max_dx / grid.resolution_m;
+  t.grid_max_slope_y_ = max_dy / grid.resolution_m;
   t.grid_ = std::move(grid);
   return t;
 }
@@ -86,7 +134,7 @@ Terrain Terrain::FromFunction(std::function<double(double, double)> height, doub
 }
 
 Terrain& Terrain::AddWave(const SineWave& wave) {
-  waves_.push_back(wave);
+  waves_.push_back(Prepare(wave));
   return *this;
 }
 
@@ -94,6 +142,88 @@ Terrain& Terrain::AddPlane(double height_m, const Eigen::Vector2d& gradient) {
   height_m_ += height_m;
   gradient_ += gradient;
   return *this;
+}
+
+Terrain& Terrain::AddDitch(const Ditch& ditch, int id) {
+  assert(ValidateDitch(ditch).ok());
+  Feature f;
+  f.is_ditch = true;
+  f.id = id;
+  f.origin = ditch.start;
+  f.length = (ditch.end - ditch.start).norm();
+  f.u = (ditch.end - ditch.start) / f.length;
+  f.v = Eigen::Vector2d(-f.u.y(), f.u.x());
+  f.half_width = 0.5 * ditch.top_width_m;
+  f.depth = ditch.depth_m;
+  f.tan_slope = std::tan(ditch.wall_slope_rad);
+  f.mark_inner = f.half_width - f.depth / f.tan_slope;
+  features_.push_back(f);
+  return *this;
+}
+
+Terrain& Terrain::AddBank(const Bank& bank, int id) {
+  assert(ValidateBank(bank).ok());
+  Feature f;
+  f.is_ditch = false;
+  f.id = id;
+  f.origin = bank.centre;
+  f.v = Eigen::Vector2d(std::cos(bank.uphill_heading_rad), std::sin(bank.uphill_heading_rad));
+  f.u = Eigen::Vector2d(f.v.y(), -f.v.x());
+  f.half_width = 0.5 * bank.FaceWidth();
+  f.depth = bank.rise_m;
+  f.tan_slope = std::tan(bank.face_slope_rad);
+  features_.push_back(f);
+  return *this;
+}
+
+double Terrain::FeatureCoordinate(const Feature& f, double x, double y) const {
+  const Eigen::Vector2d q(x - f.origin.x(), y - f.origin.y());
+  if (!f.is_ditch) return q.dot(f.v);
+  const double a = std::clamp(q.dot(f.u), 0.0, f.length);
+  return (q - a * f.u).norm();
+}
+
+double Terrain::FeatureHeight(const Feature& f, double x, double y) const {
+  const double s = FeatureCoordinate(f, x, y);
+  if (f.is_ditch) return -std::clamp((f.half_width - s) * f.tan_slope, 0.0, f.depth);
+  if (f.half_width <= 0.0) return s >= 0.0 ? f.depth : 0.0;
+  return f.depth * std::clamp(0.5 + 0.5 * s / f.half_width, 0.0, 1.0);
+}
+
+Eigen::Vector2d Terrain::FeatureGradient(const Feature& f, double x, double y) const {
+  if (!FeatureMarks(f, x, y)) return Eigen::Vector2d::Zero();
+  if (!f.is_ditch) return f.tan_slope * f.v;
+  const Eigen::Vector2d q(x - f.origin.x(), y - f.origin.y());
+  const double a = std::clamp(q.dot(f.u), 0.0, f.length);
+  const Eigen::Vector2d out = q - a * f.u;
+  const double s = out.norm();
+  if (s <= 0.0) return Eigen::Vector2d::Zero();
+  return f.tan_slope * out / s;  // rises outwards, towards the rim
+}
+
+bool Terrain::FeatureMarks(const Feature& f, double x, double y) const {
+  const double s = FeatureCoordinate(f, x, y);
+  if (f.is_ditch) return s < f.half_width && s > f.mark_inner;
+  return std::abs(s) < f.half_width;
+}
+
+bool Terrain::FeatureSpan(const Feature& f, const Ray& ray, double* t0, double* t1) const {
+  constexpr double kMargin = 1e-6;  // [m], against rounding at the footprint's edge
+  const Eigen::Vector2d o(ray.origin.x() - f.origin.x(), ray.origin.y() - f.origin.y());
+  const Eigen::Vector2d d(ray.direction.x(), ray.direction.y());
+  *t0 = -kInf;
+  *t1 = kInf;
+  const double hw = f.half_width + kMargin;
+  if (!ClipSlab(o.dot(f.v), d.dot(f.v), -hw, hw, t0, t1)) return false;
+  if (f.is_ditch && !ClipSlab(o.dot(f.u), d.dot(f.u), -hw, f.length + hw, t0, t1)) return false;
+  return true;
+}
+
+int Terrain::IdAt(double x, double y) const {
+  for (const Feature& f : features_) {
+    if (f.id != kTerrainId && FeatureMarks(f, x, y)) return f.id;
+  }
+  return kTerrainId;
 }
 
 double Terrain::GridHeight(double x, double y) const {
@@ -108,20 +238,25 @@ double Terrain::GridHeight(double x, double y) const {
   return (1 - b) * ((1 - a) * row0[0] + a * row0[1]) + b * ((1 - a) * row1[0] + a * row1[1]);
 }
 
-double Terrain::Height(double x, double y) const {
+double Terrain::RestHeight(double x, double y) const {
   double h = height_m_ + gradient_.x() * x + gradient_.y() * y;
-  for (const SineWave& w : waves_) h += w.amplitude_m * std::sin(WaveArgument(w, x, y));
+  for (const Wave& w : waves_) h += w.amplitude * std::sin(w.kx * x + w.ky * y + w.phase);
   if (grid_) h += GridHeight(x, y);
   if (function_) h += function_(x, y);
   return h;
 }
 
+double Terrain::Height(double x, double y) const {
+  double h = RestHeight(x, y);
+  for (const Feature& f : features_) h += FeatureHeight(f, x, y);
+  return h;
+}
+
 Eigen::Vector3d Terrain::Normal(double x, double y) const {
   Eigen::Vector2d grad = gradient_;
-  for (const SineWave& w : waves_) {
-    const double k = kTwoPi / w.wavelength_m;
-    grad += w.amplitude_m * k * std::cos(WaveArgument(w, x, y)) *
-            Eigen::Vector2d(std::cos(w.direction_rad), std::sin(w.direction_rad));
+  for (const Wave& w : waves_) {
+    const double cos_arg = std::cos(w.kx * x + w.ky * y + w.phase);
+    grad += w.amplitude * cos_arg * Eigen::Vector2d(w.kx, w.ky);
   }
   if (grid_ || function_) {
     const double e = 1e-4;
@@ -134,6 +269,7 @@ Eigen::Vector3d Terrain::Normal(double x, double y) const {
     grad.x() += (rest(x + e, y) - rest(x - e, y)) / (2 * e);
     grad.y() += (rest(x, y + e) - rest(x, y - e)) / (2 * e);
   }
+  for (const Feature& f : features_) grad += FeatureGradient(f, x, y);
   return Eigen::Vector3d(-grad.x(), -grad.y(), 1.0).normalized();
 }
 
@@ -148,29 +284,54 @@ double Terrain::MinHeightOver(const Eigen::Vector2d& centre, double radius_m) co
     }
   }
   // Between samples the surface can dip at most this much below the nearest sample.
-  return lowest - MaxGradient() * spacing * 0.7071067811865476;
+  return lowest - MaxGradientNear(centre, radius_m) * spacing * 0.7071067811865476;
 }
 
-double Terrain::MaxGradient() const {
-  double bound = gradient_.norm() + grid_max_gradient_ + function_max_gradient_;
-  for (const SineWave& w : waves_) bound += kTwoPi * std::abs(w.amplitude_m) / w.wavelength_m;
+double Terrain::SmoothGradient() const {
+  double bound = grid_max_gradient_ + function_max_gradient_;
+  for (const Wave& w : waves_) bound += std::abs(w.amplitude) * std::hypot(w.kx, w.ky);
   return bound;
 }
 
-bool Terrain::IsPlanar() const { return waves_.empty() && !grid_ && !function_; }
+double Terrain::SmoothRate(double dx, double dy) const {
+  // Only the slope along the ray's horizontal direction can close the gap.
+  double rate = function_max_gradient_ * std::hypot(dx, dy);
+  if (grid_) rate += grid_max_slope_x_ * std::abs(dx) + grid_max_slope_y_ * std::abs(dy);
+  for (const Wave& w : waves_) rate += std::abs(w.amplitude * (w.kx * dx + w.ky * dy));
+  return rate;
+}
+
+double Terrain::MaxGradient() const {
+  double bound = gradient_.norm() + SmoothGradient();
+  for (const Feature& f : features_) bound += f.tan_slope;
+  return bound;
+}
+
+double Terrain::MaxGradientNear(const Eigen::Vector2d& centre, double radius_m) const {
+  double bound = gradient_.norm() + SmoothGradient();
+  const double reach = radius_m * 1.4142135623730951;  // the square's half-diagonal
+  for (const Feature& f : features_) {
+    const double s = FeatureCoordinate(f, centre.x(), centre.y());
+    if (std::abs(s) <= f.half_width + reach) bound += f.tan_slope;
+  }
+  return bound;
+}
+
+bool Terrain::IsPlanar() const {
+  return waves_.empty() && !grid_ && !function_ && features_.empty();
+}
 
 std::optional<RayHit> Terrain::Intersect(const Ray& ray, double t_max, double tolerance_m) const {
   const Eigen::Vector3d& o = ray.origin;
   const Eigen::Vector3d& d = ray.direction;
   // The plane part is exact along the ray; only the rest needs the gradient bound.
   const double plane_rise = gradient_.x() * d.x() + gradient_.y() * d.y();
-  auto above = [&](double t) {  // height of the ray above the surface at t
-    return o.z() + t * d.z() - Height(o.x() + t * d.x(), o.y() + t * d.y());
-  };
+  const Eigen::Vector3d plane_normal =
+      Eigen::Vector3d(-gradient_.x(), -gradient_.y(), 1.0).normalized();
   RayHit hit;
   hit.id = kTerrainId;
 
-  double g = above(0.0);
+  double g = o.z() - Height(o.x(), o.y());
   if (!(g > 0.0)) return std::nullopt;  // starts on or below the surface
 
   if (IsPlanar()) {
@@ -179,33 +340,152 @@ std::optional<RayHit> Terrain::Intersect(const Ray& ray, double t_max, double to
     const double t = g / closing;
     if (t > t_max) return std::nullopt;
     hit.t = t;
-    hit.normal = Eigen::Vector3d(-gradient_.x(), -gradient_.y(), 1.0).normalized();
+    hit.normal = plane_normal;
     return hit;
   }
 
   // March: the gap g(t) shrinks at most at rate `closing`, so a step of g / closing cannot
   // reach the surface, let alone cross it twice. A floor on the step keeps grazing rays
   // finite; it can only miss slivers thinner than the gradient bound times the floor.
-  const double rest_gradient = MaxGradient() - gradient_.norm();
-  const double closing = rest_gradient * std::hypot(d.x(), d.y()) + plane_rise - d.z();
-  if (!(closing > 0.0)) return std::nullopt;  // rises faster than any hill
-  double t = 0.0;
-  constexpr int kMaxSteps = 1000000;
-  for (int step = 0; step < kMaxSteps && t < t_max; ++step) {
-    const double min_step = 1e-4 * std::max(1.0, t);
-    const double t_next = std::min(t + std::max(g / closing, min_step), t_max);
-    const double g_next = above(t_next);
-    if (g_next <= 0.0) {
-      double lo = t, hi = t_next;
-      for (int halving = 0; halving < 200 && hi - lo > tolerance_m; ++halving) {
-        const double mid = 0.5 * (lo + hi);
-        (above(mid) > 0.0 ? lo : hi) = mid;
+  // Features add to the rate only over their footprint, so the ray is cut into pieces at
+  // their footprints' edges and each piece is marched with its own rate; a piece that sees
+  // only the plane is solved in closed form. Over a footprint a second, often longer, safe
+  // step exists: the surface stays under the envelope that lifts each feature there to its
+  // highest (a ditch filled in, a bank at its top), which has no feature slope, so a ray
+  // above the envelope may step by its gap to it over the rate without features.
+  const bool smooth = !waves_.empty() || grid_ || function_;
+  const double horizontal = std::hypot(d.x(), d.y());
+  const double smooth_closing = SmoothRate(d.x(), d.y()) + plane_rise - d.z();
+  auto highest = [](const Feature& f) { return f.is_ditch ? 0.0 : f.depth; };
+
+  if (!(smooth_closing > 0.0)) {
+    // The gap to the envelope of every feature never shrinks: if it is open now, the ray
+    // never comes down to the surface.
+    double envelope_gap = g;
+    for (const Feature& f : features_) {
+      envelope_gap += FeatureHeight(f, o.x(), o.y()) - highest(f);
+    }
+    if (envelope_gap > 0.0) return std::nullopt;
+  }
+
+  struct Span {
+    double t0, t1, rate;
+    std::size_t feature;
+    double slack;  // the feature's height below its highest at the last point evaluated
+  };
+  constexpr std::size_t kInline = 8;  // no allocation per ray for a few features
+  Span inline_spans[kInline];
+  std::vector<Span> more_spans;
+  Span* spans = inline_spans;
+  std::size_t span_count = 0;
+  for (std::size_t i = 0; i < features_.size(); ++i) {
+    const Feature& f = features_[i];
+    double t0 = 0.0, t1 = 0.0;
+    if (!(FeatureSpan(f, ray, &t0, &t1) && t1 > 0.0 && t0 < t_max)) continue;
+    // A bank's slope is all across its face; a ditch's turns round its ends.
+    const double along = f.is_ditch ? horizontal : std::abs(f.v.x() * d.x() + f.v.y() * d.y());
+    const Span span{t0, t1, f.tan_slope * along, i, 0.0};
+    if (span_count < kInline) {
+      inline_spans[span_count] = span;
+    } else {
+      if (more_spans.empty()) more_spans.assign(inline_spans, inline_spans + kInline);
+      more_spans.push_back(span);
+      spans = more_spans.data();
+    }
+    ++span_count;
+  }
+  // Gap at t; updates each span's slack.
+  auto gaps = [&](double t) {
+    const double x = o.x() + t * d.x(), y = o.y() + t * d.y();
+    double h = RestHeight(x, y);
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < features_.size(); ++i) {
+      const double c = FeatureHeight(features_[i], x, y);
+      h += c;
+      if (k < span_count && spans[k].feature == i) spans[k++].slack = c - highest(features_[i]);
+    }
+    return o.z() + t * d.z() - h;
+  };
+
+  // The crossing is bracketed: gap g_lo > 0 at lo, g_hi <= 0 at hi. Regula falsi with the
+  // Illinois fix shrinks the bracket from both sides (bisection takes over if it stalls);
+  // when an estimate looks within the tolerance, a probe one tolerance past it closes the
+  // bracket at once.
+  auto finish = [&](double lo, double g_lo, double hi, double g_hi) {
+    int side = 0;  // which end moved last: -1 lo, +1 hi
+    auto update = [&](double t_new, double g_new, bool illinois) {
+      if (g_new > 0.0) {
+        lo = t_new;
+        g_lo = g_new;
+        if (illinois && side == -1) g_hi *= 0.5;
+        side = -1;
+      } else {
+        hi = t_new;
+        g_hi = g_new;
+        if (illinois && side == 1) g_lo *= 0.5;
+        side = 1;
       }
-      hit.t = 0.5 * (lo + hi);
-      const Eigen::Vector3d p = ray.At(hit.t);
-      hit.normal = Normal(p.x(), p.y());
+    };
+    for (int iteration = 0; iteration < 200 && hi - lo > tolerance_m; ++iteration) {
+      double t_new = g_lo - g_hi > 0.0 ? lo + (hi - lo) * g_lo / (g_lo - g_hi) : 0.5 * (lo + hi);
+      if (iteration % 8 == 7 || !(t_new > lo && t_new < hi)) t_new = 0.5 * (lo + hi);
+      const double slope = (g_lo - g_hi) / (hi - lo);  // secant rate of the bracket
+      const double g_new = gaps(t_new);
+      update(t_new, g_new, true);
+      if (hi - lo > tolerance_m && std::abs(g_new) < slope * tolerance_m) {
+        const double probe = g_new > 0.0 ? t_new + tolerance_m : t_new - tolerance_m;
+        if (probe > lo && probe < hi) update(probe, gaps(probe), false);
+      }
+    }
+    hit.t = 0.5 * (lo + hi);
+    const Eigen::Vector3d p = ray.At(hit.t);
+    hit.normal = Normal(p.x(), p.y());
+    hit.id = features_.empty() ? kTerrainId : IdAt(p.x(), p.y());
+    return hit;
+  };
+
+  double t = 0.0;
+  if (span_count > 0) g = gaps(0.0);  // the slacks at the start
+  constexpr int kMaxSteps = 1000000;
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  for (int step = 0; step < kMaxSteps && t < t_max; ++step) {
+    // The rates hold up to the next footprint edge.
+    double closing = smooth_closing;
+    double envelope_gap = g;
+    double piece_end = t_max;
+    bool on_feature = false;
+    for (std::size_t k = 0; k < span_count; ++k) {
+      const Span& s = spans[k];
+      if (s.t0 > t) {
+        piece_end = std::min(piece_end, s.t0);
+      } else if (s.t1 > t) {
+        closing += s.rate;
+        envelope_gap += s.slack;
+        piece_end = std::min(piece_end, s.t1);
+        on_feature = true;
+      }
+    }
+    double reach = closing > 0.0 ? g / closing : kInfinity;
+    if (!smooth && !on_feature && reach <= piece_end - t) {
+      // Only the plane (and constant offsets) here: the crossing in closed form.
+      if (t + reach > t_max) return std::nullopt;
+      hit.t = t + reach;
+      hit.normal = plane_normal;
       return hit;
     }
+    if (on_feature && envelope_gap > 0.0) {
+      reach = std::max(reach, smooth_closing > 0.0 ? envelope_gap / smooth_closing : kInfinity);
+    }
+    double t_next;
+    if (reach == kInfinity) {
+      if (piece_end >= t_max) return std::nullopt;  // cannot come down to the surface
+      t_next = piece_end;                           // the gap cannot close before it
+    } else {
+      const double min_step = 1e-4 * std::max(1.0, t);
+      t_next = std::min(t + std::max(reach, min_step), piece_end);
+    }
+    const double g_next = gaps(t_next);
+    if (g_next <= 0.0) return finish(t, g, t_next, g_next);
     t = t_next;
     g = g_next;
   }

@@ -2,7 +2,9 @@
 //
 // Shapes are intersected in closed form and the terrain to `terrain_tolerance_m` along the
 // ray, so a rendered depth image is the scene up to float rounding: tests compare detector
-// outputs against it. Other sensors (LiDAR rings, stereo) will cast through RayCaster too.
+// outputs against it. The LiDAR (world.hpp) casts through RayCaster too; stereo noise is
+// applied to a rendered frame afterwards. Rows are rendered in parallel; the result does
+// not depend on the number of threads.
 #pragma once
 
 #include <Eigen/Core>
@@ -20,6 +22,8 @@ namespace cairn::sim {
 struct RenderOptions {
   double max_range_m = 100.0;         ///< farther hits are no hit (distance along the ray) [m]
   double terrain_tolerance_m = 1e-6;  ///< heightfield crossings bisected to this [m]
+  /// Worker threads; 0 uses every hardware thread. The result does not depend on it.
+  int threads = 0;
 };
 
 /// Casts rays into one scene. Holds a reference to the scene, which must outlive it.
@@ -31,7 +35,8 @@ class RayCaster {
   std::optional<RayHit> Cast(const Ray& ray, const RenderOptions& options) const;
 
  private:
-  struct Prepared {
+  struct Prepared {  // a solid (terrain features are in the terrain)
+    const Shape* shape;
     int id;
     BoundingSphere bound;
   };

@@ -1,0 +1,247 @@
+#include "cairn/sim/drive.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "cairn/sim/random_scene.hpp"
+
+namespace cairn::sim {
+namespace {
+
+constexpr double kPi = 3.141592653589793;
+
+double WrapAngle(double a) {
+  a = std::remainder(a, 2.0 * kPi);  // in [-pi, pi]
+  return a <= -kPi ? a + 2.0 * kPi : a;
+}
+
+// Standard normal from two uniform draws (Box-Muller): portable, unlike
+// std::normal_distribution, so a seed gives the same drive everywhere.
+double Gaussian(Random& rng) {
+  const double u1 = 1.0 - rng.Uniform(0.0, 1.0);  // (0, 1]
+  const double u2 = rng.Uniform(0.0, 1.0);
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
+}
+
+Status FieldError(const std::string& field, const std::string& what) {
+  return Error{"drive." + field + ": " + what};
+}
+
+Status CheckPositive(const std::string& field, double value) {
+  if (!std::isfinite(value) || value <= 0.0) {
+    return FieldError(field, "must be a finite number > 0, got " + std::to_string(value));
+  }
+  return {};
+}
+
+Status CheckSigma(const std::string& field, double value) {
+  if (!std::isfinite(value) || value < 0.0) {
+    return FieldError(field, "must be a finite number >= 0, got " + std::to_string(value));
+  }
+  return {};
+}
+
+// The checks a drive needs (DriveSpec::Validate, with the file's other rules, belongs to
+// the world loader).
+Status CheckDrivable(const DriveSpec& spec) {
+  if (Status s = CheckPositive("speed_mps", spec.speed_mps); !s) return s;
+  if (Status s = CheckPositive("frame_rate_hz", spec.frame_rate_hz); !s) return s;
+  if (Status s = CheckPositive("wheelbase_m", spec.wheelbase_m); !s) return s;
+  if (Status s = CheckPositive("track_m", spec.track_m); !s) return s;
+  if (Status s = CheckSigma("odom_sigma_per_m", spec.odom_sigma_per_m); !s) return s;
+  if (Status s = CheckSigma("odom_yaw_sigma_rad_per_m", spec.odom_yaw_sigma_rad_per_m); !s) {
+    return s;
+  }
+  if (Status s = CheckSigma("imu_sigma_rad", spec.imu_sigma_rad); !s) return s;
+  if (!std::isfinite(spec.imu_bias_rad)) return FieldError("imu_bias_rad", "must be finite");
+  if (!std::isfinite(spec.sensor_pitch_rad)) {
+    return FieldError("sensor_pitch_rad", "must be finite");
+  }
+  if (!spec.T_body_sensor_xyz.allFinite()) {
+    return FieldError("T_body_sensor_xyz", "must be finite");
+  }
+  for (std::size_t i = 0; i < spec.waypoints.size(); ++i) {
+    if (!spec.waypoints[i].allFinite()) {
+      return FieldError("waypoints[" + std::to_string(i) + "]", "must be finite");
+    }
+  }
+  return {};
+}
+
+// The waypoint polyline by arc length, extended along its first and last segments so that
+// the axles of a vehicle at either end still lie on a straight line.
+class Path {
+ public:
+  explicit Path(const std::vector<Eigen::Vector2d>& waypoints) {
+    for (const Eigen::Vector2d& p : waypoints) {
+      if (points_.empty() || (p - points_.back()).norm() > 1e-9) points_.push_back(p);
+    }
+    arc_.assign(points_.size(), 0.0);
+    for (std::size_t i = 1; i < points_.size(); ++i) {
+      arc_[i] = arc_[i - 1] + (points_[i] - points_[i - 1]).norm();
+    }
+  }
+
+  bool Drivable() const { return points_.size() >= 2; }
+  double Length() const { return arc_.back(); }
+
+  Eigen::Vector2d At(double s) const {
+    // Segment i holds [arc_[i], arc_[i+1]]; beyond the ends, the end segments extend.
+    const auto it = std::upper_bound(arc_.begin(), arc_.end(), s);
+    std::size_t i = it == arc_.begin() ? 0 : static_cast<std::size_t>(it - arc_.begin()) - 1;
+    i = std::min(i, points_.size() - 2);
+    const Eigen::Vector2d d = points_[i + 1] - points_[i];
+    return points_[i] + (s - arc_[i]) / d.norm() * d;
+  }
+
+ private:
+  std::vector<Eigen::Vector2d> points_;
+  std::vector<double> arc_;
+};
+
+Eigen::Matrix3d Rx(double a) { return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX()).matrix(); }
+Eigen::Matrix3d Ry(double a) { return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitY()).matrix(); }
+Eigen::Matrix3d Rz(double a) { return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()).matrix(); }
+
+// x, y, yaw composed with an increment given in the pose's own frame.
+Pose2D Compose(const Pose2D& a, double dx, double dy, double dyaw) {
+  const double c = std::cos(a.yaw_rad), s = std::sin(a.yaw_rad);
+  return {a.x_m + c * dx - s * dy, a.y_m + s * dx + c * dy, WrapAngle(a.yaw_rad + dyaw)};
+}
+
+}  // namespace
+
+Eigen::Matrix3d RotationOpticalFromFlu() {
+  Eigen::Matrix3d R;
+  R << 0.0, -1.0, 0.0,  // x right = -y left
+      0.0, 0.0, -1.0,   // y down = -z up
+      1.0, 0.0, 0.0;    // z forward = x forward
+  return R;
+}
+
+Eigen::Matrix3d RotationFromAttitude(const Attitude& attitude) {
+  return Rz(attitude.yaw_rad) * Ry(attitude.pitch_rad) * Rx(attitude.roll_rad);
+}
+
+Attitude AttitudeFromRotation(const Eigen::Matrix3d& R) {
+  Attitude a;
+  a.pitch_rad = std::atan2(-R(2, 0), std::hypot(R(0, 0), R(1, 0)));
+  a.yaw_rad = std::atan2(R(1, 0), R(0, 0));
+  a.roll_rad = std::atan2(R(2, 1), R(2, 2));
+  return a;
+}
+
+Eigen::Isometry3d BodyToSensor(const DriveSpec& spec, SensorFrame sensor) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = spec.T_body_sensor_xyz;
+  // Pitching down turns x (forward) towards -z: a positive rotation about the body's y.
+  T.linear() = Ry(spec.sensor_pitch_rad);
+  if (sensor == SensorFrame::kCameraOptical) {
+    T.linear() = T.linear() * RotationOpticalFromFlu().transpose();
+  }
+  return T;
+}
+
+std::uint64_t MixSeed(std::uint64_t seed, std::uint64_t index) {
+  std::uint64_t z = seed + 0x9E3779B97F4A7C15ULL * (index + 1);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+  return z ^ (z >> 31);
+}
+
+int DriveFrameCount(const DriveSpec& spec) {
+  if (!CheckDrivable(spec)) return 0;
+  const Path path(spec.waypoints);
+  if (!path.Drivable()) return 0;
+  const double frames = path.Length() / spec.speed_mps * spec.frame_rate_hz;
+  return static_cast<int>(std::floor(frames + 1e-9)) + 1;
+}
+
+Expected<Drive> SimulateDrive(const Terrain& terrain, const DriveSpec& spec, SensorFrame sensor,
+                              std::uint64_t seed, int max_frames) {
+  if (Status s = CheckDrivable(spec); !s) return s.error();
+  const Path path(spec.waypoints);
+  if (!path.Drivable()) {
+    return Error{"drive.waypoints: need at least two distinct points, got " +
+                 std::to_string(spec.waypoints.size())};
+  }
+  int frames = DriveFrameCount(spec);
+  if (max_frames > 0) frames = std::min(frames, max_frames);
+
+  Drive drive;
+  drive.sensor = sensor;
+  drive.T_body_sensor = BodyToSensor(spec, sensor);
+  drive.path_length_m = path.Length();
+
+  // Drawn in a fixed order, once per drive, then per frame.
+  Random rng(MixSeed(seed, 0x647269766555ULL));  // "driveU"
+  drive.errors.odom_scale_error = spec.odom_sigma_per_m * Gaussian(rng);
+  drive.errors.odom_yaw_drift_rad_per_m = spec.odom_yaw_sigma_rad_per_m * Gaussian(rng);
+  drive.errors.imu_roll_bias_rad = spec.imu_bias_rad;
+  drive.errors.imu_pitch_bias_rad = spec.imu_bias_rad;
+
+  const double half_base = 0.5 * spec.wheelbase_m, half_track = 0.5 * spec.track_m;
+  drive.samples.reserve(frames);
+  for (int k = 0; k < frames; ++k) {
+    DriveSample sample;
+    sample.index = k;
+    sample.stamp_s = k / spec.frame_rate_hz;
+    sample.distance_m = std::min(spec.speed_mps * sample.stamp_s, path.Length());
+    const double s = sample.distance_m;
+
+    // Pose on the ground: axles on the path, the plane through the four wheel contacts.
+    const Eigen::Vector2d xy = path.At(s);
+    const Eigen::Vector2d chord = path.At(s + half_base) - path.At(s - half_base);
+    const double yaw = std::atan2(chord.y(), chord.x());
+    const Eigen::Vector2d forward(std::cos(yaw), std::sin(yaw)), left(-forward.y(), forward.x());
+    const double h_fl = terrain.Height(xy + half_base * forward + half_track * left);
+    const double h_fr = terrain.Height(xy + half_base * forward - half_track * left);
+    const double h_rl = terrain.Height(xy - half_base * forward + half_track * left);
+    const double h_rr = terrain.Height(xy - half_base * forward - half_track * left);
+    // Slopes along the heading and to the left (exact for a plane, whose heights are linear);
+    // with R = Rz Ry Rx the body's x and y axes lie in the plane when tan(pitch) = -slope_x
+    // and tan(roll) = cos(pitch) slope_y.
+    const double slope_x = 0.5 * ((h_fl + h_fr) - (h_rl + h_rr)) / spec.wheelbase_m;
+    const double slope_y = 0.5 * ((h_fl + h_rl) - (h_fr + h_rr)) / spec.track_m;
+    sample.attitude.yaw_rad = yaw;
+    sample.attitude.pitch_rad = -std::atan(slope_x);
+    sample.attitude.roll_rad = std::atan(std::cos(sample.attitude.pitch_rad) * slope_y);
+
+    sample.T_world_body.linear() = RotationFromAttitude(sample.attitude);
+    sample.T_world_body.translation() << xy, 0.25 * (h_fl + h_fr + h_rl + h_rr);
+    sample.T_world_sensor = sample.T_world_body * drive.T_body_sensor;
+    sample.true_planar = {xy.x(), xy.y(), yaw};
+
+    // Odometry: the true planar increment in the previous body frame, with errors.
+    if (k == 0) {
+      sample.odometry = sample.true_planar;
+    } else {
+      const DriveSample& prev = drive.samples.back();
+      const Pose2D& a = prev.true_planar;
+      const Eigen::Vector2d delta = xy - Eigen::Vector2d(a.x_m, a.y_m);
+      const double c = std::cos(a.yaw_rad), sn = std::sin(a.yaw_rad);
+      const double d = delta.norm();
+      const double walk = spec.odom_sigma_per_m * std::sqrt(d);
+      const double yaw_walk = spec.odom_yaw_sigma_rad_per_m * std::sqrt(d);
+      const double scale = 1.0 + drive.errors.odom_scale_error;
+      const double dx = scale * (c * delta.x() + sn * delta.y()) + walk * Gaussian(rng);
+      const double dy = scale * (-sn * delta.x() + c * delta.y()) + walk * Gaussian(rng);
+      const double dyaw = WrapAngle(yaw - a.yaw_rad) + drive.errors.odom_yaw_drift_rad_per_m * d +
+                          yaw_walk * Gaussian(rng);
+      sample.odometry = Compose(prev.odometry, dx, dy, dyaw);
+    }
+
+    // IMU attitude.
+    const double n_roll = Gaussian(rng), n_pitch = Gaussian(rng), n_yaw = Gaussian(rng);
+    sample.imu.roll_rad =
+        sample.attitude.roll_rad + drive.errors.imu_roll_bias_rad + spec.imu_sigma_rad * n_roll;
+    sample.imu.pitch_rad =
+        sample.attitude.pitch_rad + drive.errors.imu_pitch_bias_rad + spec.imu_sigma_rad * n_pitch;
+    sample.imu.yaw_rad = WrapAngle(sample.attitude.yaw_rad + spec.imu_sigma_rad * n_yaw);
+    drive.samples.push_back(sample);
+  }
+  return drive;
+}
+
+}  // namespace cairn::sim
