@@ -1,0 +1,262 @@
+// The simulated drive: poses that follow the ground, odometry drift, IMU noise and bias.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "cairn/sim/camera.hpp"
+#include "cairn/sim/drive.hpp"
+#include "cairn/sim/terrain.hpp"
+
+namespace cairn::sim {
+namespace {
+
+constexpr double kPi = 3.141592653589793;
+constexpr double kDeg = kPi / 180.0;
+
+DriveSpec NoiselessSpec(std::vector<Eigen::Vector2d> waypoints) {
+  DriveSpec spec;
+  spec.waypoints = std::move(waypoints);
+  spec.odom_sigma_per_m = 0.0;
+  spec.odom_yaw_sigma_rad_per_m = 0.0;
+  spec.imu_sigma_rad = 0.0;
+  spec.imu_bias_rad = 0.0;
+  return spec;
+}
+
+// A path with straight parts and turns both ways.
+std::vector<Eigen::Vector2d> WindingPath() {
+  return {{0.0, 0.0}, {12.0, 0.0}, {18.0, 6.0}, {18.0, 14.0}, {6.0, 20.0}, {-4.0, 12.0}};
+}
+
+double Distance(const Pose2D& a, const Pose2D& b) {
+  return std::hypot(a.x_m - b.x_m, a.y_m - b.y_m);
+}
+
+TEST(SimDrive, FrameCountFollowsLengthSpeedAndRate) {
+  DriveSpec spec = NoiselessSpec({{0.0, 0.0}, {10.0, 0.0}});
+  spec.speed_mps = 2.0;
+  spec.frame_rate_hz = 10.0;
+  EXPECT_EQ(DriveFrameCount(spec), 51);  // 5 s at 10 Hz, both ends
+  const Expected<Drive> drive = SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 1);
+  ASSERT_TRUE(drive.ok()) << drive.error().message;
+  ASSERT_EQ(drive->samples.size(), 51u);
+  EXPECT_DOUBLE_EQ(drive->path_length_m, 10.0);
+  EXPECT_DOUBLE_EQ(drive->samples.back().stamp_s, 5.0);
+  EXPECT_NEAR(drive->samples.back().T_world_body.translation().x(), 10.0, 1e-12);
+  EXPECT_NEAR(drive->samples[7].distance_m, 1.4, 1e-12);
+
+  const Expected<Drive> short_drive =
+      SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 1, 5);
+  ASSERT_TRUE(short_drive.ok());
+  EXPECT_EQ(short_drive->samples.size(), 5u);
+}
+
+TEST(SimDrive, FlatGroundGivesZeroPitchAndRoll) {
+  const DriveSpec spec = NoiselessSpec(WindingPath());
+  const Expected<Drive> drive =
+      SimulateDrive(Terrain::Flat(0.3), spec, SensorFrame::kCameraOptical, 7);
+  ASSERT_TRUE(drive.ok()) << drive.error().message;
+  ASSERT_GT(drive->samples.size(), 100u);
+  od::PinholeModel model = PinholeFromFov(64, 48, 1.2);
+  for (const DriveSample& s : drive->samples) {
+    EXPECT_NEAR(s.attitude.pitch_rad, 0.0, 1e-12) << "frame " << s.index;
+    EXPECT_NEAR(s.attitude.roll_rad, 0.0, 1e-12) << "frame " << s.index;
+    EXPECT_NEAR(s.T_world_body.translation().z(), 0.3, 1e-12);
+    // The camera is the one a level camera at the mount, pitched down, would be.
+    const Eigen::Vector3d position = s.T_world_body * spec.T_body_sensor_xyz;
+    const Camera expected =
+        Camera::FromAttitude(model, position, s.attitude.yaw_rad, spec.sensor_pitch_rad, 0.0);
+    EXPECT_TRUE(s.T_world_sensor.matrix().isApprox(expected.T_world_camera.matrix(), 1e-12))
+        << "frame " << s.index;
+  }
+}
+
+TEST(SimDrive, PlanarSlopeGivesAnalyticPitchAndRoll) {
+  const double slope = 15.0 * kDeg, uphill = 30.0 * kDeg;
+  const Terrain terrain = Terrain::Slope(0.5, slope, uphill);
+  const Eigen::Vector3d normal = terrain.Normal(0.0, 0.0);
+  for (double heading_deg = -180.0; heading_deg < 180.0; heading_deg += 22.5) {
+    const double h = heading_deg * kDeg;
+    const Eigen::Vector2d dir(std::cos(h), std::sin(h));
+    const Expected<Drive> drive = SimulateDrive(
+        terrain,
+        NoiselessSpec({Eigen::Vector2d(1.0, -2.0), Eigen::Vector2d(1.0, -2.0) + 8.0 * dir}),
+        SensorFrame::kLidar, 3);
+    ASSERT_TRUE(drive.ok()) << drive.error().message;
+    // Nose down when going downhill; left side up when uphill is to the left.
+    const double pitch = -std::atan(std::tan(slope) * std::cos(h - uphill));
+    const double roll = std::atan(std::cos(pitch) * std::tan(slope) * std::sin(uphill - h));
+    for (const DriveSample& s : drive->samples) {
+      EXPECT_NEAR(s.attitude.pitch_rad, pitch, 1e-12) << "heading " << heading_deg;
+      EXPECT_NEAR(s.attitude.roll_rad, roll, 1e-12) << "heading " << heading_deg;
+      EXPECT_NEAR(std::remainder(s.attitude.yaw_rad - h, 2 * kPi), 0.0, 1e-12);
+      // The body stands on the plane: its z axis is the plane's normal, its origin on it.
+      const Eigen::Matrix3d R = s.T_world_body.linear();
+      EXPECT_NEAR((R.col(2) - normal).norm(), 0.0, 1e-12);
+      const Eigen::Vector3d p = s.T_world_body.translation();
+      EXPECT_NEAR(p.z(), terrain.Height(p.x(), p.y()), 1e-12);
+    }
+  }
+  // The textbook cases: straight uphill, and across with uphill on the left.
+  const Expected<Drive> up = SimulateDrive(
+      terrain, NoiselessSpec({{0.0, 0.0}, {5.0 * std::cos(uphill), 5.0 * std::sin(uphill)}}),
+      SensorFrame::kLidar, 3);
+  ASSERT_TRUE(up.ok());
+  EXPECT_NEAR(up->samples[3].attitude.pitch_rad, -slope, 1e-12);
+  EXPECT_NEAR(up->samples[3].attitude.roll_rad, 0.0, 1e-12);
+  const double across = uphill - 90.0 * kDeg;
+  const Expected<Drive> side = SimulateDrive(
+      terrain, NoiselessSpec({{0.0, 0.0}, {5.0 * std::cos(across), 5.0 * std::sin(across)}}),
+      SensorFrame::kLidar, 3);
+  ASSERT_TRUE(side.ok());
+  EXPECT_NEAR(side->samples[3].attitude.pitch_rad, 0.0, 1e-12);
+  EXPECT_NEAR(side->samples[3].attitude.roll_rad, slope, 1e-12);
+}
+
+TEST(SimDrive, SensorPoseIsBodyTimesMount) {
+  DriveSpec spec = NoiselessSpec(WindingPath());
+  spec.T_body_sensor_xyz = {0.7, -0.2, 1.8};
+  spec.sensor_pitch_rad = 0.2;
+  const Terrain hills = Terrain::Hills(0.0, {{0.4, 15.0, 0.3, 0.0}, {0.2, 7.0, 2.0, 1.0}});
+  for (SensorFrame frame : {SensorFrame::kCameraOptical, SensorFrame::kLidar}) {
+    const Expected<Drive> drive = SimulateDrive(hills, spec, frame, 5);
+    ASSERT_TRUE(drive.ok());
+    const Eigen::Isometry3d mount = BodyToSensor(spec, frame);
+    EXPECT_TRUE(mount.translation().isApprox(spec.T_body_sensor_xyz));
+    // The sensor looks forward and down on the body: optical z or LiDAR x.
+    const Eigen::Vector3d look = mount.linear().col(frame == SensorFrame::kCameraOptical ? 2 : 0);
+    EXPECT_NEAR(look.x(), std::cos(0.2), 1e-12);
+    EXPECT_NEAR(look.z(), -std::sin(0.2), 1e-12);
+    for (const DriveSample& s : drive->samples) {
+      EXPECT_TRUE(s.T_world_sensor.isApprox(s.T_world_body * mount, 1e-12));
+      EXPECT_TRUE(s.T_world_body.linear().isUnitary(1e-12));
+    }
+  }
+}
+
+TEST(SimDrive, AttitudeRoundTrips) {
+  for (double roll : {-2.5, -0.3, 0.0, 0.4, 3.0}) {
+    for (double pitch : {-1.5, -0.2, 0.0, 0.7, 1.5}) {
+      for (double yaw : {-3.1, -1.0, 0.0, 2.0, 3.1}) {
+        const Attitude a = AttitudeFromRotation(RotationFromAttitude({roll, pitch, yaw}));
+        EXPECT_NEAR(a.roll_rad, roll, 1e-9);
+        EXPECT_NEAR(a.pitch_rad, pitch, 1e-9);
+        EXPECT_NEAR(a.yaw_rad, yaw, 1e-9);
+      }
+    }
+  }
+}
+
+TEST(SimDrive, OdometryIsExactWithZeroNoise) {
+  const Terrain hills = Terrain::Hills(0.0, {{0.5, 10.0, 0.7, 0.0}});
+  const Expected<Drive> drive =
+      SimulateDrive(hills, NoiselessSpec(WindingPath()), SensorFrame::kCameraOptical, 11);
+  ASSERT_TRUE(drive.ok());
+  for (const DriveSample& s : drive->samples) {
+    EXPECT_NEAR(Distance(s.odometry, s.true_planar), 0.0, 1e-9) << "frame " << s.index;
+    EXPECT_NEAR(std::remainder(s.odometry.yaw_rad - s.true_planar.yaw_rad, 2 * kPi), 0.0, 1e-9);
+    EXPECT_NEAR(s.imu.roll_rad, s.attitude.roll_rad, 1e-15);
+    EXPECT_NEAR(s.imu.pitch_rad, s.attitude.pitch_rad, 1e-15);
+  }
+}
+
+TEST(SimDrive, OdometryDriftGrowsWithDistance) {
+  DriveSpec spec;
+  spec.waypoints = WindingPath();
+  spec.odom_sigma_per_m = 0.02;
+  spec.odom_yaw_sigma_rad_per_m = 0.004;
+  // Mean squared position error over many seeded drives, at a quarter, half and all of it.
+  const int kSeeds = 40;
+  double sq[3] = {0.0, 0.0, 0.0};
+  for (int seed = 1; seed <= kSeeds; ++seed) {
+    const Expected<Drive> drive =
+        SimulateDrive(Terrain::Flat(), spec, SensorFrame::kCameraOptical, seed);
+    ASSERT_TRUE(drive.ok());
+    const std::vector<DriveSample>& samples = drive->samples;
+    EXPECT_EQ(Distance(samples[0].odometry, samples[0].true_planar), 0.0);
+    const std::size_t n = samples.size() - 1;
+    const std::size_t at[3] = {n / 4, n / 2, n};
+    for (int i = 0; i < 3; ++i) {
+      sq[i] += std::pow(Distance(samples[at[i]].odometry, samples[at[i]].true_planar), 2);
+    }
+  }
+  EXPECT_GT(sq[0], 0.0);
+  EXPECT_GT(sq[1], 1.5 * sq[0]);
+  EXPECT_GT(sq[2], 1.5 * sq[1]);
+  // At the end of ~55 m, a 2% per metre drift is metres, not millimetres nor kilometres.
+  const double rms_end = std::sqrt(sq[2] / kSeeds);
+  EXPECT_GT(rms_end, 0.3);
+  EXPECT_LT(rms_end, 10.0);
+}
+
+TEST(SimDrive, ImuHasItsBiasAndNoise) {
+  DriveSpec spec = NoiselessSpec({{0.0, 0.0}, {400.0, 0.0}});
+  spec.imu_sigma_rad = 0.01;
+  spec.imu_bias_rad = 0.03;
+  const Expected<Drive> drive =
+      SimulateDrive(Terrain::Slope(0.0, 0.1, 1.0), spec, SensorFrame::kCameraOptical, 2);
+  ASSERT_TRUE(drive.ok());
+  double sum = 0.0, sum_sq = 0.0, yaw_sum = 0.0;
+  int n = 0;
+  for (const DriveSample& s : drive->samples) {
+    const double e = s.imu.pitch_rad - s.attitude.pitch_rad;
+    sum += e;
+    sum_sq += e * e;
+    yaw_sum += s.imu.yaw_rad - s.attitude.yaw_rad;
+    ++n;
+  }
+  ASSERT_EQ(n, 2001);
+  const double mean = sum / n, sigma = std::sqrt(sum_sq / n - mean * mean);
+  EXPECT_NEAR(mean, 0.03, 4.0 * 0.01 / std::sqrt(n));
+  EXPECT_NEAR(sigma, 0.01, 0.001);
+  EXPECT_NEAR(yaw_sum / n, 0.0, 4.0 * 0.01 / std::sqrt(n));
+  EXPECT_DOUBLE_EQ(drive->errors.imu_roll_bias_rad, 0.03);
+}
+
+TEST(SimDrive, SameSeedSameDriveOtherSeedOtherDrift) {
+  DriveSpec spec;
+  spec.waypoints = WindingPath();
+  const Terrain hills = Terrain::Hills(0.0, {{0.3, 9.0, 0.2, 0.0}});
+  const Expected<Drive> a = SimulateDrive(hills, spec, SensorFrame::kCameraOptical, 42);
+  const Expected<Drive> b = SimulateDrive(hills, spec, SensorFrame::kCameraOptical, 42);
+  const Expected<Drive> c = SimulateDrive(hills, spec, SensorFrame::kCameraOptical, 43);
+  ASSERT_TRUE(a.ok() && b.ok() && c.ok());
+  ASSERT_EQ(a->samples.size(), b->samples.size());
+  for (std::size_t i = 0; i < a->samples.size(); ++i) {
+    const DriveSample &x = a->samples[i], &y = b->samples[i];
+    EXPECT_EQ(x.T_world_sensor.matrix(), y.T_world_sensor.matrix());
+    EXPECT_EQ(x.odometry.x_m, y.odometry.x_m);
+    EXPECT_EQ(x.odometry.yaw_rad, y.odometry.yaw_rad);
+    EXPECT_EQ(x.imu.roll_rad, y.imu.roll_rad);
+  }
+  // Another seed changes the errors, never the truth.
+  const DriveSample &x = a->samples.back(), &z = c->samples.back();
+  EXPECT_EQ(x.T_world_body.matrix(), z.T_world_body.matrix());
+  EXPECT_NE(x.odometry.x_m, z.odometry.x_m);
+  EXPECT_NE(x.imu.pitch_rad, z.imu.pitch_rad);
+}
+
+TEST(SimDrive, BadSpecsNameTheField) {
+  DriveSpec spec;
+  spec.waypoints = {{1.0, 1.0}, {1.0, 1.0}};
+  Expected<Drive> drive = SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 1);
+  ASSERT_FALSE(drive.ok());
+  EXPECT_NE(drive.error().message.find("drive.waypoints"), std::string::npos);
+  EXPECT_EQ(DriveFrameCount(spec), 0);
+
+  spec.waypoints = {{0.0, 0.0}, {1.0, 1.0}};
+  spec.speed_mps = 0.0;
+  drive = SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 1);
+  ASSERT_FALSE(drive.ok());
+  EXPECT_NE(drive.error().message.find("drive.speed_mps"), std::string::npos);
+
+  spec.speed_mps = 1.0;
+  spec.odom_sigma_per_m = -0.1;
+  drive = SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 1);
+  ASSERT_FALSE(drive.ok());
+  EXPECT_NE(drive.error().message.find("drive.odom_sigma_per_m"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace cairn::sim
