@@ -22,30 +22,29 @@ std::string SizeText(int width, int height) {
   return std::to_string(width) + "x" + std::to_string(height);
 }
 
-Status CheckDetection(const std::filesystem::path& path, const Detection& detection) {
+/// `where` starts each message: the file being written, or what is being rendered.
+Status CheckDetection(const std::string& where, const Detection& detection) {
   if (detection.width <= 0 || detection.height <= 0 ||
       detection.labels.size() != static_cast<std::size_t>(detection.width) * detection.height) {
-    return Error{path.string() + ": detection has " + std::to_string(detection.labels.size()) +
+    return Error{where + ": detection has " + std::to_string(detection.labels.size()) +
                  " labels for a " + SizeText(detection.width, detection.height) + " image"};
   }
   return Status::Ok();
 }
 
-Status CheckClassification(const std::filesystem::path& path, const Detection& detection,
+Status CheckClassification(const std::string& where, const Detection& detection,
                            const Classification& classification) {
   if (classification.verdicts.size() != detection.segments.size()) {
-    return Error{path.string() + ": classification has " +
-                 std::to_string(classification.verdicts.size()) + " verdicts for " +
-                 std::to_string(detection.segments.size()) + " segments"};
+    return Error{where + ": classification has " + std::to_string(classification.verdicts.size()) +
+                 " verdicts for " + std::to_string(detection.segments.size()) + " segments"};
   }
   return Status::Ok();
 }
 
-Status CheckDepth(const std::filesystem::path& path, const Grid<float>& depth,
-                  const Detection& detection) {
+Status CheckDepth(const std::string& where, const Grid<float>& depth, const Detection& detection) {
   if (depth.width != detection.width || depth.height != detection.height ||
       depth.data.size() != detection.labels.size()) {
-    return Error{path.string() + ": depth image is " + SizeText(depth.width, depth.height) +
+    return Error{where + ": depth image is " + SizeText(depth.width, depth.height) +
                  ", detection is " + SizeText(detection.width, detection.height)};
   }
   return Status::Ok();
@@ -73,7 +72,8 @@ Json SettingsJson(const DetectSettings& s) {
                    {"min_slope_deg", d.min_slope_rad * kRadToDeg},
                    {"search", SearchModeName(d.search)},
                    {"window_scale", d.window_scale},
-                   {"region_slabs", d.region_slabs}};
+                   {"region_slabs", d.region_slabs},
+                   {"threads", d.threads}};
   Json rules = {{"min_points", r.min_points},
                 {"min_volume_m3", r.min_volume_m3},
                 {"min_perimeter_m", r.min_perimeter_m},
@@ -108,26 +108,35 @@ Json SegmentJson(const SegmentFeatures& f, const SegmentVerdict& v) {
           {"cols_px", Json::array({f.col_min, f.col_max})}};
 }
 
-/// Grey BGR image of the depth, to draw on.
-cv::Mat GreyBgr(const Grid<float>& depth) {
+/// Grey colour image of the depth, to draw on.
+RgbImage GreyRgb(const Grid<float>& depth) {
   const Grid<std::uint8_t> grey = RenderDepthGrey(depth);
-  cv::Mat out(depth.height, depth.width, CV_8UC3);
-  for (int r = 0; r < depth.height; ++r) {
-    auto* row = out.ptr<cv::Vec3b>(r);
-    for (int c = 0; c < depth.width; ++c) {
-      const std::uint8_t g = grey.at(r, c);
-      row[c] = cv::Vec3b(g, g, g);
-    }
-  }
+  RgbImage out{grey.width, grey.height, {}};
+  out.data.reserve(grey.data.size());
+  for (const std::uint8_t g : grey.data) out.data.push_back({g, g, g});
   return out;
 }
 
-/// Mostly `bgr`, with a little of the grey underneath so that the shape stays readable.
-cv::Vec3b Tint(const cv::Vec3b& grey, std::uint8_t b, std::uint8_t g, std::uint8_t r) {
-  const auto mix = [](std::uint8_t colour, std::uint8_t under) {
-    return static_cast<std::uint8_t>((3 * colour + under + 2) / 4);
+/// Mostly `rgb`, with a little of the grey underneath so that the shape stays readable.
+std::array<std::uint8_t, 3> Tint(const std::array<std::uint8_t, 3>& under,
+                                 const std::array<std::uint8_t, 3>& rgb) {
+  const auto mix = [](std::uint8_t colour, std::uint8_t below) {
+    return static_cast<std::uint8_t>((3 * colour + below + 2) / 4);
   };
-  return {mix(b, grey[0]), mix(g, grey[1]), mix(r, grey[2])};
+  return {mix(rgb[0], under[0]), mix(rgb[1], under[1]), mix(rgb[2], under[2])};
+}
+
+/// The BGR matrix OpenCV encodes.
+cv::Mat ToBgr(const RgbImage& image) {
+  cv::Mat out(image.height, image.width, CV_8UC3);
+  for (int r = 0; r < image.height; ++r) {
+    auto* row = out.ptr<cv::Vec3b>(r);
+    for (int c = 0; c < image.width; ++c) {
+      const std::array<std::uint8_t, 3>& rgb = image.at(r, c);
+      row[c] = cv::Vec3b(rgb[2], rgb[1], rgb[0]);
+    }
+  }
+  return out;
 }
 
 }  // namespace
@@ -207,7 +216,7 @@ std::array<std::uint8_t, 3> SegmentColor(int id) {
 }
 
 Status WriteSegmentsPng(const std::filesystem::path& path, const Detection& detection) {
-  if (Status s = CheckDetection(path, detection); !s) return s;
+  if (Status s = CheckDetection(path.string(), detection); !s) return s;
   cv::Mat image(detection.height, detection.width, CV_16UC1);
   for (int r = 0; r < detection.height; ++r) {
     auto* row = image.ptr<std::uint16_t>(r);
@@ -226,8 +235,8 @@ Status WriteSegmentsPng(const std::filesystem::path& path, const Detection& dete
 
 Status WriteClassesPng(const std::filesystem::path& path, const Detection& detection,
                        const Classification& classification) {
-  if (Status s = CheckDetection(path, detection); !s) return s;
-  if (Status s = CheckClassification(path, detection, classification); !s) return s;
+  if (Status s = CheckDetection(path.string(), detection); !s) return s;
+  if (Status s = CheckClassification(path.string(), detection, classification); !s) return s;
   std::vector<std::uint8_t> classes = ClassImage(detection, classification);
   cv::Mat image(detection.height, detection.width, CV_8UC1, classes.data());
   return detail::WritePngAtomic(path, image);
@@ -235,8 +244,8 @@ Status WriteClassesPng(const std::filesystem::path& path, const Detection& detec
 
 Status WriteSegmentsJson(const std::filesystem::path& path, const Detection& detection,
                          const Classification& classification, const RunDescription& run) {
-  if (Status s = CheckDetection(path, detection); !s) return s;
-  if (Status s = CheckClassification(path, detection, classification); !s) return s;
+  if (Status s = CheckDetection(path.string(), detection); !s) return s;
+  if (Status s = CheckClassification(path.string(), detection, classification); !s) return s;
   Json segments = Json::array();
   for (std::size_t i = 0; i < detection.segments.size(); ++i) {
     segments.push_back(SegmentJson(detection.segments[i], classification.verdicts[i]));
@@ -265,40 +274,49 @@ Status WriteSegmentsJson(const std::filesystem::path& path, const Detection& det
   return WriteFileAtomic(path, doc.dump(2) + "\n");
 }
 
+Expected<RgbImage> RenderOverlay(const Grid<float>& depth_m, const Detection& detection,
+                                 const Classification& classification) {
+  if (Status s = CheckDetection("overlay", detection); !s) return s.error();
+  if (Status s = CheckClassification("overlay", detection, classification); !s) return s.error();
+  if (Status s = CheckDepth("overlay", depth_m, detection); !s) return s.error();
+  const std::vector<std::uint8_t> classes = ClassImage(detection, classification);
+  RgbImage image = GreyRgb(depth_m);
+  for (std::size_t i = 0; i < image.data.size(); ++i) {
+    const auto cls = static_cast<SegmentClass>(classes[i]);
+    if (cls == SegmentClass::kKept) image.data[i] = Tint(image.data[i], {0, 40, 255});     // blue
+    if (cls == SegmentClass::kRejected) image.data[i] = Tint(image.data[i], {255, 0, 0});  // red
+  }
+  return image;
+}
+
+Expected<RgbImage> RenderSegmentsColor(const Grid<float>& depth_m, const Detection& detection) {
+  if (Status s = CheckDetection("segment colours", detection); !s) return s.error();
+  if (Status s = CheckDepth("segment colours", depth_m, detection); !s) return s.error();
+  RgbImage image = GreyRgb(depth_m);
+  for (std::size_t i = 0; i < image.data.size(); ++i) {
+    const std::int32_t id = detection.labels[i];
+    if (id != 0) image.data[i] = Tint(image.data[i], SegmentColor(id));
+  }
+  return image;
+}
+
 Status WriteOverlayPng(const std::filesystem::path& path, const Grid<float>& depth_m,
                        const Detection& detection, const Classification& classification) {
-  if (Status s = CheckDetection(path, detection); !s) return s;
-  if (Status s = CheckClassification(path, detection, classification); !s) return s;
-  if (Status s = CheckDepth(path, depth_m, detection); !s) return s;
-  const std::vector<std::uint8_t> classes = ClassImage(detection, classification);
-  cv::Mat image = GreyBgr(depth_m);
-  for (int r = 0; r < detection.height; ++r) {
-    auto* row = image.ptr<cv::Vec3b>(r);
-    for (int c = 0; c < detection.width; ++c) {
-      const auto cls =
-          static_cast<SegmentClass>(classes[static_cast<std::size_t>(r) * detection.width + c]);
-      if (cls == SegmentClass::kKept) row[c] = Tint(row[c], 255, 40, 0);     // blue
-      if (cls == SegmentClass::kRejected) row[c] = Tint(row[c], 0, 0, 255);  // red
-    }
-  }
-  return detail::WritePngAtomic(path, image);
+  if (Status s = CheckDetection(path.string(), detection); !s) return s;
+  if (Status s = CheckClassification(path.string(), detection, classification); !s) return s;
+  if (Status s = CheckDepth(path.string(), depth_m, detection); !s) return s;
+  Expected<RgbImage> image = RenderOverlay(depth_m, detection, classification);
+  if (!image) return Error{path.string() + ": " + image.error().message};
+  return detail::WritePngAtomic(path, ToBgr(*image));
 }
 
 Status WriteSegmentsColorPng(const std::filesystem::path& path, const Grid<float>& depth_m,
                              const Detection& detection) {
-  if (Status s = CheckDetection(path, detection); !s) return s;
-  if (Status s = CheckDepth(path, depth_m, detection); !s) return s;
-  cv::Mat image = GreyBgr(depth_m);
-  for (int r = 0; r < detection.height; ++r) {
-    auto* row = image.ptr<cv::Vec3b>(r);
-    for (int c = 0; c < detection.width; ++c) {
-      const std::int32_t id = detection.labels[static_cast<std::size_t>(r) * detection.width + c];
-      if (id == 0) continue;
-      const std::array<std::uint8_t, 3> rgb = SegmentColor(id);
-      row[c] = Tint(row[c], rgb[2], rgb[1], rgb[0]);
-    }
-  }
-  return detail::WritePngAtomic(path, image);
+  if (Status s = CheckDetection(path.string(), detection); !s) return s;
+  if (Status s = CheckDepth(path.string(), depth_m, detection); !s) return s;
+  Expected<RgbImage> image = RenderSegmentsColor(depth_m, detection);
+  if (!image) return Error{path.string() + ": " + image.error().message};
+  return detail::WritePngAtomic(path, ToBgr(*image));
 }
 
 Expected<DetectionFiles> WriteDetectionFiles(const std::filesystem::path& dir,

@@ -72,4 +72,13 @@ Grid<std::uint8_t> RenderDepthGrey(const Grid<float>& depth_m);
 /// the same on every run.
 std::array<std::uint8_t, 3> SegmentColor(int id);
 
+/// An 8-bit colour image in memory, {r, g, b} per pixel.
+using RgbImage = Grid<std::array<std::uint8_t, 3>>;
+
+/// What overlay.png and segments_color.png hold, as images in memory (for figures that put
+/// several detections side by side). Fail, like the writers, when the sizes disagree.
+Expected<RgbImage> RenderOverlay(const Grid<float>& depth_m, const Detection& detection,
+                                 const Classification& classification);
+Expected<RgbImage> RenderSegmentsColor(const Grid<float>& depth_m, const Detection& detection);
+
 }  // namespace cairn::od::io
