@@ -1,10 +1,10 @@
-# cairn_add_library(<target> EXPORT_NAME <name> SOURCES <src>...)
+# cairn_add_library(<target> EXPORT_NAME <name> [NO_INSTALL] SOURCES <src>...)
 #
 # One cairn library: target <target> with alias cairn::<name>, public headers in
 # ${CMAKE_CURRENT_SOURCE_DIR}/include, C++17, the project's warnings, installed and exported
-# into cairn-targets. Link dependencies are added by the caller.
+# into cairn-targets (unless NO_INSTALL). Link dependencies are added by the caller.
 function(cairn_add_library target)
-  cmake_parse_arguments(ARG "" "EXPORT_NAME" "SOURCES" ${ARGN})
+  cmake_parse_arguments(ARG "NO_INSTALL" "EXPORT_NAME" "SOURCES" ${ARGN})
   add_library(${target} ${ARG_SOURCES})
   add_library(cairn::${ARG_EXPORT_NAME} ALIAS ${target})
   set_target_properties(${target} PROPERTIES EXPORT_NAME ${ARG_EXPORT_NAME} OUTPUT_NAME ${target})
@@ -13,6 +13,9 @@ function(cairn_add_library target)
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
   target_compile_features(${target} PUBLIC cxx_std_17)
   cairn_set_warnings(${target})
+  if(ARG_NO_INSTALL)
+    return()
+  endif()
   install(TARGETS ${target} EXPORT cairn-targets
           ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
   install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})

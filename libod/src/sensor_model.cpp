@@ -83,7 +83,10 @@ Expected<SphericalModel> SphericalModel::Preset(const std::string& name, int wid
   SphericalModel m;
   m.width = width;
   if (name == "HDL-64E") {
-    m.ring_elevation_rad = Linear(2.0, -24.9, 64);
+    // Two blocks: 32 lasers 1/3 deg apart from +2 deg, 32 spread from -8.83 to -24.8 deg.
+    m.ring_elevation_rad = Linear(2.0, 2.0 - 31.0 / 3.0, 32);
+    const std::vector<double> lower = Linear(-8.83, -24.8, 32);
+    m.ring_elevation_rad.insert(m.ring_elevation_rad.end(), lower.begin(), lower.end());
   } else if (name == "OS1-64") {
     m.ring_elevation_rad = Linear(16.6, -16.6, 64);
   } else if (name == "VLP-16") {

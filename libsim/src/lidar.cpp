@@ -16,28 +16,25 @@ constexpr double kDeg = kPi / 180.0;
 }  // namespace
 
 Expected<LidarSpec> LidarSpec::Preset(const std::string& name) {
+  // Ring elevations come from the detector's sensor model, so that rendered scans and the
+  // range images made from them agree ring for ring.
   LidarSpec spec;
   spec.preset = name;
   if (name == "HDL-64E") {
-    // Upper block: 32 lasers 1/3 deg apart from +2 deg; lower block: 32 lasers spread
-    // evenly from -8.83 to -24.8 deg.
-    for (int i = 0; i < 32; ++i) spec.elevations_rad.push_back((2.0 - i / 3.0) * kDeg);
-    for (int i = 0; i < 32; ++i) {
-      spec.elevations_rad.push_back((-8.83 - i * (24.8 - 8.83) / 31.0) * kDeg);
-    }
     spec.azimuth_steps = 2048;
     spec.range_sigma_m = 0.02;
     spec.max_range_m = 120.0;
-    return spec;
-  }
-  if (name == "VLP-16") {
-    for (int i = 0; i < 16; ++i) spec.elevations_rad.push_back((15.0 - 2.0 * i) * kDeg);
+  } else if (name == "VLP-16") {
     spec.azimuth_steps = 1024;
     spec.range_sigma_m = 0.03;
     spec.max_range_m = 100.0;
-    return spec;
+  } else {
+    return Error{"unknown LiDAR preset '" + name + "' (expected HDL-64E or VLP-16)"};
   }
-  return Error{"unknown LiDAR preset '" + name + "' (expected HDL-64E or VLP-16)"};
+  Expected<od::SphericalModel> model = od::SphericalModel::Preset(name, spec.azimuth_steps);
+  if (!model) return model.error();
+  spec.elevations_rad = model->ring_elevation_rad;
+  return spec;
 }
 
 Status LidarSpec::Validate() const {

@@ -63,9 +63,10 @@ struct SphericalModel {
   /// Row of the ring nearest to a point's elevation.
   int NearestRing(const Eigen::Vector3d& p) const;
 
-  /// Nominal models of common sensors: "HDL-64E", "VLP-16", "VLP-32C", "OS1-64" (rings
-  /// evenly spread over the data sheet's vertical field of view, or its table for the
-  /// VLP-16 and VLP-32C), with `width` azimuth steps.
+  /// Nominal models of common sensors with `width` azimuth steps: "HDL-64E" (upper block of
+  /// 32 lasers 1/3 deg apart from +2 deg, lower block of 32 from -8.83 to -24.8 deg),
+  /// "VLP-16" (+15 to -15 deg every 2 deg), "VLP-32C" (its data sheet table), "OS1-64"
+  /// (64 rings evenly over +-16.6 deg).
   static Expected<SphericalModel> Preset(const std::string& name, int width);
 };
 
