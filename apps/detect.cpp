@@ -1,9 +1,13 @@
-// cairn detect: one depth frame in, obstacles out (segments.png, classes.png,
-// segments.json, overlay.png, segments_color.png).
+// cairn detect: one depth frame or one LiDAR scan in, obstacles out (segments.png,
+// classes.png, segments.json, overlay.png, segments_color.png; for a scan also labels.label,
+// one SemanticKITTI-layout entry per input point, and birds_eye.png).
+#include <Eigen/Core>
 #include <chrono>
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <string>
 
 #include "cairn/od/column_detector.hpp"
@@ -12,6 +16,7 @@
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/io/detection_files.hpp"
 #include "cairn/od/io/intrinsics.hpp"
+#include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
 #include "subcommands.hpp"
@@ -25,6 +30,11 @@ using Clock = std::chrono::steady_clock;
 struct DetectOptions {
   std::string depth;
   std::string intrinsics;
+  std::string points;   ///< KITTI-layout .bin (instead of --depth)
+  std::string sensor;   ///< SphericalModel preset name, with --points
+  std::string organised = "auto";
+  int columns = 0;      ///< azimuth steps of an unorganised scan; 0: the sensor's default
+  std::string up = "0,0,1";
   std::string config;  ///< empty: built-in defaults
   std::string method = "cone";
   bool no_rules = false;
@@ -40,39 +50,156 @@ int Fail(const std::string& message) {
   return kExitFailure;
 }
 
+Expected<io::DetectSettings> LoadSettings(const DetectOptions& options) {
+  if (options.config.empty()) return io::DetectSettings{};
+  return io::LoadDetectSettings(options.config);
+}
+
+/// The chosen method and the rules (or none) on one range image.
+struct DetectResult {
+  od::Detection detection;
+  od::Classification classification;
+  double detect_ms = 0.0;
+};
+
+Expected<DetectResult> DetectAndClassify(const od::RangeImage& image,
+                                         const io::DetectSettings& settings,
+                                         const DetectOptions& options) {
+  const Clock::time_point detect_start = Clock::now();
+  Expected<od::Detection> detection = Error{"no method"};
+  if (options.method == "column") {
+    od::ColumnConfig column = od::ColumnConfig::From(settings.detector);
+    column.min_blob_pixels = settings.min_blob_pixels;
+    detection = od::DetectColumns(image, column);
+  } else {
+    detection = od::Detect(image, settings.detector);
+  }
+  if (!detection) return detection.error();
+  DetectResult result;
+  result.detect_ms = MillisecondsSince(detect_start);
+  Expected<od::Classification> classification =
+      options.no_rules ? Expected<od::Classification>(od::KeepAll(*detection))
+                       : od::Classify(*detection, settings.rules);
+  if (!classification) return classification.error();
+  result.detection = std::move(*detection);
+  result.classification = std::move(*classification);
+  return result;
+}
+
+/// Azimuth steps of an unorganised scan when --columns is not given: about the sensor's
+/// horizontal resolution at 10 Hz.
+int DefaultColumns(const std::string& sensor) {
+  if (sensor == "VLP-16" || sensor == "VLP-32C") return 1800;  // 0.2 deg
+  return 2048;                                                   // HDL-64E, OS1-64
+}
+
+Expected<Eigen::Vector3d> ParseUp(const std::string& text) {
+  std::istringstream in(text);
+  Eigen::Vector3d up;
+  char comma1 = 0, comma2 = 0;
+  in >> up.x() >> comma1 >> up.y() >> comma2 >> up.z();
+  if (!in || comma1 != ',' || comma2 != ',' || !(in >> std::ws).eof() || !up.allFinite() ||
+      up.norm() == 0.0) {
+    return Error{"--up: expected three numbers x,y,z, not all zero, got '" + text + "'"};
+  }
+  return up;
+}
+
+int RunDetectPoints(const DetectOptions& options) {
+  const Clock::time_point start = Clock::now();
+  Expected<io::DetectSettings> settings = LoadSettings(options);
+  if (!settings) return Fail(settings.error().message);
+  Expected<Eigen::Vector3d> up = ParseUp(options.up);
+  if (!up) return Fail(up.error().message);
+  const int columns = options.columns > 0 ? options.columns : DefaultColumns(options.sensor);
+  Expected<od::SphericalModel> preset = od::SphericalModel::Preset(options.sensor, columns);
+  if (!preset) return Fail("--sensor: " + preset.error().message);
+  Expected<io::PointCloud> cloud = io::ReadKittiBin(options.points);
+  if (!cloud) return Fail(cloud.error().message);
+  const io::OrganisedMode mode = options.organised == "yes"  ? io::OrganisedMode::kYes
+                                 : options.organised == "no" ? io::OrganisedMode::kNo
+                                                             : io::OrganisedMode::kAuto;
+  Expected<io::PointLayout> layout = io::ResolveLayout(*cloud, *preset, mode, options.points);
+  if (!layout) return Fail(layout.error().message);
+  Expected<od::RangeImage> image =
+      od::RangeImage::FromPoints(cloud->points, layout->model, *up, layout->rows, layout->cols);
+  if (!image) return Fail(options.points + ": " + image.error().message);
+
+  Expected<DetectResult> result = DetectAndClassify(*image, *settings, options);
+  if (!result) return Fail(result.error().message);
+  const od::Detection& d = result->detection;
+
+  Expected<std::vector<std::uint32_t>> labels =
+      io::PointLabels(*image, d, result->classification);
+  if (!labels) return Fail(options.points + ": " + labels.error().message);
+  io::RunDescription run;
+  run.method = options.method;
+  run.rules_applied = !options.no_rules;
+  run.settings = *settings;
+  run.depth_file = options.points;
+  run.intrinsics_file = "sensor " + options.sensor + (layout->organised ? ", organised " : ", ") +
+                        std::to_string(image->height()) + "x" + std::to_string(image->width());
+  run.config_file = options.config;
+  Expected<io::DetectionFiles> files = io::WriteDetectionFiles(
+      options.out, io::RangeGrid(*image), d, result->classification, run);
+  if (!files) return Fail(files.error().message);
+  const std::filesystem::path label_path = std::filesystem::path(options.out) / "labels.label";
+  if (Status s = io::WriteLabelFile(label_path, *labels); !s) return Fail(s.message());
+  std::vector<std::uint8_t> point_class(labels->size());
+  for (std::size_t i = 0; i < labels->size(); ++i) point_class[i] = (*labels)[i] & 0xFFFFu;
+  Expected<io::RgbImage> birds_eye = io::RenderBirdsEye(*image, cloud->points, point_class);
+  if (!birds_eye) return Fail(birds_eye.error().message);
+  const std::filesystem::path birds_eye_path = std::filesystem::path(options.out) / "birds_eye.png";
+  if (Status s = io::WriteRgbPng(birds_eye_path, *birds_eye); !s) return Fail(s.message());
+  const double total_ms = MillisecondsSince(start);
+
+  std::cout << std::fixed << std::setprecision(1) << "cairn detect: " << options.points << " ("
+            << cloud->points.size() << " points, " << options.sensor << ", "
+            << (layout->organised ? "organised" : "unorganised") << ", range image "
+            << d.height << "x" << d.width << ", " << image->valid_count()
+            << " valid cells), method " << options.method;
+  if (options.method == "cone")
+    std::cout << " (" << io::SearchModeName(settings->detector.search) << " search)";
+  std::cout << ", rules " << (options.no_rules ? "off" : "on") << "\n"
+            << "  segments: " << d.segments.size() << " found, " << result->classification.kept
+            << " kept, " << result->classification.rejected << " rejected ("
+            << d.stats.obstacle_points << " obstacle cells, " << d.stats.pairs_compatible
+            << " compatible pairs)\n"
+            << "  time: detect " << result->detect_ms << " ms, total " << total_ms << " ms\n"
+            << "  wrote: " << label_path.string() << "\n"
+            << "         " << birds_eye_path.string() << " (5 m per 100 px, sensor at the centre)\n"
+            << "         " << files->segments_png.string() << "\n"
+            << "         " << files->classes_png.string() << "\n"
+            << "         " << files->segments_json.string() << "\n"
+            << "         " << files->overlay_png.string() << "\n"
+            << "         " << files->segments_color_png.string() << "\n";
+  return kExitOk;
+}
+
 int RunDetect(const DetectOptions& options) {
+  if (!options.points.empty()) return RunDetectPoints(options);
+  if (options.depth.empty() || options.intrinsics.empty()) {
+    return Fail("give --depth FILE.png with --intrinsics FILE.yaml, or --points FILE.bin with "
+                "--sensor PRESET");
+  }
   const Clock::time_point start = Clock::now();
 
   Expected<io::CameraIntrinsics> intrinsics = io::LoadIntrinsics(options.intrinsics);
   if (!intrinsics) return Fail(intrinsics.error().message);
-  io::DetectSettings settings;
-  if (!options.config.empty()) {
-    Expected<io::DetectSettings> loaded = io::LoadDetectSettings(options.config);
-    if (!loaded) return Fail(loaded.error().message);
-    settings = *loaded;
-  }
+  Expected<io::DetectSettings> loaded_settings = LoadSettings(options);
+  if (!loaded_settings) return Fail(loaded_settings.error().message);
+  const io::DetectSettings settings = *loaded_settings;
   Expected<io::Grid<float>> depth = io::ReadDepthPng(options.depth, *intrinsics);
   if (!depth) return Fail(depth.error().message);
   Expected<od::RangeImage> image =
       od::RangeImage::FromDepth(depth->data, intrinsics->model, intrinsics->up);
   if (!image) return Fail(options.depth + ": " + image.error().message);
 
-  const Clock::time_point detect_start = Clock::now();
-  Expected<od::Detection> detection = Error{"no method"};
-  if (options.method == "column") {
-    od::ColumnConfig column = od::ColumnConfig::From(settings.detector);
-    column.min_blob_pixels = settings.min_blob_pixels;
-    detection = od::DetectColumns(*image, column);
-  } else {
-    detection = od::Detect(*image, settings.detector);
-  }
-  if (!detection) return Fail(detection.error().message);
-  const double detect_ms = MillisecondsSince(detect_start);
-
-  const Expected<od::Classification> classification =
-      options.no_rules ? Expected<od::Classification>(od::KeepAll(*detection))
-                       : od::Classify(*detection, settings.rules);
-  if (!classification) return Fail(classification.error().message);
+  Expected<DetectResult> result = DetectAndClassify(*image, settings, options);
+  if (!result) return Fail(result.error().message);
+  const double detect_ms = result->detect_ms;
+  const od::Detection* detection = &result->detection;
+  const od::Classification* classification = &result->classification;
 
   io::RunDescription run;
   run.method = options.method;
@@ -111,15 +238,44 @@ Subcommand AddDetectCommand(CLI::App& parent) {
   auto options = std::make_shared<DetectOptions>();
   CLI::App* app = parent.add_subcommand(
       "detect",
-      "Find obstacles in one z-depth frame and write labels, classes, overlays "
+      "Find obstacles in one z-depth frame or LiDAR scan and write labels, classes, overlays "
       "and per-segment measures");
-  app->add_option("--depth", options->depth, "16-bit z-depth PNG (0 = no return)")
-      ->required()
-      ->type_name("FILE.png");
-  app->add_option("--intrinsics", options->intrinsics,
-                  "camera YAML: width, height, fx, fy, cx, cy, depth_scale, up or pitch_deg")
-      ->required()
-      ->type_name("FILE.yaml");
+  CLI::Option* depth =
+      app->add_option("--depth", options->depth, "16-bit z-depth PNG (0 = no return)")
+          ->type_name("FILE.png");
+  CLI::Option* intrinsics =
+      app->add_option("--intrinsics", options->intrinsics,
+                      "camera YAML: width, height, fx, fy, cx, cy, depth_scale, up or pitch_deg")
+          ->type_name("FILE.yaml");
+  depth->needs(intrinsics);
+  intrinsics->needs(depth);
+  CLI::Option* points =
+      app->add_option("--points", options->points,
+                      "LiDAR scan, KITTI layout (float32 x, y, z, intensity per point; "
+                      "instead of --depth)")
+          ->type_name("FILE.bin")
+          ->excludes(depth);
+  CLI::Option* sensor =
+      app->add_option("--sensor", options->sensor, "sensor preset of the scan")
+          ->check(CLI::IsMember({"HDL-64E", "VLP-16", "VLP-32C", "OS1-64"}))
+          ->type_name("PRESET");
+  points->needs(sensor);
+  sensor->needs(points);
+  app->add_option("--organised", options->organised,
+                  "auto: organised (index = col * rings + ring, Ouster) when the data says so; "
+                  "yes / no to force")
+      ->check(CLI::IsMember({"auto", "yes", "no"}))
+      ->capture_default_str()
+      ->needs(points);
+  app->add_option("--columns", options->columns,
+                  "azimuth steps of an unorganised scan (default: 1800 for VLP-16/VLP-32C, "
+                  "2048 otherwise)")
+      ->check(CLI::PositiveNumber)
+      ->needs(points);
+  app->add_option("--up", options->up, "gravity's up vector in the LiDAR frame, x,y,z")
+      ->capture_default_str()
+      ->type_name("X,Y,Z")
+      ->needs(points);
   app->add_option("--config", options->config,
                   "settings YAML (detector, rules, column sections); defaults when absent")
       ->type_name("FILE.yaml");
