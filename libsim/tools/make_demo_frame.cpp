@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/od/io/intrinsics.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
@@ -133,15 +134,6 @@ int main(int argc, char** argv) {
   }
 
   char buf[512];
-  const Eigen::Vector3d up = frame->up_optical;
-  std::snprintf(buf, sizeof(buf),
-                "# Demo frame made by cairn_make_demo_frame (libsim/tools/make_demo_frame.cpp).\n"
-                "width: %d\nheight: %d\nfx: %.1f\nfy: %.1f\ncx: %.1f\ncy: %.1f\n"
-                "depth_scale: %.3f  # metres per depth.png unit\n"
-                "up: [%.9f, %.9f, %.9f]  # gravity's up in the optical frame\n",
-                model.width, model.height, model.fx, model.fy, model.cx, model.cy, kDepthScale,
-                up.x(), up.y(), up.z());
-  const std::string intrinsics = buf;
 
   std::string objects =
       "# Ground truth for truth.png: 0 = terrain, 255 = no return, else the object id.\n"
@@ -154,7 +146,11 @@ int main(int argc, char** argv) {
   }
 
   if (!WriteImage(out_dir / "depth.png", depth) || !WriteImage(out_dir / "truth.png", truth) ||
-      !WriteText(out_dir / "intrinsics.yaml", intrinsics) ||
+      !cairn::od::io::WriteIntrinsics(out_dir / "intrinsics.yaml",
+                               {model, kDepthScale, frame->up_optical},
+                               "Demo frame made by cairn_make_demo_frame "
+                               "(libsim/tools/make_demo_frame.cpp).")
+           .ok() ||
       !WriteText(out_dir / "truth.yaml", objects)) {
     std::fprintf(stderr, "cannot write the frame into %s\n", out_dir.c_str());
     return 1;

@@ -33,6 +33,32 @@ TEST(Intrinsics, ReadsAGoodFileWithUp) {
   EXPECT_TRUE(cam->up.isApprox(Eigen::Vector3d(0, -1, 0)));
 }
 
+TEST(Intrinsics, WrittenFilesReadBackToTheSameValues) {
+  test::TempDir dir;
+  CameraIntrinsics cam;
+  cam.model = PinholeModel{320, 240, 261.3, 259.75, 159.5, 119.25};
+  cam.depth_scale_m = 0.001;
+  cam.up = CameraUpFromPitchRoll(0.1396, -0.0349);
+  const auto path = dir.path() / "cam.yaml";
+  ASSERT_TRUE(WriteIntrinsics(path, cam, "written by a test").ok());
+  Expected<CameraIntrinsics> back = LoadIntrinsics(path);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->model.width, 320);
+  EXPECT_EQ(back->model.height, 240);
+  EXPECT_NEAR(back->model.fx, 261.3, 1e-9);
+  EXPECT_NEAR(back->model.fy, 259.75, 1e-9);
+  EXPECT_NEAR(back->model.cx, 159.5, 1e-9);
+  EXPECT_NEAR(back->model.cy, 119.25, 1e-9);
+  EXPECT_NEAR(back->depth_scale_m, 0.001, 1e-12);
+  EXPECT_LT((back->up - cam.up).norm(), 1e-9);
+  // An invalid model is refused, naming the file, and nothing is written.
+  cam.model.fx = 0.0;
+  const Status bad = WriteIntrinsics(dir.path() / "bad.yaml", cam, "bad");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.message().find("bad.yaml"), std::string::npos) << bad.message();
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "bad.yaml"));
+}
+
 TEST(Intrinsics, PitchAndRollGiveTheLevelingUpVector) {
   Expected<CameraIntrinsics> cam =
       ParseIntrinsics(kSize + "pitch_deg: 10\nroll_deg: -3.5\n", "cam.yaml");

@@ -1,8 +1,10 @@
 #include "cairn/od/io/intrinsics.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
+#include "cairn/od/io/atomic_file.hpp"
 #include "cairn/od/leveling.hpp"
 #include "yaml_fields.hpp"
 
@@ -131,6 +133,20 @@ Expected<CameraIntrinsics> LoadIntrinsics(const std::filesystem::path& path) {
   Expected<std::string> text = detail::ReadTextFile(path);
   if (!text) return text.error();
   return ParseIntrinsics(*text, path.string());
+}
+
+Status WriteIntrinsics(const std::filesystem::path& path, const CameraIntrinsics& intrinsics,
+                       const std::string& comment) {
+  const PinholeModel& m = intrinsics.model;
+  if (Status s = m.Validate(); !s) return Error{path.string() + ": " + s.message()};
+  char buf[512];
+  std::snprintf(buf, sizeof(buf),
+                "width: %d\nheight: %d\nfx: %.12g\nfy: %.12g\ncx: %.12g\ncy: %.12g\n"
+                "depth_scale: %.9g  # metres per depth.png unit\n"
+                "up: [%.12g, %.12g, %.12g]  # gravity's up in the optical frame\n",
+                m.width, m.height, m.fx, m.fy, m.cx, m.cy, intrinsics.depth_scale_m,
+                intrinsics.up.x(), intrinsics.up.y(), intrinsics.up.z());
+  return WriteFileAtomic(path, "# " + comment + "\n" + buf);
 }
 
 }  // namespace cairn::od::io

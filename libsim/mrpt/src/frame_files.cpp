@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "cairn/od/io/atomic_file.hpp"
+#include "cairn/od/io/intrinsics.hpp"
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/sim/geometry.hpp"
 
@@ -133,20 +134,6 @@ Status WriteTruthYaml(const fs::path& path, const Scene& scene) {
   return od::io::WriteFileAtomic(path, text);
 }
 
-Status WriteIntrinsicsYaml(const fs::path& path, const od::PinholeModel& model,
-                           double depth_scale_m, const Eigen::Vector3d& up_optical) {
-  if (Status s = model.Validate(); !s) return Error{path.string() + ": " + s.message()};
-  char buf[512];
-  std::snprintf(buf, sizeof(buf),
-                "# Camera of a synthetic frame (cairn synth); read by cairn detect.\n"
-                "width: %d\nheight: %d\nfx: %.12g\nfy: %.12g\ncx: %.12g\ncy: %.12g\n"
-                "depth_scale: %.9g  # metres per depth.png unit\n"
-                "up: [%.12f, %.12f, %.12f]  # gravity's up in the optical frame\n",
-                model.width, model.height, model.fx, model.fy, model.cx, model.cy, depth_scale_m,
-                up_optical.x(), up_optical.y(), up_optical.z());
-  return od::io::WriteFileAtomic(path, buf);
-}
-
 double DepthScaleFor(double max_depth_m) {
   constexpr double kMillimetre = 0.001;
   if (!(max_depth_m > 65535.0 * kMillimetre)) return kMillimetre;
@@ -231,8 +218,10 @@ Expected<CameraFrameFiles> WriteCameraFrame(const fs::path& dir, const DepthFram
   if (Status s = od::io::WriteDepthPng(files.depth_png, depth, files.depth_scale_m); !s) {
     return s.error();
   }
-  if (Status s = WriteIntrinsicsYaml(files.intrinsics_yaml, frame.model, files.depth_scale_m,
-                                     frame.up_optical);
+  const od::io::CameraIntrinsics intrinsics{frame.model, files.depth_scale_m, frame.up_optical};
+  if (Status s = od::io::WriteIntrinsics(files.intrinsics_yaml, intrinsics,
+                                         "Camera of a synthetic frame (cairn synth); read by "
+                                         "cairn detect.");
       !s) {
     return s.error();
   }

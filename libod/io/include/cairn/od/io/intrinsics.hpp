@@ -36,4 +36,9 @@ Expected<CameraIntrinsics> LoadIntrinsics(const std::filesystem::path& path);
 /// The same from YAML text; `source` names it in error messages.
 Expected<CameraIntrinsics> ParseIntrinsics(const std::string& yaml_text, const std::string& source);
 
+/// Writes an intrinsics file that LoadIntrinsics reads back to the same values (up as a
+/// vector), atomically, with `comment` as its first line. Fails on an invalid model.
+Status WriteIntrinsics(const std::filesystem::path& path, const CameraIntrinsics& intrinsics,
+                       const std::string& comment);
+
 }  // namespace cairn::od::io

@@ -50,10 +50,6 @@ Expected<od::io::Grid<std::int32_t>> ReadObjectIdPng(const std::filesystem::path
 /// truth.yaml for every object of the scene.
 Status WriteTruthYaml(const std::filesystem::path& path, const Scene& scene);
 
-/// An intrinsics file that od::io::LoadIntrinsics reads back.
-Status WriteIntrinsicsYaml(const std::filesystem::path& path, const od::PinholeModel& model,
-                           double depth_scale_m, const Eigen::Vector3d& up_optical);
-
 /// Metres per 16-bit unit for a depth image whose farthest return is `max_depth_m`: 1 mm,
 /// or coarser (in steps of 0.1 mm) when 1 mm cannot reach that far.
 double DepthScaleFor(double max_depth_m);
