@@ -26,6 +26,12 @@ int main(int argc, char** argv) {
 #ifdef CAIRN_HAVE_EVAL
     commands.push_back(AddEvalCommand(app));
 #endif
+#ifdef CAIRN_HAVE_SOURCES
+    commands.push_back(AddInfoCommand(app));
+#endif
+#ifdef CAIRN_HAVE_MAP
+    commands.push_back(AddMapCommand(app));
+#endif
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

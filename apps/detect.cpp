@@ -19,53 +19,29 @@
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
+#include "detect.hpp"
 #include "subcommands.hpp"
 
 namespace cairn::apps {
-namespace {
 
-namespace io = od::io;
-using Clock = std::chrono::steady_clock;
-
-struct DetectOptions {
-  std::string depth;
-  std::string intrinsics;
-  std::string points;   ///< KITTI-layout .bin (instead of --depth)
-  std::string sensor;   ///< SphericalModel preset name, with --points
-  std::string organised = "auto";
-  int columns = 0;      ///< azimuth steps of an unorganised scan; 0: the sensor's default
-  std::string up = "0,0,1";
-  std::string config;  ///< empty: built-in defaults
-  std::string method = "cone";
-  bool no_rules = false;
-  std::string out;
-};
-
-double MillisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+double MillisecondsSince(DetectClock::time_point start) {
+  return std::chrono::duration<double, std::milli>(DetectClock::now() - start).count();
 }
 
-int Fail(const std::string& message) {
+int DetectFail(const std::string& message) {
   std::cerr << "cairn detect: error: " << message << "\n";
   return kExitFailure;
 }
 
-Expected<io::DetectSettings> LoadSettings(const DetectOptions& options) {
-  if (options.config.empty()) return io::DetectSettings{};
-  return io::LoadDetectSettings(options.config);
+Expected<od::io::DetectSettings> LoadDetectSettingsOrDefaults(const DetectOptions& options) {
+  if (options.config.empty()) return od::io::DetectSettings{};
+  return od::io::LoadDetectSettings(options.config);
 }
 
-/// The chosen method and the rules (or none) on one range image.
-struct DetectResult {
-  od::Detection detection;
-  od::Classification classification;
-  double detect_ms = 0.0;
-};
-
 Expected<DetectResult> DetectAndClassify(const od::RangeImage& image,
-                                         const io::DetectSettings& settings,
+                                         const od::io::DetectSettings& settings,
                                          const DetectOptions& options) {
-  const Clock::time_point detect_start = Clock::now();
+  const DetectClock::time_point detect_start = DetectClock::now();
   Expected<od::Detection> detection = Error{"no method"};
   if (options.method == "column") {
     od::ColumnConfig column = od::ColumnConfig::From(settings.detector);
@@ -86,14 +62,7 @@ Expected<DetectResult> DetectAndClassify(const od::RangeImage& image,
   return result;
 }
 
-/// Azimuth steps of an unorganised scan when --columns is not given: about the sensor's
-/// horizontal resolution at 10 Hz.
-int DefaultColumns(const std::string& sensor) {
-  if (sensor == "VLP-16" || sensor == "VLP-32C") return 1800;  // 0.2 deg
-  return 2048;                                                   // HDL-64E, OS1-64
-}
-
-Expected<Eigen::Vector3d> ParseUp(const std::string& text) {
+Expected<Eigen::Vector3d> ParseUpVector(const std::string& text) {
   std::istringstream in(text);
   Eigen::Vector3d up;
   char comma1 = 0, comma2 = 0;
@@ -105,33 +74,46 @@ Expected<Eigen::Vector3d> ParseUp(const std::string& text) {
   return up;
 }
 
+namespace {
+
+namespace io = od::io;
+using Clock = DetectClock;
+using Options = DetectOptions;
+
+/// Azimuth steps of an unorganised scan when --columns is not given: about the sensor's
+/// horizontal resolution at 10 Hz.
+int DefaultColumns(const std::string& sensor) {
+  if (sensor == "VLP-16" || sensor == "VLP-32C") return 1800;  // 0.2 deg
+  return 2048;                                                   // HDL-64E, OS1-64
+}
+
 int RunDetectPoints(const DetectOptions& options) {
   const Clock::time_point start = Clock::now();
-  Expected<io::DetectSettings> settings = LoadSettings(options);
-  if (!settings) return Fail(settings.error().message);
-  Expected<Eigen::Vector3d> up = ParseUp(options.up);
-  if (!up) return Fail(up.error().message);
+  Expected<io::DetectSettings> settings = LoadDetectSettingsOrDefaults(options);
+  if (!settings) return DetectFail(settings.error().message);
+  Expected<Eigen::Vector3d> up = ParseUpVector(options.up);
+  if (!up) return DetectFail(up.error().message);
   const int columns = options.columns > 0 ? options.columns : DefaultColumns(options.sensor);
   Expected<od::SphericalModel> preset = od::SphericalModel::Preset(options.sensor, columns);
-  if (!preset) return Fail("--sensor: " + preset.error().message);
+  if (!preset) return DetectFail("--sensor: " + preset.error().message);
   Expected<io::PointCloud> cloud = io::ReadKittiBin(options.points);
-  if (!cloud) return Fail(cloud.error().message);
+  if (!cloud) return DetectFail(cloud.error().message);
   const io::OrganisedMode mode = options.organised == "yes"  ? io::OrganisedMode::kYes
                                  : options.organised == "no" ? io::OrganisedMode::kNo
                                                              : io::OrganisedMode::kAuto;
   Expected<io::PointLayout> layout = io::ResolveLayout(*cloud, *preset, mode, options.points);
-  if (!layout) return Fail(layout.error().message);
+  if (!layout) return DetectFail(layout.error().message);
   Expected<od::RangeImage> image =
       od::RangeImage::FromPoints(cloud->points, layout->model, *up, layout->rows, layout->cols);
-  if (!image) return Fail(options.points + ": " + image.error().message);
+  if (!image) return DetectFail(options.points + ": " + image.error().message);
 
   Expected<DetectResult> result = DetectAndClassify(*image, *settings, options);
-  if (!result) return Fail(result.error().message);
+  if (!result) return DetectFail(result.error().message);
   const od::Detection& d = result->detection;
 
   Expected<std::vector<std::uint32_t>> labels =
       io::PointLabels(*image, d, result->classification);
-  if (!labels) return Fail(options.points + ": " + labels.error().message);
+  if (!labels) return DetectFail(options.points + ": " + labels.error().message);
   io::RunDescription run;
   run.method = options.method;
   run.rules_applied = !options.no_rules;
@@ -142,15 +124,15 @@ int RunDetectPoints(const DetectOptions& options) {
   run.config_file = options.config;
   Expected<io::DetectionFiles> files = io::WriteDetectionFiles(
       options.out, io::RangeGrid(*image), d, result->classification, run);
-  if (!files) return Fail(files.error().message);
+  if (!files) return DetectFail(files.error().message);
   const std::filesystem::path label_path = std::filesystem::path(options.out) / "labels.label";
-  if (Status s = io::WriteLabelFile(label_path, *labels); !s) return Fail(s.message());
+  if (Status s = io::WriteLabelFile(label_path, *labels); !s) return DetectFail(s.message());
   std::vector<std::uint8_t> point_class(labels->size());
   for (std::size_t i = 0; i < labels->size(); ++i) point_class[i] = (*labels)[i] & 0xFFFFu;
   Expected<io::RgbImage> birds_eye = io::RenderBirdsEye(*image, cloud->points, point_class);
-  if (!birds_eye) return Fail(birds_eye.error().message);
+  if (!birds_eye) return DetectFail(birds_eye.error().message);
   const std::filesystem::path birds_eye_path = std::filesystem::path(options.out) / "birds_eye.png";
-  if (Status s = io::WriteRgbPng(birds_eye_path, *birds_eye); !s) return Fail(s.message());
+  if (Status s = io::WriteRgbPng(birds_eye_path, *birds_eye); !s) return DetectFail(s.message());
   const double total_ms = MillisecondsSince(start);
 
   std::cout << std::fixed << std::setprecision(1) << "cairn detect: " << options.points << " ("
@@ -178,25 +160,34 @@ int RunDetectPoints(const DetectOptions& options) {
 
 int RunDetect(const DetectOptions& options) {
   if (!options.points.empty()) return RunDetectPoints(options);
+#ifdef CAIRN_HAVE_SOURCES
+  if (!options.rawlog.empty()) return RunDetectRawlog(options);
+#endif
+#ifdef CAIRN_HAVE_STEREO
+  if (!options.left.empty()) return RunDetectStereo(options);
+#endif
+#ifdef CAIRN_HAVE_KITTI
+  if (!options.kitti.empty()) return RunDetectKitti(options);
+#endif
   if (options.depth.empty() || options.intrinsics.empty()) {
-    return Fail("give --depth FILE.png with --intrinsics FILE.yaml, or --points FILE.bin with "
+    return DetectFail("give --depth FILE.png with --intrinsics FILE.yaml, or --points FILE.bin with "
                 "--sensor PRESET");
   }
   const Clock::time_point start = Clock::now();
 
   Expected<io::CameraIntrinsics> intrinsics = io::LoadIntrinsics(options.intrinsics);
-  if (!intrinsics) return Fail(intrinsics.error().message);
-  Expected<io::DetectSettings> loaded_settings = LoadSettings(options);
-  if (!loaded_settings) return Fail(loaded_settings.error().message);
+  if (!intrinsics) return DetectFail(intrinsics.error().message);
+  Expected<io::DetectSettings> loaded_settings = LoadDetectSettingsOrDefaults(options);
+  if (!loaded_settings) return DetectFail(loaded_settings.error().message);
   const io::DetectSettings settings = *loaded_settings;
   Expected<io::Grid<float>> depth = io::ReadDepthPng(options.depth, *intrinsics);
-  if (!depth) return Fail(depth.error().message);
+  if (!depth) return DetectFail(depth.error().message);
   Expected<od::RangeImage> image =
       od::RangeImage::FromDepth(depth->data, intrinsics->model, intrinsics->up);
-  if (!image) return Fail(options.depth + ": " + image.error().message);
+  if (!image) return DetectFail(options.depth + ": " + image.error().message);
 
   Expected<DetectResult> result = DetectAndClassify(*image, settings, options);
-  if (!result) return Fail(result.error().message);
+  if (!result) return DetectFail(result.error().message);
   const double detect_ms = result->detect_ms;
   const od::Detection* detection = &result->detection;
   const od::Classification* classification = &result->classification;
@@ -210,7 +201,7 @@ int RunDetect(const DetectOptions& options) {
   run.config_file = options.config;
   Expected<io::DetectionFiles> files =
       io::WriteDetectionFiles(options.out, *depth, *detection, *classification, run);
-  if (!files) return Fail(files.error().message);
+  if (!files) return DetectFail(files.error().message);
   const double total_ms = MillisecondsSince(start);
 
   const od::Detection& d = *detection;
@@ -276,6 +267,54 @@ Subcommand AddDetectCommand(CLI::App& parent) {
       ->capture_default_str()
       ->type_name("X,Y,Z")
       ->needs(points);
+#ifdef CAIRN_HAVE_SOURCES
+  CLI::Option* rawlog =
+      app->add_option("--rawlog", options->rawlog,
+                      "MRPT rawlog (observations or sensory-frame format): every range "
+                      "observation of --label is detected, one output folder per frame")
+          ->type_name("FILE.rawlog")
+          ->excludes(depth)
+          ->excludes(points);
+  app->add_option("--label", options->label,
+                  "sensor label to take from the rawlog (default: every range sensor)")
+      ->needs(rawlog);
+  app->add_option("--annotated", options->annotated,
+                  "write a copy of the rawlog whose range observations carry their obstacle "
+                  "segments as MRPT pixel labels")
+      ->type_name("FILE.rawlog")
+      ->needs(rawlog);
+  app->add_option("--max-frames", options->max_frames, "stop after this many range frames")
+      ->check(CLI::PositiveNumber)
+      ->needs(rawlog);
+#endif
+#ifdef CAIRN_HAVE_STEREO
+  CLI::Option* left = app->add_option("--left", options->left, "rectified left image")
+                          ->type_name("FILE.png")
+                          ->excludes(depth)
+                          ->excludes(points);
+  CLI::Option* right =
+      app->add_option("--right", options->right, "rectified right image")->type_name("FILE.png");
+  CLI::Option* stereo_calib =
+      app->add_option("--stereo-calib", options->stereo_calib,
+                      "stereo calibration: YAML with fx, cx, cy, baseline (and up or "
+                      "pitch_deg), or an OpenCV stereo calibration (M1, D1, M2, D2, R, T)")
+          ->type_name("FILE");
+  left->needs(right)->needs(stereo_calib);
+  right->needs(left);
+  stereo_calib->needs(left);
+#endif
+#ifdef CAIRN_HAVE_KITTI
+  CLI::Option* kitti =
+      app->add_option("--kitti", options->kitti,
+                      "KITTI odometry sequence folder (velodyne/*.bin, calib.txt, poses.txt, "
+                      "times.txt): every scan, one output folder per frame")
+          ->type_name("DIR")
+          ->excludes(depth)
+          ->excludes(points);
+  app->add_option("--frames", options->frames, "frames A:B of the sequence (inclusive)")
+      ->type_name("A:B")
+      ->needs(kitti);
+#endif
   app->add_option("--config", options->config,
                   "settings YAML (detector, rules, column sections); defaults when absent")
       ->type_name("FILE.yaml");

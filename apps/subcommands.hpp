@@ -24,5 +24,9 @@ Subcommand AddDetectCommand(CLI::App& parent);
 Subcommand AddSynthCommand(CLI::App& parent);
 /// `cairn eval`: scores detection methods against ground truth, writes a report.
 Subcommand AddEvalCommand(CLI::App& parent);
+/// `cairn info`: what a data file holds (objects, sensors, rates, time span).
+Subcommand AddInfoCommand(CLI::App& parent);
+/// `cairn map`: a whole sequence fused into an OctoMap and a 2.5-D cost grid.
+Subcommand AddMapCommand(CLI::App& parent);
 
 }  // namespace cairn::apps
