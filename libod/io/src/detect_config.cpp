@@ -163,7 +163,10 @@ Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
   Expected<YAML::Node> root = detail::ParseYaml(yaml_text, source);
   if (!root) return root.error();
   const detail::FieldReader reader(source);
-  if (Status s = reader.CheckMapping(*root, "", {"detector", "rules", "column"}); !s) {
+  // One settings file configures every stage; the sections of the other stages (stereo
+  // matching, mapping) are read, as strictly, by their own loaders.
+  if (Status s = reader.CheckMapping(*root, "", {"detector", "rules", "column", "stereo", "map"});
+      !s) {
     return s.error();
   }
 
