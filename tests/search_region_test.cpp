@@ -1,6 +1,8 @@
 // The exact search region is conservative: every pixel whose point is a compatible partner
 // lies inside the region computed for the lower point, whatever the tilt, the intrinsics,
 // the parameters and however near the points come to the camera.
+#include "../libod/src/search_region.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -8,7 +10,6 @@
 #include <string>
 
 #include "../libod/src/detection_internal.hpp"
-#include "../libod/src/search_region.hpp"
 #include "cairn/od/leveling.hpp"
 
 namespace cairn::od {
@@ -55,7 +56,8 @@ TEST(SearchRegion, ContainsEveryCompatiblePartner) {
     // nearest point (the clipped case) and partners abound.
     std::vector<float> depth(static_cast<std::size_t>(model.width) * model.height);
     const double base = 0.3 + 5.0 * u01(rng);
-    for (float& d : depth) d = u01(rng) < 0.1 ? 0.0f : static_cast<float>(base * (0.5 + 3 * u01(rng)));
+    for (float& d : depth)
+      d = u01(rng) < 0.1 ? 0.0f : static_cast<float>(base * (0.5 + 3 * u01(rng)));
     Eigen::Vector3d up = CameraUpFromPitchRoll((u01(rng) - 0.5) * 1.2, (u01(rng) - 0.5) * 1.0);
     if (trial % 4 == 0) up = Eigen::Vector3d(u01(rng) - 0.5, u01(rng) - 0.5, u01(rng) - 0.5);
     const Expected<RangeImage> image = RangeImage::FromDepth(depth, model, up);
@@ -66,8 +68,8 @@ TEST(SearchRegion, ContainsEveryCompatiblePartner) {
     config.min_slope_rad = 0.1 + 1.3 * u01(rng);
     config.region_slabs = 1 + static_cast<int>(rng() % 6);
 
-    pairs_checked += CheckEveryPartnerInside(*image, config, "pinhole trial " +
-                                                              std::to_string(trial));
+    pairs_checked +=
+        CheckEveryPartnerInside(*image, config, "pinhole trial " + std::to_string(trial));
   }
   EXPECT_GT(pairs_checked, 100000);  // the property was exercised, not vacuous
 }
@@ -86,7 +88,8 @@ RangeImage RandomScan(std::mt19937& rng, const std::string& preset, int width, d
     for (int c = 0; c < width; ++c) {
       if (u01(rng) < 0.1) continue;
       const double e = model.ring_elevation_rad[r] + jitter * 0.01 * (u01(rng) - 0.5);
-      const double a = model.ColumnAzimuth(c) + jitter * model.azimuth_step_rad() * (u01(rng) - 0.5);
+      const double a =
+          model.ColumnAzimuth(c) + jitter * model.azimuth_step_rad() * (u01(rng) - 0.5);
       const double range = base * (0.3 + 2.0 * u01(rng));
       points.emplace_back(range * std::cos(e) * std::cos(a), range * std::cos(e) * std::sin(a),
                           range * std::sin(e));
@@ -131,6 +134,53 @@ TEST(SearchRegion, LidarDetectionEqualsBruteForce) {
     EXPECT_GT(brute.stats.pairs_compatible, 0);
     // The exact search must do less than the brute force's all pairs.
     EXPECT_LT(exact.stats.pairs_tested, brute.stats.pairs_tested) << "trial " << trial;
+  }
+}
+
+// A scan whose rings were measured on the data (FitRings), as for a KITTI scan without a
+// preset: each beam sits up to 0.2 m above or below the origin, so the elevations seen from
+// the origin scatter over more than the 0.4-degree ring spacing and neighbouring rows
+// overlap in elevation. The region takes each row's span from the data: still exact.
+RangeImage MeasuredRingScan(std::mt19937& rng, int rings, int width) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const double step = 2.0 * 3.14159265358979323846 / width, deg = 3.14159265358979323846 / 180;
+  std::vector<Eigen::Vector3f> points;
+  std::vector<std::int32_t> ring;
+  for (int r = 0; r < rings; ++r) {
+    const double elevation = (2.0 - 0.4 * r) * deg, offset = 0.4 * (u01(rng) - 0.5);
+    for (int c = 0; c < width; ++c) {
+      if (u01(rng) < 0.1) continue;
+      const double a = (c + 0.5 + 0.3 * (u01(rng) - 0.5)) * step, d = 1.0 + 14.0 * u01(rng);
+      points.emplace_back(d * std::cos(elevation) * std::cos(a),
+                          d * std::cos(elevation) * std::sin(a), d * std::sin(elevation) + offset);
+      ring.push_back(r);
+    }
+  }
+  Expected<RingFit> fit = FitRings(points, ring, rings, width);
+  EXPECT_TRUE(fit.ok()) << fit.error().message;
+  fit->model.azimuth_start_rad = FitAzimuthStart(points, width);
+  std::vector<std::int32_t> cols(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    cols[i] = fit->model.Column(points[i].cast<double>());
+  }
+  const Eigen::Vector3d up(0.2 * (u01(rng) - 0.5), 0.2 * (u01(rng) - 0.5), 1.0);
+  return *RangeImage::FromPoints(points, fit->model, up, fit->rows, cols);
+}
+
+TEST(SearchRegion, LidarDetectionEqualsBruteForceOnMeasuredOverlappingRings) {
+  std::mt19937 rng(6464);
+  for (int trial = 0; trial < 4; ++trial) {
+    const RangeImage image = MeasuredRingScan(rng, 16, 90);
+    DetectorConfig config;
+    config.min_height_m = 0.2;
+    config.max_height_m = 1.0 + trial * 0.5;
+    config.min_slope_rad = 0.5 + 0.2 * trial;
+    CheckEveryPartnerInside(image, config, "measured rings trial " + std::to_string(trial));
+    const Detection exact = *Detect(image, config);
+    const Detection brute = *DetectBruteForce(image, config);
+    EXPECT_EQ(exact.labels, brute.labels) << "trial " << trial;
+    EXPECT_EQ(exact.stats.pairs_compatible, brute.stats.pairs_compatible) << "trial " << trial;
+    EXPECT_GT(brute.stats.pairs_compatible, 0);
   }
 }
 

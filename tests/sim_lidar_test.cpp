@@ -1,11 +1,18 @@
 // The spinning LiDAR model against its presets and closed-form ray hits: rings and azimuths
 // are the preset's, returns lie at the analytic distance on planes, spheres and cylinders,
-// a point lands in the (ring, column) the analytic projection gives, noise is seeded.
+// a point lands in the (ring, column) the analytic projection gives, noise is seeded. And
+// the other way: rings measured on rendered scans (libod's FindElevationRings, FitRings,
+// MeasureAzimuthSteps) give back the sensor's rings and columns.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 #include <string>
+#include <vector>
 
+#include "cairn/od/range_image.hpp"
+#include "cairn/od/sensor_model.hpp"
 #include "cairn/sim/scene.hpp"
 #include "cairn/sim/world.hpp"
 
@@ -208,6 +215,103 @@ TEST(RenderLidar, RangeNoiseIsSeededAndHasItsSigma) {
   EXPECT_GT(differ, static_cast<int>(a->points.size()) * 9 / 10);
   const double sigma = std::sqrt(sum2 / a->points.size());
   EXPECT_NEAR(sigma, 0.05, 0.005);  // 7 rings reach the ground: 7168 returns, 1% error
+}
+
+// A sensor 1.8 m above flat ground inside a ring of tall trunks, so that every ring, the
+// upward ones too, has returns.
+Scene TrunkRing() {
+  Scene scene(Terrain::Flat(0.0));
+  for (int k = 0; k < 36; ++k) {
+    const double a = k * 10.0 * kDeg;
+    scene.Add(Cylinder{Eigen::Vector3d(14.0 * std::cos(a), 14.0 * std::sin(a), 0.0), 1.0, 30.0},
+              true);
+  }
+  return scene;
+}
+
+TEST(RingFinding, RenderedScansGiveBackTheSensorsRingsAndColumns) {
+  for (const char* preset : {"VLP-16", "HDL-64E"}) {
+    SCOPED_TRACE(preset);
+    Expected<LidarSpec> spec = LidarSpec::Preset(preset);  // with its range noise
+    ASSERT_TRUE(spec.ok());
+    Expected<LidarScan> scan = RenderLidar(TrunkRing(), *spec, Pose({0, 0, 1.8}, 0.3, 0, 0), 5);
+    ASSERT_TRUE(scan.ok()) << scan.error().message;
+    // Unordered, as a merged or filtered cloud comes: only the elevations are left.
+    std::vector<std::size_t> order(scan->points.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::mt19937 rng(6);
+    std::shuffle(order.begin(), order.end(), rng);
+    std::vector<Eigen::Vector3f> points;
+    std::vector<std::int32_t> ring, column;
+    for (std::size_t i : order) {
+      points.push_back(scan->points[i]);
+      ring.push_back(scan->ring[i]);
+      column.push_back(scan->column[i]);
+    }
+    Expected<od::RingFit> fit = od::FindElevationRings(points, spec->azimuth_steps);
+    ASSERT_TRUE(fit.ok()) << fit.error().message;
+    ASSERT_EQ(fit->model.height(), spec->rings());
+    EXPECT_EQ(fit->rows, ring);  // every point in its own ring, top first
+    for (int r = 0; r < spec->rings(); ++r) {
+      // Range noise moves points along their rays: the elevations stay the beam's.
+      EXPECT_NEAR(fit->model.ring_elevation_rad[r], spec->elevations_rad[r], 1e-6) << r;
+    }
+    // From known rings the same model.
+    Expected<od::RingFit> known = od::FitRings(points, ring, spec->rings(), spec->azimuth_steps);
+    ASSERT_TRUE(known.ok());
+    EXPECT_EQ(known->model.ring_elevation_rad, fit->model.ring_elevation_rad);
+    EXPECT_EQ(known->rows, ring);
+
+    // Columns: the azimuth step measured, column 0 fitted to the returns: the renderer's
+    // columns up to a turn of the numbering.
+    Expected<int> steps = od::MeasureAzimuthSteps(points, fit->rows);
+    ASSERT_TRUE(steps.ok());
+    EXPECT_EQ(*steps, spec->azimuth_steps);
+    od::SphericalModel model = fit->model;
+    model.azimuth_start_rad = od::FitAzimuthStart(points, model.width);
+    const int shift =
+        (column[0] - model.Column(points[0].cast<double>()) + model.width) % model.width;
+    std::size_t same = 0;
+    std::vector<std::int32_t> cols(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      cols[i] = model.Column(points[i].cast<double>());
+      same += (cols[i] + shift) % model.width == column[i];
+    }
+    EXPECT_EQ(same, points.size());
+    // One return per cell, each stored exactly.
+    Expected<od::RangeImage> image =
+        od::RangeImage::FromPoints(points, model, Eigen::Vector3d::UnitZ(), fit->rows, cols);
+    ASSERT_TRUE(image.ok());
+    EXPECT_EQ(image->valid_count(), static_cast<int>(points.size()));
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      ASSERT_EQ(image->point(image->cell_of_point()[i]).cast<float>(), points[i]) << i;
+    }
+  }
+}
+
+TEST(RingFinding, ScansWithoutRingsAreToldApart) {
+  // A cloud with elevations spread evenly (a tilting 2-D laser) has no rings.
+  std::vector<Eigen::Vector3f> points;
+  for (int k = 0; k < 20000; ++k) {
+    const double el = -0.3 + 0.6 * k / 20000.0, az = 0.37 * k;
+    points.emplace_back(static_cast<float>(5 * std::cos(el) * std::cos(az)),
+                        static_cast<float>(5 * std::cos(el) * std::sin(az)),
+                        static_cast<float>(5 * std::sin(el)));
+  }
+  Expected<od::RingFit> rings = od::FindElevationRings(points, 1000);
+  ASSERT_FALSE(rings.ok());
+  EXPECT_NE(rings.error().message.find("do not split into separate rings"), std::string::npos)
+      << rings.error().message;
+  // Uniform bins instead: square cells, every point in the bin of its elevation.
+  Expected<od::RingFit> bins = od::UniformElevationBins(points, 1000);
+  ASSERT_TRUE(bins.ok()) << bins.error().message;
+  const double bin = 2 * kPi / 1000;
+  EXPECT_EQ(bins->model.height(), static_cast<int>(std::floor(0.6 * (19999.0 / 20000) / bin)) + 1);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const double el = std::atan2(points[i].z(), std::hypot(points[i].x(), points[i].y()));
+    // Half a bin, and the float coordinates' rounding.
+    ASSERT_LE(std::abs(el - bins->model.ring_elevation_rad[bins->rows[i]]), 0.5 * bin + 1e-6) << i;
+  }
 }
 
 }  // namespace

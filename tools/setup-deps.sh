@@ -6,7 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config
   libeigen3-dev libopencv-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
-  libspdlog-dev libfmt-dev libtbb-dev
+  libspdlog-dev libfmt-dev libtbb-dev libbz2-dev
   liboctomap-dev octomap-tools libceres-dev libmrpt-dev mrpt-common
   libgtest-dev libgmock-dev libbenchmark-dev
 )

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -123,6 +125,134 @@ TEST(DepthPng, SizeDifferentFromTheIntrinsics) {
   ASSERT_FALSE(depth.ok());
   EXPECT_NE(depth.error().message.find("3x2"), std::string::npos) << depth.error().message;
   EXPECT_NE(depth.error().message.find("width 4"), std::string::npos) << depth.error().message;
+}
+
+// ---------------------------------------------------------------------------------------
+// 32-bit float TIFF depth, and the reader that tells the formats apart.
+
+TEST(DepthTiff, FloatRoundTripIsExactAndNoReturnIsZero) {
+  test::TempDir dir;
+  Grid<float> depth{5, 3, {}};
+  for (int i = 0; i < 15; ++i) depth.data.push_back(0.1234567f * static_cast<float>(i * i) + 1e-3f);
+  depth.data[3] = std::numeric_limits<float>::quiet_NaN();
+  depth.data[4] = -1.0f;
+  depth.data[5] = std::numeric_limits<float>::infinity();
+  depth.data[6] = 123456.78f;  // far beyond any 16-bit PNG scale
+  ASSERT_TRUE(WriteDepthTiff(dir / "d.tiff", depth).ok());
+  Expected<Grid<float>> back = ReadDepthImage(dir / "d.tiff", 5, 3, 1.0);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  for (int i = 0; i < 15; ++i) {
+    if (i >= 3 && i <= 5) {
+      EXPECT_EQ(back->data[i], 0.0f) << i;
+    } else {
+      EXPECT_EQ(back->data[i], depth.data[i]) << i;  // bit for bit
+    }
+  }
+  // depth_scale does not apply to float metres.
+  Expected<Grid<float>> scaled = ReadDepthImage(dir / "d.tiff", 5, 3, 0.001);
+  ASSERT_TRUE(scaled.ok());
+  EXPECT_EQ(scaled->data[7], depth.data[7]);
+}
+
+TEST(DepthTiff, NonFiniteValuesWrittenByOthersReadAsNoReturn) {
+  test::TempDir dir;
+  cv::Mat raw(1, 4, CV_32FC1);
+  raw.at<float>(0, 0) = 2.5f;
+  raw.at<float>(0, 1) = std::numeric_limits<float>::quiet_NaN();
+  raw.at<float>(0, 2) = -std::numeric_limits<float>::infinity();
+  raw.at<float>(0, 3) = 0.0f;
+  ASSERT_TRUE(cv::imwrite((dir / "d.tif").string(), raw));
+  Expected<Grid<float>> depth = ReadDepthTiff(dir / "d.tif", 4, 1, 1.0);
+  ASSERT_TRUE(depth.ok()) << depth.error().message;
+  EXPECT_EQ(depth->data, (std::vector<float>{2.5f, 0.0f, 0.0f, 0.0f}));
+}
+
+TEST(DepthTiff, SixteenBitTiffIsScaledLikeAPng) {
+  test::TempDir dir;
+  cv::Mat raw(1, 2, CV_16UC1);
+  raw.at<std::uint16_t>(0, 0) = 5000;
+  raw.at<std::uint16_t>(0, 1) = 0;
+  ASSERT_TRUE(cv::imwrite((dir / "d.tiff").string(), raw));
+  Expected<Grid<float>> depth = ReadDepthImage(dir / "d.tiff", 2, 1, kTumScale);
+  ASSERT_TRUE(depth.ok()) << depth.error().message;
+  EXPECT_FLOAT_EQ(depth->data[0], 1.0f);
+  EXPECT_EQ(depth->data[1], 0.0f);
+}
+
+TEST(DepthTiff, WrongTypeSizeOrContentAreErrors) {
+  test::TempDir dir;
+  ASSERT_TRUE(cv::imwrite((dir / "rgb.tiff").string(), cv::Mat(2, 3, CV_8UC3, cv::Scalar(1))));
+  Expected<Grid<float>> rgb = ReadDepthImage(dir / "rgb.tiff", 3, 2, 1.0);
+  ASSERT_FALSE(rgb.ok());
+  EXPECT_NE(rgb.error().message.find("expected a 32-bit float (or 16-bit) single-channel TIFF, "
+                                     "got 8-bit 3-channel"),
+            std::string::npos)
+      << rgb.error().message;
+
+  ASSERT_TRUE(cv::imwrite((dir / "f.tiff").string(), cv::Mat(2, 3, CV_32FC1, cv::Scalar(1))));
+  Expected<Grid<float>> size = ReadDepthImage(dir / "f.tiff", 4, 2, 1.0);
+  ASSERT_FALSE(size.ok());
+  EXPECT_NE(size.error().message.find("image is 3x2 px, the intrinsics say width 4"),
+            std::string::npos)
+      << size.error().message;
+
+  std::vector<unsigned char> bytes;
+  ASSERT_TRUE(cv::imencode(".tiff", cv::Mat(20, 30, CV_32FC1, cv::Scalar(2)), bytes));
+  dir.Write("cut.tiff", std::string(bytes.begin(), bytes.begin() + 100));
+  Expected<Grid<float>> cut = ReadDepthImage(dir / "cut.tiff", 30, 20, 1.0);
+  ASSERT_FALSE(cut.ok());
+  EXPECT_NE(cut.error().message.find("unreadable TIFF"), std::string::npos) << cut.error().message;
+
+  dir.Write("d.txt", "1 2 3");
+  Expected<Grid<float>> text = ReadDepthImage(dir / "d.txt", 3, 1, 1.0);
+  ASSERT_FALSE(text.ok());
+  EXPECT_EQ(text.error().message, (dir / "d.txt").string() +
+                                      ": not a depth image (expected a 16-bit PNG or a 32-bit "
+                                      "float TIFF)");
+}
+
+TEST(DepthImage, PngsAreReadByTheSignatureWhateverTheirName) {
+  test::TempDir dir;
+  cv::Mat raw(1, 2, CV_16UC1);
+  raw.at<std::uint16_t>(0, 0) = 2500;
+  raw.at<std::uint16_t>(0, 1) = 7;
+  std::vector<unsigned char> bytes;
+  ASSERT_TRUE(cv::imencode(".png", raw, bytes));
+  dir.Write("depth.bin", std::string(bytes.begin(), bytes.end()));
+  Expected<Grid<float>> depth = ReadDepthImage(dir / "depth.bin", 2, 1, 0.001);
+  ASSERT_TRUE(depth.ok()) << depth.error().message;
+  EXPECT_FLOAT_EQ(depth->data[0], 2.5f);
+  EXPECT_FLOAT_EQ(depth->data[1], 0.007f);
+}
+
+TEST(DepthImage, TheTumFrameReadsAtScale5000) {
+  const std::filesystem::path file =
+      std::filesystem::path(CAIRN_SHARED_DATASETS) / "rgbd-tum-frame" / "TUM_depth.png";
+  if (!std::filesystem::exists(file)) {
+    GTEST_SKIP() << file.string() << " not found: this test needs ../shared/datasets";
+  }
+  CameraIntrinsics tum;  // TUM's default intrinsics; only size and scale matter here
+  tum.model = PinholeModel{640, 480, 525.0, 525.0, 319.5, 239.5};
+  tum.depth_scale_m = kTumScale;
+  Expected<Grid<float>> depth = ReadDepthImage(file, tum);
+  ASSERT_TRUE(depth.ok()) << depth.error().message;
+  const cv::Mat raw = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(raw.type(), CV_16UC1);
+  std::vector<float> valid;
+  for (int r = 0; r < 480; ++r) {
+    for (int c = 0; c < 640; ++c) {
+      const std::uint16_t units = raw.at<std::uint16_t>(r, c);
+      ASSERT_FLOAT_EQ(depth->at(r, c), static_cast<float>(units / 5000.0));
+      if (units != 0) valid.push_back(depth->at(r, c));
+    }
+  }
+  // A Kinect in an office (measured: 248,250 returns, 1.46 m nearest, median 2.42 m,
+  // farthest 9.33 m). Read at the wrong scale (1/1000) the median would be 12 m.
+  std::sort(valid.begin(), valid.end());
+  EXPECT_EQ(valid.size(), 248250u);
+  EXPECT_NEAR(valid.front(), 1.464f, 1e-4f);
+  EXPECT_NEAR(valid[valid.size() / 2], 2.415f, 1e-3f);
+  EXPECT_NEAR(valid.back(), 9.331f, 1e-4f);
 }
 
 }  // namespace

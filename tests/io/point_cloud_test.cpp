@@ -1,23 +1,37 @@
-// LiDAR point clouds: KITTI .bin reading and its errors, organised-layout detection, the
-// exact projection round trip, SemanticKITTI .label layout, and `cairn detect --points` end
-// to end on the RELLIS-3D frame (skipped when ../shared/datasets is not there).
+// LiDAR point clouds: readers (KITTI .bin, PLY, text and bzip2 text) and their errors, the
+// layout of points (organised, ring after ring, elevation clusters, uniform bins; the rings
+// found on the real scans of ../shared/datasets and their agreement with the recorded ring
+// numbers), the exact projection round trip on every data set, SemanticKITTI .label layout,
+// and `cairn detect --points` end to end on the RELLIS-3D frame. Cases on the shared data
+// sets are skipped when ../shared/datasets is not there.
+#include "cairn/od/io/point_cloud.hpp"
+
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
+#include <map>
+#include <numeric>
 #include <random>
 #include <set>
 #include <string>
 #include <vector>
 
-#include "cairn/od/io/point_cloud.hpp"
+#include "cairn/od/column_detector.hpp"
+#include "cairn/od/detector.hpp"
+#include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/range_image.hpp"
+#include "cairn/od/rules.hpp"
 #include "cairn/od/sensor_model.hpp"
 #include "temp_dir.hpp"
 
@@ -254,11 +268,14 @@ TEST(PointLabels, ClassInLowBitsSegmentInHighBits) {
       od::io::PointLabels(*image, detection, classification);
   ASSERT_TRUE(labels.ok()) << labels.error().message;
   // Point index = col * 2 + ring; point 5 (col 2, ring 1) is no return.
-  const std::vector<std::uint32_t> expected = {
-      (1u << 16) | 1u, (1u << 16) | 1u,  // col 0: segment 1, kept
-      0u, 0u,                            // col 1
-      (2u << 16) | 2u, 0u,               // col 2: segment 2, rejected; no return
-      0u, 0u};                           // col 3
+  const std::vector<std::uint32_t> expected = {(1u << 16) | 1u,
+                                               (1u << 16) | 1u,  // col 0: segment 1, kept
+                                               0u,
+                                               0u,  // col 1
+                                               (2u << 16) | 2u,
+                                               0u,  // col 2: segment 2, rejected; no return
+                                               0u,
+                                               0u};  // col 3
   EXPECT_EQ(*labels, expected);
 
   test::TempDir dir;
@@ -274,28 +291,551 @@ TEST(PointLabels, ClassInLowBitsSegmentInHighBits) {
   EXPECT_TRUE(Contains(bad.error().message, cut.string())) << bad.error().message;
 }
 
+// --- Readers -------------------------------------------------------------------------------
+
+TEST(KittiBin, EmptyFileErrorNamesTheFile) {
+  test::TempDir dir;
+  const auto path = dir.Write("empty.bin", "");
+  Expected<PointCloud> cloud = od::io::ReadKittiBin(path);
+  ASSERT_FALSE(cloud.ok());
+  EXPECT_TRUE(Contains(cloud.error().message, path.string())) << cloud.error().message;
+  EXPECT_TRUE(Contains(cloud.error().message, "empty")) << cloud.error().message;
+}
+
+TEST(KittiBin, TruncatedFileErrorGivesTheOffsetOfTheCutPoint) {
+  test::TempDir dir;
+  const auto path = dir.Write("cut.bin", std::string(16 * 3 + 5, '\0'));
+  Expected<PointCloud> cloud = od::io::ReadKittiBin(path);
+  ASSERT_FALSE(cloud.ok());
+  EXPECT_TRUE(Contains(cloud.error().message, "53 bytes")) << cloud.error().message;
+  EXPECT_TRUE(Contains(cloud.error().message, "offset 48")) << cloud.error().message;
+}
+
+TEST(KittiBin, AllNanPointIsNoReturnPartialNanIsAnError) {
+  test::TempDir dir;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  PointCloud cloud;
+  cloud.points = {{1.f, 2.f, 3.f}, {nan, nan, nan}, {4.f, 5.f, 6.f}};
+  cloud.intensity = {0.5f, nan, 0.25f};
+  ASSERT_TRUE(od::io::WriteKittiBin(dir / "nan.bin", cloud).ok());
+  Expected<PointCloud> back = od::io::ReadKittiBin(dir / "nan.bin");
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->points[1], Eigen::Vector3f::Zero());
+  EXPECT_EQ(back->points[2], cloud.points[2]);
+
+  cloud.points[2].z() = std::numeric_limits<float>::infinity();
+  ASSERT_TRUE(od::io::WriteKittiBin(dir / "inf.bin", cloud).ok());
+  back = od::io::ReadKittiBin(dir / "inf.bin");
+  ASSERT_FALSE(back.ok());
+  EXPECT_TRUE(Contains(back.error().message, "point 2 (byte offset 32): z is inf"))
+      << back.error().message;
+}
+
+/// A PLY with the RELLIS-3D extras' layout (x y z intensity t reflectivity ring noise range)
+/// plus a face element after the vertices, binary or ascii.
+std::string PlyFile(const PointCloud& cloud, bool binary) {
+  std::string out = std::string("ply\nformat ") + (binary ? "binary_little_endian" : "ascii") +
+                    " 1.0\ncomment made by point_cloud_test\nelement vertex " +
+                    std::to_string(cloud.points.size()) +
+                    "\nproperty float x\nproperty float y\nproperty float z\n"
+                    "property float intensity\nproperty uint t\nproperty ushort reflectivity\n"
+                    "property uchar ring\nproperty ushort noise\nproperty uint range\n"
+                    "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  for (std::size_t i = 0; i < cloud.points.size(); ++i) {
+    const Eigen::Vector3f& p = cloud.points[i];
+    const std::uint32_t t = static_cast<std::uint32_t>(i * 781);
+    const std::uint16_t reflectivity = 7, noise = 3;
+    const std::uint8_t ring = static_cast<std::uint8_t>(cloud.ring[i]);
+    const std::uint32_t range = static_cast<std::uint32_t>(p.norm() * 1000);
+    if (binary) {
+      auto put = [&](const auto& v) { out.append(reinterpret_cast<const char*>(&v), sizeof(v)); };
+      put(p.x()), put(p.y()), put(p.z()), put(cloud.intensity[i]), put(t), put(reflectivity);
+      put(ring), put(noise), put(range);
+    } else {
+      char line[256];
+      std::snprintf(line, sizeof(line), "%.9g %.9g %.9g %.9g %u %u %u %u %u\n", p.x(), p.y(), p.z(),
+                    cloud.intensity[i], t, reflectivity, ring, noise, range);
+      out += line;
+    }
+  }
+  out += binary ? std::string("\x03\x00\x00\x00\x00\x01\x00\x00\x00\x02\x00\x00\x00", 13)
+                : std::string("3 0 1 2\n");
+  return out;
+}
+
+PointCloud SmallCloud() {
+  PointCloud cloud;
+  cloud.points = {{1.5f, -2.25f, 0.125f}, {0.f, 0.f, 0.f}, {-80.0f, 1e-7f, -3.5f}, {3.f, 4.f, 5.f}};
+  cloud.intensity = {0.01f, 0.f, 0.75f, 12.f};
+  cloud.ring = {0, 1, 63, 7};
+  return cloud;
+}
+
+TEST(Ply, BinaryAndAsciiGiveTheSamePointsIntensitiesAndRings) {
+  test::TempDir dir;
+  const PointCloud cloud = SmallCloud();
+  for (bool binary : {true, false}) {
+    const auto path = dir.Write(binary ? "b.ply" : "a.ply", PlyFile(cloud, binary));
+    Expected<PointCloud> back = od::io::ReadPly(path);
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    ASSERT_EQ(back->points.size(), cloud.points.size());
+    for (std::size_t i = 0; i < cloud.points.size(); ++i) {
+      EXPECT_EQ(back->points[i], cloud.points[i]) << i;  // %.9g round-trips a float exactly
+      EXPECT_EQ(back->intensity[i], cloud.intensity[i]) << i;
+    }
+    EXPECT_EQ(back->ring, cloud.ring);
+    Expected<PointCloud> any = od::io::ReadPointFile(path);  // chosen by content
+    ASSERT_TRUE(any.ok());
+    EXPECT_EQ(any->ring, cloud.ring);
+  }
+}
+
+TEST(Ply, ErrorsNameTheFileAndWhere) {
+  test::TempDir dir;
+  const std::string good = PlyFile(SmallCloud(), true);
+  struct Case {
+    std::string name, text, expected;
+  };
+  std::string no_z = good;
+  no_z.replace(no_z.find("property float z\n"), 17, "property float w\n");
+  std::string big_endian = good;
+  big_endian.replace(big_endian.find("binary_little_endian"), 20, "binary_big_endian");
+  std::string bad_type = good;
+  bad_type.replace(bad_type.find("property uint t"), 15, "property quad t");
+  const std::size_t body = good.find("end_header\n") + 11;
+  const std::vector<Case> cases = {
+      {"noz.ply", no_z, "lacks property z"},
+      {"be.ply", big_endian, "binary_big_endian' is not supported"},
+      {"type.ply", bad_type, "header line 9: unknown type 'quad'"},
+      {"cut.ply", good.substr(0, body + 29 + 10),
+       "vertex 1 is incomplete at byte offset " + std::to_string(body + 29)},
+      {"nothing.ply", "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nend_header\n",
+       "no vertices"},
+      {"notply.ply", "plx\n", "not a PLY file"},
+      {"ascii.ply",
+       "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+       "property float z\nend_header\n1 2 3\n4 five 6\n",
+       "line 9: 'five' is not a number (y)"},
+      {"empty.ply", "", "empty"},
+  };
+  for (const Case& c : cases) {
+    const auto path = dir.Write(c.name, c.text);
+    Expected<PointCloud> cloud = od::io::ReadPly(path);
+    ASSERT_FALSE(cloud.ok()) << c.name;
+    EXPECT_TRUE(Contains(cloud.error().message, path.string())) << cloud.error().message;
+    EXPECT_TRUE(Contains(cloud.error().message, c.expected)) << cloud.error().message;
+  }
+}
+
+TEST(XyzText, ReadsThreeOrFourNumbersPerLineAndNamesBadLines) {
+  test::TempDir dir;
+  const auto path = dir.Write("scan.xyz",
+                              "# x y z [intensity]\n1.5 -2.25 0.125\n\n-80,1e-7,-3.5,0.75\n"
+                              "nan nan nan\n+3 4 5 12\n");
+  Expected<PointCloud> cloud = od::io::ReadPointFile(path);
+  ASSERT_TRUE(cloud.ok()) << cloud.error().message;
+  ASSERT_EQ(cloud->points.size(), 4u);
+  EXPECT_EQ(cloud->points[0], Eigen::Vector3f(1.5f, -2.25f, 0.125f));
+  EXPECT_EQ(cloud->points[1], Eigen::Vector3f(-80.0f, 1e-7f, -3.5f));
+  EXPECT_EQ(cloud->intensity[1], 0.75f);
+  EXPECT_EQ(cloud->points[2], Eigen::Vector3f::Zero());  // NaN in all three: no return
+  EXPECT_EQ(cloud->points[3], Eigen::Vector3f(3.f, 4.f, 5.f));
+  EXPECT_TRUE(cloud->ring.empty());
+
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"1 2 3\n1 2\n", "line 2: 2 values, expected 3 or 4"},
+      {"1 2 3\n1 2 x\n", "line 2: 'x' is not a number"},
+      {"1 2 3 4 5\n", "line 1: 5 values"},
+      {"1 nan 3\n", "line 1: y is nan"},
+      {"# only a comment\n", "no points"},
+      {"", "empty"},
+  };
+  for (std::size_t k = 0; k < bad.size(); ++k) {
+    const auto file = dir.Write("bad" + std::to_string(k) + ".txt", bad[k].first);
+    Expected<PointCloud> c = od::io::ReadXyzText(file);
+    ASSERT_FALSE(c.ok()) << k;
+    EXPECT_TRUE(Contains(c.error().message, file.string())) << c.error().message;
+    EXPECT_TRUE(Contains(c.error().message, bad[k].second)) << c.error().message;
+  }
+  Expected<PointCloud> unknown = od::io::ReadPointFile(dir.Write("scan.las", "x"));
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_TRUE(Contains(unknown.error().message, "unknown point file type"))
+      << unknown.error().message;
+}
+
+const std::filesystem::path kDatasets = CAIRN_SHARED_DATASETS;
+
+#define SKIP_WITHOUT_DATASET(folder)                                 \
+  if (!std::filesystem::exists(kDatasets / folder)) {                \
+    GTEST_SKIP() << (kDatasets / folder).string()                    \
+                 << " not found (see ../shared/datasets/README.md)"; \
+  }
+
+TEST(XyzText, ReadsOctomapsBzip2ScanAndRejectsBrokenStreams) {
+  SKIP_WITHOUT_DATASET("octomap-fr079");
+  const std::filesystem::path scan = kDatasets / "octomap-fr079" / "scan.dat.bz2";
+  Expected<PointCloud> cloud = od::io::ReadPointFile(scan);
+  ASSERT_TRUE(cloud.ok()) << cloud.error().message;
+  ASSERT_EQ(cloud->points.size(), 88206u);  // `bzcat scan.dat.bz2 | wc -l`
+  EXPECT_EQ(cloud->points.front(), Eigen::Vector3f(-0.0434742f, -4.82982f, 0.499645f));
+  EXPECT_EQ(cloud->points.back(), Eigen::Vector3f(0.130896f, 3.58f, 0.432014f));
+
+  std::ifstream in(scan, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  test::TempDir dir;
+  const auto cut = dir.Write("cut.dat.bz2", bytes.substr(0, bytes.size() / 2));
+  Expected<PointCloud> c = od::io::ReadPointFile(cut);
+  ASSERT_FALSE(c.ok());
+  EXPECT_TRUE(Contains(c.error().message, cut.string() + ": bzip2 stream is truncated"))
+      << c.error().message;
+  std::string flipped = bytes;
+  for (std::size_t k = 1000; k < 1100; ++k) flipped[k] = static_cast<char>(~flipped[k]);
+  const auto corrupt = dir.Write("corrupt.dat.bz2", flipped);
+  c = od::io::ReadPointFile(corrupt);
+  ASSERT_FALSE(c.ok());
+  EXPECT_TRUE(Contains(c.error().message, "corrupt bzip2 data")) << c.error().message;
+  const auto plain = dir.Write("plain.xyz.bz2", "1 2 3\n");
+  c = od::io::ReadPointFile(plain);
+  ASSERT_FALSE(c.ok());
+  EXPECT_TRUE(Contains(c.error().message, "not a bzip2 stream at byte offset 0"))
+      << c.error().message;
+}
+
+// --- Rings found in the data ---------------------------------------------------------------
+
+/// A KITTI-like scan stored ring after ring: `rings` beams from +2 deg down every 0.4 deg,
+/// each with a vertical offset of up to +-0.2 m from the origin, so that the elevation seen
+/// from the origin scatters over more than the ring spacing up close (as the HDL-64E's
+/// does); every ring starts at the seam azimuth and sweeps counter-clockwise in steps of
+/// 2 pi / columns with jitter, a tenth of the returns missing (dropped, as KITTI does) and
+/// one return in a hundred a step backwards. `truth` gets each point's ring.
+PointCloud RingAfterRingScan(int rings, int columns, double seam, std::uint32_t seed,
+                             std::vector<std::int32_t>* truth) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const double step = 2.0 * kPi / columns, deg = kPi / 180.0;
+  PointCloud cloud;
+  truth->clear();
+  for (int r = 0; r < rings; ++r) {
+    const double elevation = (2.0 - 0.4 * r) * deg;
+    const double offset = 0.4 * (u01(rng) - 0.5);  // [m], along z
+    for (int c = 0; c < columns; ++c) {
+      if (u01(rng) < 0.1) continue;
+      double az = seam + (c + 0.5 + 0.2 * (u01(rng) - 0.5)) * step;
+      if (u01(rng) < 0.01) az -= 1.5 * step;
+      const double d = 3.0 + 40.0 * u01(rng);
+      cloud.points.emplace_back(static_cast<float>(d * std::cos(elevation) * std::cos(az)),
+                                static_cast<float>(d * std::cos(elevation) * std::sin(az)),
+                                static_cast<float>(d * std::sin(elevation) + offset));
+      cloud.intensity.push_back(0.f);
+      truth->push_back(r);
+    }
+  }
+  return cloud;
+}
+
+/// Share of the returns whose row equals `truth`.
+double Agreement(const std::vector<std::int32_t>& rows, const std::vector<std::int32_t>& truth,
+                 const PointCloud& cloud) {
+  std::size_t same = 0, returns = 0;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (cloud.points[i].isZero()) continue;
+    ++returns;
+    same += rows[i] == truth[i];
+  }
+  return static_cast<double>(same) / static_cast<double>(returns);
+}
+
+/// Share of the returns grouped as `truth` groups them, whatever the numbering: each true
+/// ring is mapped to the row most of its returns have (rows may be renumbered by their
+/// elevation), two rings to one row counting once.
+double PartitionAgreement(const std::vector<std::int32_t>& rows,
+                          const std::vector<std::int32_t>& truth, const PointCloud& cloud) {
+  std::map<std::int32_t, std::map<std::int32_t, std::size_t>> votes;
+  std::size_t returns = 0;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (cloud.points[i].isZero()) continue;
+    ++returns;
+    ++votes[truth[i]][rows[i]];
+  }
+  std::set<std::int32_t> used;
+  std::size_t same = 0;
+  for (const auto& [ring, row_counts] : votes) {
+    const auto best =
+        std::max_element(row_counts.begin(), row_counts.end(),
+                         [](const auto& a, const auto& b) { return a.second < b.second; });
+    if (used.insert(best->first).second) same += best->second;
+  }
+  return static_cast<double>(same) / static_cast<double>(returns);
+}
+
+TEST(RingFinding, RingAfterRingScanIsCutAtItsSeam) {
+  for (const double seam : {0.0, 2.5, -1.0}) {
+    std::vector<std::int32_t> truth;
+    const PointCloud cloud = RingAfterRingScan(64, 1000, seam, 11, &truth);
+    Expected<od::io::RingBreaks> breaks = od::io::FindRingBreaks(cloud.points);
+    ASSERT_TRUE(breaks.ok()) << breaks.error().message;
+    EXPECT_EQ(breaks->rings, 64);
+    EXPECT_NEAR(std::remainder(breaks->seam_rad - seam, 2.0 * kPi), 0.0, 0.01);
+    EXPECT_EQ(breaks->ring, truth);
+    Expected<od::io::FoundLayout> layout = od::io::FindLayout(cloud, {}, "scan");
+    ASSERT_TRUE(layout.ok()) << layout.error().message;
+    EXPECT_EQ(layout->source, od::io::RingSource::kRingBreaks);
+    ASSERT_EQ(layout->model.height(), 64);
+    // The rings, renumbered by their median elevation (the offsets reorder a few).
+    EXPECT_EQ(PartitionAgreement(layout->rows, truth, cloud), 1.0);
+    EXPECT_NEAR(layout->model.width, 1000, 20);  // measured azimuth step
+  }
+}
+
+TEST(RingFinding, ShuffledScatteredRingsFallBackToUniformBins) {
+  std::vector<std::int32_t> truth;
+  PointCloud cloud = RingAfterRingScan(64, 500, 0.3, 12, &truth);
+  std::mt19937 rng(13);
+  std::shuffle(cloud.points.begin(), cloud.points.end(), rng);
+  EXPECT_FALSE(od::io::FindRingBreaks(cloud.points).ok());
+  Expected<od::io::FoundLayout> layout = od::io::FindLayout(cloud, {}, "scan");
+  ASSERT_TRUE(layout.ok()) << layout.error().message;
+  EXPECT_EQ(layout->source, od::io::RingSource::kUniformBins);
+  EXPECT_TRUE(Contains(layout->note, "do not split into separate rings")) << layout->note;
+}
+
+TEST(RingFinding, OrganisedScanInFiringOrderFindsItsRingCountAndSortsTheRings) {
+  // VLP-32C lasers fire interleaved, not top first: index = col * 32 + laser.
+  const od::SphericalModel vlp = *od::SphericalModel::Preset("VLP-32C", 360);
+  std::vector<int> laser_ring(32);
+  for (int l = 0; l < 32; ++l) laser_ring[l] = (l * 7) % 32;  // a permutation (7 is odd)
+  std::mt19937 rng(14);
+  std::uniform_real_distribution<double> range(2.0, 50.0);
+  PointCloud cloud;
+  std::vector<std::int32_t> truth;
+  for (int c = 0; c < vlp.width; ++c) {
+    for (int l = 0; l < 32; ++l) {
+      const int r = laser_ring[l];
+      const double el = vlp.ring_elevation_rad[r], az = vlp.ColumnAzimuth(c), d = range(rng);
+      cloud.points.emplace_back(static_cast<float>(d * std::cos(el) * std::cos(az)),
+                                static_cast<float>(d * std::cos(el) * std::sin(az)),
+                                static_cast<float>(d * std::sin(el)));
+      truth.push_back(r);
+    }
+  }
+  Expected<od::io::FoundLayout> layout = od::io::FindLayout(cloud, {}, "scan");
+  ASSERT_TRUE(layout.ok()) << layout.error().message;
+  EXPECT_EQ(layout->source, od::io::RingSource::kOrganised);
+  ASSERT_EQ(layout->model.height(), 32);
+  EXPECT_EQ(layout->model.width, 360);
+  EXPECT_EQ(Agreement(layout->rows, truth, cloud), 1.0);
+  for (int r = 0; r < 32; ++r) {
+    EXPECT_NEAR(layout->model.ring_elevation_rad[r], vlp.ring_elevation_rad[r], 1e-6) << r;
+  }
+}
+
+TEST(RingFinding, PresetThatDisagreesWithTheDataFallsBackToItsNominalRings) {
+  std::vector<std::int32_t> truth;
+  const PointCloud cloud = RingAfterRingScan(64, 400, 0.0, 15, &truth);
+  od::io::LayoutOptions options;
+  options.preset = *od::SphericalModel::Preset("VLP-16");
+  Expected<od::io::FoundLayout> layout = od::io::FindLayout(cloud, options, "scan");
+  ASSERT_TRUE(layout.ok()) << layout.error().message;
+  EXPECT_EQ(layout->source, od::io::RingSource::kNominal);
+  EXPECT_EQ(layout->model.height(), 16);
+  EXPECT_EQ(layout->model.width, 1800);  // the VLP-16's own
+  EXPECT_TRUE(Contains(layout->note, "ring breaks give 64 rings, the preset has 16"))
+      << layout->note;
+}
+
+/// Projects `cloud` with `layout` and checks the round trip: every return has the cell of
+/// its row and column; each cell stores, bit for bit, the nearest point mapped to it (the
+/// first of equals); no return has no cell. Returns the share of the returns stored.
+double ExpectExactProjection(const PointCloud& cloud, const od::io::FoundLayout& layout) {
+  Expected<od::RangeImage> image = od::RangeImage::FromPoints(
+      cloud.points, layout.model, Eigen::Vector3d::UnitZ(), layout.rows, layout.cols);
+  EXPECT_TRUE(image.ok()) << image.error().message;
+  if (!image) return 0.0;
+  const int width = image->width();
+  const std::vector<std::int32_t>& cell = image->cell_of_point();
+  EXPECT_EQ(cell.size(), cloud.points.size());
+  std::vector<int> nearest(static_cast<std::size_t>(image->size()), -1);
+  std::vector<float> best(static_cast<std::size_t>(image->size()),
+                          std::numeric_limits<float>::infinity());
+  std::size_t returns = 0;
+  for (std::size_t i = 0; i < cloud.points.size(); ++i) {
+    const Eigen::Vector3f& p = cloud.points[i];
+    if (p.isZero()) {
+      EXPECT_EQ(cell[i], -1) << i;
+      continue;
+    }
+    ++returns;
+    EXPECT_EQ(cell[i], layout.rows[i] * width + layout.cols[i]) << i;
+    if (cell[i] < 0) return 0.0;
+    if (p.norm() < best[cell[i]]) {
+      best[cell[i]] = p.norm();
+      nearest[cell[i]] = static_cast<int>(i);
+    }
+  }
+  std::size_t stored = 0, wrong = 0;
+  for (int c = 0; c < image->size(); ++c) {
+    if (nearest[c] < 0) {
+      EXPECT_FALSE(image->valid(c)) << c;
+      continue;
+    }
+    ++stored;
+    const float in[3] = {cloud.points[nearest[c]].x(), cloud.points[nearest[c]].y(),
+                         cloud.points[nearest[c]].z()};
+    const float out[3] = {image->x()[c], image->y()[c], image->z()[c]};
+    wrong += !image->valid(c) || std::memcmp(in, out, sizeof(in)) != 0;
+  }
+  EXPECT_EQ(wrong, 0u);
+  EXPECT_EQ(static_cast<std::size_t>(image->valid_count()), stored);
+  return static_cast<double>(stored) / static_cast<double>(returns);
+}
+
+TEST(Projection, SyntheticScansComeBackExactly) {
+  std::vector<std::int32_t> truth;
+  const PointCloud ring_after_ring = RingAfterRingScan(64, 1000, 1.0, 16, &truth);
+  Expected<od::io::FoundLayout> layout = od::io::FindLayout(ring_after_ring, {}, "scan");
+  ASSERT_TRUE(layout.ok());
+  EXPECT_GT(ExpectExactProjection(ring_after_ring, *layout), 0.9);
+  const PointCloud organised = OrganisedScan(Os1(512), 17);
+  layout = od::io::FindLayout(organised, {}, "scan");
+  ASSERT_TRUE(layout.ok());
+  EXPECT_EQ(layout->source, od::io::RingSource::kOrganised);
+  EXPECT_EQ(ExpectExactProjection(organised, *layout), 1.0);  // one point per cell
+}
+
+struct RealScan {
+  const char* name;
+  std::filesystem::path path;
+  od::io::RingSource source;
+  int rings;
+};
+
+std::vector<RealScan> RealScans() {
+  return {
+      {"KITTI HDL-64E 000000", kDatasets / "kitti-seq00-0-10/velodyne/000000.bin",
+       od::io::RingSource::kRingBreaks, 64},
+      {"RELLIS OS1-64 .bin", kDatasets / "rellis3d-000104/os1_bin/000104.bin",
+       od::io::RingSource::kOrganised, 64},
+      {"RELLIS OS1-64 .ply", kDatasets / "rellis3d-000104/extras/frame000104-1581624663_170.ply",
+       od::io::RingSource::kRingField, 64},
+      {"RELLIS VLP-32C", kDatasets / "rellis3d-000104/extras/vel000104.bin",
+       od::io::RingSource::kElevationClusters, 32},
+      {"OctoMap fr079 tilting laser", kDatasets / "octomap-fr079/scan.dat.bz2",
+       od::io::RingSource::kUniformBins, 0}};
+}
+
+TEST(RingFinding, RealScansHaveTheirSensorsRings) {
+  for (const RealScan& scan : RealScans()) {
+    if (!std::filesystem::exists(scan.path)) GTEST_SKIP() << scan.path << " not found";
+    Expected<PointCloud> cloud = od::io::ReadPointFile(scan.path);
+    ASSERT_TRUE(cloud.ok()) << cloud.error().message;
+    Expected<od::io::FoundLayout> layout = od::io::FindLayout(*cloud, {}, scan.path.string());
+    ASSERT_TRUE(layout.ok()) << layout.error().message;
+    EXPECT_EQ(layout->source, scan.source) << scan.name;
+    if (scan.rings > 0) {
+      EXPECT_EQ(layout->model.height(), scan.rings) << scan.name;
+    }
+    const double stored = ExpectExactProjection(*cloud, *layout);
+    std::printf("%s: %d rings (%s) x %d columns, %.1f%% of the returns stored\n", scan.name,
+                layout->model.height(), od::io::RingSourceName(layout->source), layout->model.width,
+                100.0 * stored);
+    EXPECT_GT(stored, scan.rings > 0 ? 0.9 : 0.2) << scan.name;
+  }
+}
+
+TEST(RingFinding, KittiSequenceHas64RingsInEveryScan) {
+  SKIP_WITHOUT_DATASET("kitti-seq00-0-10");
+  for (int frame = 0; frame <= 10; ++frame) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d.bin", frame);
+    Expected<PointCloud> cloud =
+        od::io::ReadKittiBin(kDatasets / "kitti-seq00-0-10/velodyne" / name);
+    ASSERT_TRUE(cloud.ok()) << cloud.error().message;
+    Expected<od::io::RingBreaks> breaks = od::io::FindRingBreaks(cloud->points);
+    ASSERT_TRUE(breaks.ok()) << breaks.error().message;
+    EXPECT_EQ(breaks->rings, 64) << name;
+    // KITTI starts every ring straight ahead (+x).
+    EXPECT_NEAR(breaks->seam_rad, 0.0, 0.01) << name;
+    // Stored top first: the rows are the rings in storage order.
+    Expected<od::io::FoundLayout> layout = od::io::FindLayout(*cloud, {}, name);
+    ASSERT_TRUE(layout.ok());
+    EXPECT_EQ(Agreement(layout->rows, breaks->ring, *cloud), 1.0) << name;
+    // Measured from the origin, the beams' vertical offsets shift the elevations by up to a
+    // degree from the data sheet's +2 and -24.8 deg.
+    EXPECT_NEAR(layout->model.ring_elevation_rad.front() * 180 / kPi, 2.0, 1.0) << name;
+    EXPECT_NEAR(layout->model.ring_elevation_rad.back() * 180 / kPi, -24.8, 1.5) << name;
+  }
+}
+
+TEST(RingFinding, RellisOs1RingsAgreeWithTheRecordedRingField) {
+  SKIP_WITHOUT_DATASET("rellis3d-000104");
+  Expected<PointCloud> ply =
+      od::io::ReadPly(kDatasets / "rellis3d-000104/extras/frame000104-1581624663_170.ply");
+  Expected<PointCloud> bin = od::io::ReadKittiBin(kDatasets / "rellis3d-000104/os1_bin/000104.bin");
+  ASSERT_TRUE(ply.ok() && bin.ok());
+  ASSERT_EQ(ply->points.size(), bin->points.size());
+  for (std::size_t i = 0; i < bin->points.size(); ++i) {
+    ASSERT_EQ(ply->points[i], bin->points[i]) << i;  // the same scan
+  }
+  // Organised order, without a preset.
+  Expected<od::io::FoundLayout> organised = od::io::FindLayout(*bin, {}, "os1");
+  ASSERT_TRUE(organised.ok());
+  ASSERT_EQ(organised->source, od::io::RingSource::kOrganised);
+  const double organised_agreement = Agreement(organised->rows, ply->ring, *bin);
+  // Elevations alone: the order ignored.
+  od::io::LayoutOptions no_order;
+  no_order.organised = od::io::OrganisedMode::kNo;
+  Expected<od::io::FoundLayout> clusters = od::io::FindLayout(*bin, no_order, "os1");
+  ASSERT_TRUE(clusters.ok());
+  ASSERT_EQ(clusters->source, od::io::RingSource::kElevationClusters);
+  ASSERT_EQ(clusters->model.height(), 64);
+  const double cluster_agreement = Agreement(clusters->rows, ply->ring, *bin);
+  std::printf(
+      "OS1-64 rows against the PLY ring field: organised %.4f%%, elevation clusters "
+      "%.4f%%\n",
+      100 * organised_agreement, 100 * cluster_agreement);
+  EXPECT_EQ(organised_agreement, 1.0);
+  EXPECT_EQ(cluster_agreement, 1.0);
+  // The measured elevations: +17.02 deg at the top, -16.44 at the bottom (not the nominal
+  // +-16.6), 0.44 to 0.62 deg apart.
+  EXPECT_NEAR(organised->model.ring_elevation_rad.front() * 180 / kPi, 17.024, 0.001);
+  EXPECT_NEAR(organised->model.ring_elevation_rad.back() * 180 / kPi, -16.439, 0.001);
+  for (int r = 0; r < 64; ++r) {
+    EXPECT_NEAR(organised->model.ring_elevation_rad[r], clusters->model.ring_elevation_rad[r],
+                1e-6);
+  }
+}
+
+TEST(RingFinding, RellisVlp32cRingsAreItsDataSheetElevations) {
+  SKIP_WITHOUT_DATASET("rellis3d-000104");
+  Expected<PointCloud> cloud =
+      od::io::ReadKittiBin(kDatasets / "rellis3d-000104/extras/vel000104.bin");
+  ASSERT_TRUE(cloud.ok());
+  Expected<od::io::FoundLayout> layout = od::io::FindLayout(*cloud, {}, "vlp");
+  ASSERT_TRUE(layout.ok());
+  ASSERT_EQ(layout->source, od::io::RingSource::kElevationClusters);
+  ASSERT_EQ(layout->model.height(), 32);
+  EXPECT_EQ(layout->model.width, 1800);  // 0.2 deg between firings, measured
+  const od::SphericalModel sheet = *od::SphericalModel::Preset("VLP-32C");
+  double worst = 0.0;
+  for (int r = 0; r < 32; ++r) {
+    worst = std::max(worst,
+                     std::abs(layout->model.ring_elevation_rad[r] - sheet.ring_elevation_rad[r]));
+  }
+  std::vector<std::int32_t> nominal(cloud->points.size());
+  for (std::size_t i = 0; i < nominal.size(); ++i) {
+    nominal[i] = sheet.NearestRing(cloud->points[i].cast<double>());
+  }
+  const double agreement = Agreement(layout->rows, nominal, *cloud);
+  std::printf(
+      "VLP-32C: measured ring elevations within %.4f deg of the data sheet; rows agree "
+      "with the nearest data-sheet ring for %.4f%% of the points\n",
+      worst * 180 / kPi, 100 * agreement);
+  EXPECT_LT(worst * 180 / kPi, 0.01);
+  EXPECT_EQ(agreement, 1.0);
+}
+
 // --- End to end on RELLIS-3D frame 000104 -------------------------------------------------
-
-#if defined(CAIRN_EXE) && defined(CAIRN_SOURCE_DIR)
-
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (const char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  return q + "'";
-}
-
-/// Runs the built command; returns its exit code (-1 on a crash) and fills `output`.
-int RunCairn(const std::vector<std::string>& args, std::string* output) {
-  std::string command = Quote(CAIRN_EXE);
-  for (const std::string& a : args) command += " " + Quote(a);
-  command += " 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (!pipe) return -1;
-  std::array<char, 4096> buffer;
-  while (std::fgets(buffer.data(), buffer.size(), pipe)) *output += buffer.data();
-  const int status = ::pclose(pipe);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
 
 struct Score {
   double precision = 0, recall = 0, f1 = 0;
@@ -324,6 +864,136 @@ Score ObstacleScore(const std::vector<std::uint32_t>& truth,
   return s;
 }
 
+// --- The VLP-32C scan of RELLIS-3D frame 000104, scored ------------------------------------
+
+/// The Ouster's labels carried over to the Velodyne's points: each VLP-32C point, moved into
+/// the Ouster's frame by extras/vel2os1.yaml (quaternion w, x, y, z and translation), takes
+/// the label of the nearest Ouster return within 0.25 m; 0xFFFF where there is none.
+std::vector<std::uint32_t> TransferredLabels(const PointCloud& vlp) {
+  const std::filesystem::path rellis = kDatasets / "rellis3d-000104";
+  std::ifstream yaml(rellis / "extras" / "vel2os1.yaml");
+  std::vector<double> v;  // w x y z (q), then x y z (t), in the file's order
+  for (std::string line; std::getline(yaml, line);) {
+    const std::size_t colon = line.find(':');
+    if (colon == std::string::npos || colon + 1 >= line.size()) continue;
+    const std::string value = line.substr(colon + 1);
+    if (value.find_first_not_of(' ') == std::string::npos) continue;
+    v.push_back(std::stod(value));
+  }
+  EXPECT_EQ(v.size(), 7u);
+  if (v.size() != 7) return {};
+  const Eigen::Quaterniond q(v[0], v[1], v[2], v[3]);
+  const Eigen::Matrix3f R = q.normalized().toRotationMatrix().cast<float>();
+  const Eigen::Vector3f t(static_cast<float>(v[4]), static_cast<float>(v[5]),
+                          static_cast<float>(v[6]));
+
+  Expected<PointCloud> os1 = od::io::ReadKittiBin(rellis / "os1_bin" / "000104.bin");
+  Expected<std::vector<std::uint32_t>> truth =
+      od::io::ReadLabelFile(rellis / "os1_label" / "000104.label");
+  EXPECT_TRUE(os1.ok() && truth.ok());
+  if (!os1 || !truth) return {};
+  constexpr float kCell = 0.3f, kReach = 0.25f;
+  auto key = [&](const Eigen::Vector3f& p) {
+    return std::array<int, 3>{static_cast<int>(std::floor(p.x() / kCell)),
+                              static_cast<int>(std::floor(p.y() / kCell)),
+                              static_cast<int>(std::floor(p.z() / kCell))};
+  };
+  std::map<std::array<int, 3>, std::vector<std::size_t>> grid;
+  for (std::size_t i = 0; i < os1->points.size(); ++i) {
+    if (!os1->points[i].isZero()) grid[key(os1->points[i])].push_back(i);
+  }
+  std::vector<std::uint32_t> labels(vlp.points.size(), 0xFFFFu);
+  for (std::size_t i = 0; i < vlp.points.size(); ++i) {
+    const Eigen::Vector3f p = R * vlp.points[i] + t;
+    const std::array<int, 3> k = key(p);
+    float best = kReach;
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          const auto cell = grid.find({k[0] + dx, k[1] + dy, k[2] + dz});
+          if (cell == grid.end()) continue;
+          for (std::size_t j : cell->second) {
+            const float d = (os1->points[j] - p).norm();
+            if (d < best) {
+              best = d;
+              labels[i] = (*truth)[j] & 0xFFFFu;
+            }
+          }
+        }
+      }
+    }
+  }
+  return labels;
+}
+
+TEST(DetectVlp32c, ConeDetectorBeatsTheColumnBaselineOnTheOustersLabels) {
+  SKIP_WITHOUT_DATASET("rellis3d-000104");
+  Expected<PointCloud> vlp =
+      od::io::ReadKittiBin(kDatasets / "rellis3d-000104" / "extras" / "vel000104.bin");
+  ASSERT_TRUE(vlp.ok());
+  const std::vector<std::uint32_t> truth = TransferredLabels(*vlp);
+  ASSERT_EQ(truth.size(), vlp->points.size());
+  const std::size_t labelled = static_cast<std::size_t>(
+      std::count_if(truth.begin(), truth.end(), [](std::uint32_t l) { return l != 0xFFFFu; }));
+  EXPECT_EQ(labelled, 21545u);
+
+  Expected<od::io::FoundLayout> layout = od::io::FindLayout(*vlp, {}, "vel000104.bin");
+  ASSERT_TRUE(layout.ok());
+  Expected<od::RangeImage> image = od::RangeImage::FromPoints(
+      vlp->points, layout->model, Eigen::Vector3d::UnitZ(), layout->rows, layout->cols);
+  Expected<od::io::DetectSettings> settings = od::io::LoadDetectSettings(
+      std::filesystem::path(CAIRN_SOURCE_DIR) / "config" / "sensors" / "vlp-32c.yaml");
+  ASSERT_TRUE(image.ok() && settings.ok());
+  od::ColumnConfig column = od::ColumnConfig::From(settings->detector);
+  column.min_blob_pixels = settings->min_blob_pixels;
+  Expected<od::Detection> detections[2] = {od::Detect(*image, settings->detector),
+                                           od::DetectColumns(*image, column)};
+  Score score[2];
+  for (int m = 0; m < 2; ++m) {
+    ASSERT_TRUE(detections[m].ok());
+    Expected<od::Classification> classes = od::Classify(*detections[m], settings->rules);
+    ASSERT_TRUE(classes.ok());
+    Expected<std::vector<std::uint32_t>> labels =
+        od::io::PointLabels(*image, *detections[m], *classes);
+    ASSERT_TRUE(labels.ok());
+    std::vector<std::uint32_t> known_truth, known_labels;  // points with a carried label
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      if (truth[i] == 0xFFFFu) continue;
+      known_truth.push_back(truth[i]);
+      known_labels.push_back((*labels)[i]);
+    }
+    score[m] = ObstacleScore(known_truth, known_labels);
+    std::printf("VLP-32C %s: obstacle P %.3f R %.3f F1 %.3f\n", m == 0 ? "cone" : "column",
+                score[m].precision, score[m].recall, score[m].f1);
+  }
+  // config/sensors/vlp-32c.yaml quotes these.
+  EXPECT_NEAR(score[0].f1, 0.855, 0.005);
+  EXPECT_NEAR(score[0].recall, 0.961, 0.005);
+  EXPECT_NEAR(score[1].f1, 0.766, 0.005);
+  EXPECT_GT(score[0].f1, score[1].f1);
+}
+
+#if defined(CAIRN_EXE) && defined(CAIRN_SOURCE_DIR)
+
+std::string Quote(const std::string& s) {
+  std::string q = "'";
+  for (const char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+  return q + "'";
+}
+
+/// Runs the built command; returns its exit code (-1 on a crash) and fills `output`.
+int RunCairn(const std::vector<std::string>& args, std::string* output) {
+  std::string command = Quote(CAIRN_EXE);
+  for (const std::string& a : args) command += " " + Quote(a);
+  command += " 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (!pipe) return -1;
+  std::array<char, 4096> buffer;
+  while (std::fgets(buffer.data(), buffer.size(), pipe)) *output += buffer.data();
+  const int status = ::pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
 TEST(DetectPointsCli, RellisFrameConeBeatsColumnBaseline) {
   const std::filesystem::path data =
       std::filesystem::path(CAIRN_SOURCE_DIR) / ".." / "shared" / "datasets" / "rellis3d-000104";
@@ -344,10 +1014,10 @@ TEST(DetectPointsCli, RellisFrameConeBeatsColumnBaseline) {
   for (int m = 0; m < 2; ++m) {
     const std::filesystem::path out = dir / methods[m];
     std::string output;
-    const int code = RunCairn({"detect", "--points", (data / "os1_bin" / "000104.bin").string(),
-                               "--sensor", "OS1-64", "--config", config, "--method", methods[m],
-                               "--out", out.string()},
-                              &output);
+    const int code =
+        RunCairn({"detect", "--points", (data / "os1_bin" / "000104.bin").string(), "--sensor",
+                  "OS1-64", "--config", config, "--method", methods[m], "--out", out.string()},
+                 &output);
     ASSERT_EQ(code, 0) << output;
     EXPECT_TRUE(Contains(output, "organised")) << output;
     for (const char* name : {"labels.label", "birds_eye.png", "segments.png", "classes.png",

@@ -16,7 +16,7 @@ constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 /// How a file value becomes a struct value: numbers as they are (metres, m^3, factors),
 /// degrees to radians, integers range-checked, names to enums.
-enum class Kind { kNumber, kDegrees, kInt, kInt64, kSearchMode };
+enum class Kind { kNumber, kDegrees, kInt, kInt64, kSearchMode, kStereoMode };
 
 /// One settable value: its key in the file and the struct member it lands in. `member`
 /// is the struct's field name, used to find which key a Validate() message is about.
@@ -50,6 +50,23 @@ std::vector<Field> RuleFields(RuleConfig& c) {
 
 std::vector<Field> ColumnFields(DetectSettings& s) {
   return {{"min_blob_pixels", Kind::kInt, "min_blob_pixels", &s.min_blob_pixels}};
+}
+
+std::vector<Field> StereoFields(StereoConfig& c) {
+  return {{"min_depth", Kind::kNumber, "min_depth_m", &c.min_depth_m},
+          {"num_disparities", Kind::kInt, "num_disparities", &c.num_disparities},
+          {"max_depth", Kind::kNumber, "max_depth_m", &c.max_depth_m},
+          {"block_size", Kind::kInt, "block_size", &c.block_size},
+          {"p1", Kind::kInt, "p1", &c.p1},
+          {"p2", Kind::kInt, "p2", &c.p2},
+          {"uniqueness", Kind::kInt, "uniqueness", &c.uniqueness},
+          {"speckle_window", Kind::kInt, "speckle_window", &c.speckle_window},
+          {"speckle_range", Kind::kInt, "speckle_range", &c.speckle_range},
+          {"disp12_max_diff", Kind::kInt, "disp12_max_diff", &c.disp12_max_diff},
+          {"pre_filter_cap", Kind::kInt, "pre_filter_cap", &c.pre_filter_cap},
+          {"mode", Kind::kStereoMode, "mode", &c.mode},
+          {"min_texture", Kind::kNumber, "min_texture", &c.min_texture},
+          {"disparity_sigma", Kind::kNumber, "disparity_sigma_px", &c.disparity_sigma_px}};
 }
 
 std::vector<std::string> Keys(const std::vector<Field>& fields) {
@@ -93,6 +110,19 @@ Status ReadField(const detail::FieldReader& reader, const YAML::Node& node, cons
         return reader.Fail(name, "expected exact or paper_window, got " + detail::Describe(node));
       }
       return Status::Ok();
+    }
+    case Kind::kStereoMode: {
+      Expected<std::string> v = reader.String(node, name);
+      if (!v) return v.error();
+      for (StereoMode mode :
+           {StereoMode::kSgbm, StereoMode::kSgbm3Way, StereoMode::kHh, StereoMode::kHh4}) {
+        if (*v == StereoModeName(mode)) {
+          *static_cast<StereoMode*>(f.target) = mode;
+          return Status::Ok();
+        }
+      }
+      return reader.Fail(name,
+                         "expected sgbm, sgbm_3way, hh or hh4, got " + detail::Describe(node));
     }
   }
   return Status::Ok();
@@ -163,8 +193,8 @@ Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
   Expected<YAML::Node> root = detail::ParseYaml(yaml_text, source);
   if (!root) return root.error();
   const detail::FieldReader reader(source);
-  // One settings file configures every stage; the sections of the other stages (stereo
-  // matching, mapping) are read, as strictly, by their own loaders.
+  // One settings file configures every stage; the mapping stage's section is read, as
+  // strictly, by its own loader.
   if (Status s = reader.CheckMapping(*root, "", {"detector", "rules", "column", "stereo", "map"});
       !s) {
     return s.error();
@@ -174,9 +204,11 @@ Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
   const std::vector<Field> detector = DetectorFields(settings.detector);
   const std::vector<Field> rules = RuleFields(settings.rules);
   const std::vector<Field> column = ColumnFields(settings);
+  const std::vector<Field> stereo = StereoFields(settings.stereo);
   if (Status s = ReadSection(reader, *root, "detector", detector); !s) return s.error();
   if (Status s = ReadSection(reader, *root, "rules", rules); !s) return s.error();
   if (Status s = ReadSection(reader, *root, "column", column); !s) return s.error();
+  if (Status s = ReadSection(reader, *root, "stereo", stereo); !s) return s.error();
 
   if (Status s = settings.detector.Validate(); !s) {
     return Located(reader, "detector", detector, s.message());
@@ -188,6 +220,9 @@ Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
   column_config.min_blob_pixels = settings.min_blob_pixels;
   if (Status s = column_config.Validate(); !s) {
     return Located(reader, "column", column, s.message());
+  }
+  if (Status s = settings.stereo.Validate(); !s) {
+    return Located(reader, "stereo", stereo, s.message());
   }
   return settings;
 }

@@ -1,11 +1,15 @@
 #include "cairn/od/io/point_cloud.hpp"
 
+#include <bzlib.h>
+
 #include <algorithm>
 #include <cassert>
+#include <charconv>
 #include <cmath>
 #include <complex>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <sstream>
 #include <string_view>
@@ -17,7 +21,7 @@ namespace cairn::od::io {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr std::size_t kBinPointBytes = 16;  // 4 x float32
+constexpr std::size_t kBinPointBytes = 16;   // 4 x float32
 constexpr double kOrganisedAgreement = 0.9;  // share of neighbour pairs that must agree
 
 // The formats are little-endian; these builds target little-endian hosts only.
@@ -38,9 +42,62 @@ Expected<std::string> ReadBytes(const std::filesystem::path& path, const char* w
   return buffer.str();
 }
 
-bool IsReturn(const Eigen::Vector3f& p) { return p.x() != 0.f || p.y() != 0.f || p.z() != 0.f; }
+bool IsReturn(const Eigen::Vector3f& p) {
+  return p.allFinite() && (p.x() != 0.f || p.y() != 0.f || p.z() != 0.f);
+}
 
 double WrapPi(double a) { return std::remainder(a, 2.0 * kPi); }
+
+// Wraps an angle into [0, 2 pi).
+double WrapPositive(double a) {
+  a = std::fmod(a, 2.0 * kPi);
+  return a < 0.0 ? a + 2.0 * kPi : a;
+}
+
+double Azimuth(const Eigen::Vector3f& p) { return std::atan2(double(p.y()), double(p.x())); }
+
+double Elevation(const Eigen::Vector3f& p) {
+  return std::atan2(double(p.z()), std::hypot(double(p.x()), double(p.y())));
+}
+
+bool EndsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+// Appends a point read from a file under the non-finite rule of point_cloud.hpp: all-NaN
+// coordinates are a no return; any other non-finite value is an error. `where` locates the
+// point for the message ("point 5 (byte offset 80)", "line 7").
+Status AddPoint(PointCloud& cloud, const double xyz[3], double intensity, const std::string& name,
+                const std::string& where) {
+  const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
+  if (all_nan) {
+    cloud.points.emplace_back(0.f, 0.f, 0.f);
+    cloud.intensity.push_back(0.f);
+    return Status::Ok();
+  }
+  static const char* kAxis[3] = {"x", "y", "z"};
+  for (int k = 0; k < 3; ++k) {
+    if (!std::isfinite(xyz[k])) {
+      return Error{name + ": " + where + ": " + kAxis[k] + " is " + std::to_string(xyz[k]) +
+                   ", expected finite x, y, z [m] (a no return is (0, 0, 0), or NaN in all "
+                   "three)"};
+    }
+  }
+  if (!std::isfinite(intensity)) {
+    return Error{name + ": " + where + ": intensity is " + std::to_string(intensity) +
+                 ", expected a finite value"};
+  }
+  cloud.points.emplace_back(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]),
+                            static_cast<float>(xyz[2]));
+  cloud.intensity.push_back(static_cast<float>(intensity));
+  return Status::Ok();
+}
 
 }  // namespace
 
@@ -48,27 +105,478 @@ Expected<PointCloud> ReadKittiBin(const std::filesystem::path& path) {
   const std::string name = path.string();
   Expected<std::string> bytes = ReadBytes(path, "KITTI .bin point cloud");
   if (!bytes) return bytes.error();
+  if (bytes->empty()) {
+    return Error{name +
+                 ": the file is empty, expected points of 16 bytes each (x, y, z, "
+                 "intensity as float32)"};
+  }
   if (bytes->size() % kBinPointBytes != 0) {
+    const std::size_t whole = bytes->size() / kBinPointBytes;
     return Error{name + ": size " + std::to_string(bytes->size()) +
                  " bytes is not a multiple of 16 (x, y, z, intensity float32 per point): the "
-                 "file is truncated or not a KITTI .bin"};
+                 "file is truncated or not a KITTI .bin (" +
+                 std::to_string(whole) + " whole points, then " +
+                 std::to_string(bytes->size() % kBinPointBytes) + " bytes from offset " +
+                 std::to_string(whole * kBinPointBytes) + ")"};
   }
   const std::size_t n = bytes->size() / kBinPointBytes;
   PointCloud cloud;
-  cloud.points.resize(n);
-  cloud.intensity.resize(n);
+  cloud.points.reserve(n);
+  cloud.intensity.reserve(n);
   for (std::size_t i = 0; i < n; ++i) {
     float v[4];
     std::memcpy(v, bytes->data() + i * kBinPointBytes, kBinPointBytes);
-    if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]) ||
-        !std::isfinite(v[3])) {
-      return Error{name + ": point " + std::to_string(i) +
-                   " has a non-finite value (expected finite x, y, z, intensity)"};
+    const double xyz[3] = {v[0], v[1], v[2]};
+    const bool all_nan = std::isnan(v[0]) && std::isnan(v[1]) && std::isnan(v[2]);
+    if (Status s = AddPoint(cloud, xyz, all_nan ? 0.0 : v[3], name,
+                            "point " + std::to_string(i) + " (byte offset " +
+                                std::to_string(i * kBinPointBytes) + ")");
+        !s) {
+      return s.error();
     }
-    cloud.points[i] = Eigen::Vector3f(v[0], v[1], v[2]);
-    cloud.intensity[i] = v[3];
   }
   return cloud;
+}
+
+// --- PLY ---------------------------------------------------------------------------------
+
+namespace {
+
+enum class PlyType { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
+
+bool ParsePlyType(const std::string& word, PlyType* type, std::size_t* size) {
+  static const struct {
+    const char* names[2];
+    PlyType type;
+    std::size_t size;
+  } kTypes[] = {
+      {{"char", "int8"}, PlyType::kInt8, 1},        {{"uchar", "uint8"}, PlyType::kUint8, 1},
+      {{"short", "int16"}, PlyType::kInt16, 2},     {{"ushort", "uint16"}, PlyType::kUint16, 2},
+      {{"int", "int32"}, PlyType::kInt32, 4},       {{"uint", "uint32"}, PlyType::kUint32, 4},
+      {{"float", "float32"}, PlyType::kFloat32, 4}, {{"double", "float64"}, PlyType::kFloat64, 8}};
+  for (const auto& t : kTypes) {
+    if (word == t.names[0] || word == t.names[1]) {
+      *type = t.type;
+      *size = t.size;
+      return true;
+    }
+  }
+  return false;
+}
+
+double DecodePly(PlyType type, const char* p) {
+  switch (type) {
+    case PlyType::kInt8: {
+      std::int8_t v;
+      std::memcpy(&v, p, 1);
+      return v;
+    }
+    case PlyType::kUint8: {
+      std::uint8_t v;
+      std::memcpy(&v, p, 1);
+      return v;
+    }
+    case PlyType::kInt16: {
+      std::int16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    case PlyType::kUint16: {
+      std::uint16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    case PlyType::kInt32: {
+      std::int32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case PlyType::kUint32: {
+      std::uint32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case PlyType::kFloat32: {
+      float v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case PlyType::kFloat64: {
+      double v;
+      std::memcpy(&v, p, 8);
+      return v;
+    }
+  }
+  return 0.0;
+}
+
+struct PlyProperty {
+  std::string name;
+  PlyType type = PlyType::kFloat32;
+  std::size_t size = 0;
+  bool list = false;
+  std::size_t offset = 0;  // in a binary record
+};
+
+struct PlyElement {
+  std::string name;
+  std::size_t count = 0;
+  std::vector<PlyProperty> properties;
+  std::size_t stride = 0;  // binary record size (no list properties)
+  bool has_list = false;
+};
+
+// Splits on blanks (and commas, for text scans).
+std::vector<std::string_view> Tokens(std::string_view line, bool commas) {
+  std::vector<std::string_view> out;
+  std::size_t i = 0;
+  auto separator = [&](char c) {
+    return c == ' ' || c == '\t' || c == '\r' || c == '\n' || (commas && c == ',');
+  };
+  while (i < line.size()) {
+    while (i < line.size() && separator(line[i])) ++i;
+    const std::size_t start = i;
+    while (i < line.size() && !separator(line[i])) ++i;
+    if (i > start) out.push_back(line.substr(start, i - start));
+  }
+  return out;
+}
+
+bool ParseNumber(std::string_view token, double* value) {
+  const char* begin = token.data();
+  const char* end = token.data() + token.size();
+  if (begin != end && *begin == '+') ++begin;  // from_chars takes no leading '+'
+  const std::from_chars_result r = std::from_chars(begin, end, *value);
+  return r.ec == std::errc() && r.ptr == end;
+}
+
+}  // namespace
+
+Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  Expected<std::string> bytes = ReadBytes(path, "PLY point cloud");
+  if (!bytes) return bytes.error();
+  if (bytes->empty()) return Error{name + ": the file is empty, expected a PLY header"};
+  const std::string& data = *bytes;
+
+  // Header: one keyword line at a time up to end_header.
+  std::size_t pos = 0;
+  int line_number = 0;
+  bool ascii = false, format_seen = false;
+  std::vector<PlyElement> elements;
+  auto header_error = [&](const std::string& what) {
+    return Error{name + ": PLY header line " + std::to_string(line_number) + ": " + what};
+  };
+  for (;;) {
+    if (pos >= data.size()) {
+      return Error{name + ": PLY header has no 'end_header' line (the file ends at byte " +
+                   std::to_string(data.size()) + ")"};
+    }
+    std::size_t eol = data.find('\n', pos);
+    if (eol == std::string::npos) eol = data.size();
+    const std::string_view line(data.data() + pos, eol - pos);
+    pos = eol + 1;
+    ++line_number;
+    const std::vector<std::string_view> t = Tokens(line, false);
+    if (line_number == 1) {
+      if (t.size() != 1 || t[0] != "ply") return header_error("expected 'ply', not a PLY file");
+      continue;
+    }
+    if (t.empty()) continue;
+    if (t[0] == "end_header") break;
+    if (t[0] == "comment" || t[0] == "obj_info") continue;
+    if (t[0] == "format") {
+      if (t.size() != 3 || t[2] != "1.0") return header_error("expected 'format <kind> 1.0'");
+      if (t[1] == "ascii") {
+        ascii = true;
+      } else if (t[1] != "binary_little_endian") {
+        return header_error("format '" + std::string(t[1]) +
+                            "' is not supported (expected ascii or binary_little_endian)");
+      }
+      format_seen = true;
+    } else if (t[0] == "element") {
+      double count = -1.0;
+      if (t.size() != 3 || !ParseNumber(t[2], &count) || count < 0 || count != std::floor(count)) {
+        return header_error("expected 'element <name> <count>'");
+      }
+      elements.push_back({std::string(t[1]), static_cast<std::size_t>(count), {}, 0, false});
+    } else if (t[0] == "property") {
+      if (elements.empty()) return header_error("a property before any element");
+      PlyElement& element = elements.back();
+      PlyProperty property;
+      if (t.size() == 5 && t[1] == "list") {
+        PlyType ignored;
+        std::size_t ignored_size;
+        if (!ParsePlyType(std::string(t[2]), &ignored, &ignored_size) ||
+            !ParsePlyType(std::string(t[3]), &property.type, &property.size)) {
+          return header_error("unknown type in list property '" + std::string(t[4]) + "'");
+        }
+        property.list = true;
+        property.name = std::string(t[4]);
+        element.has_list = true;
+      } else if (t.size() == 3) {
+        if (!ParsePlyType(std::string(t[1]), &property.type, &property.size)) {
+          return header_error("unknown type '" + std::string(t[1]) + "' of property '" +
+                              std::string(t[2]) + "'");
+        }
+        property.name = std::string(t[2]);
+        property.offset = element.stride;
+        element.stride += property.size;
+      } else {
+        return header_error(
+            "expected 'property <type> <name>' or 'property list <count type> "
+            "<item type> <name>'");
+      }
+      element.properties.push_back(property);
+    } else {
+      return header_error("unknown keyword '" + std::string(t[0]) + "'");
+    }
+  }
+  if (!format_seen) return Error{name + ": PLY header has no 'format' line"};
+  std::size_t vertex_index = elements.size();
+  for (std::size_t e = 0; e < elements.size(); ++e) {
+    if (elements[e].name == "vertex") {
+      vertex_index = e;
+      break;
+    }
+  }
+  if (vertex_index == elements.size()) return Error{name + ": PLY header has no 'element vertex'"};
+  const PlyElement& vertex = elements[vertex_index];
+  if (vertex.count == 0) return Error{name + ": PLY file has no vertices (element vertex 0)"};
+  if (vertex.has_list) {
+    return Error{name + ": PLY vertex element has a list property; expected scalar properties"};
+  }
+  int ix = -1, iy = -1, iz = -1, ii = -1, ir = -1;
+  for (std::size_t k = 0; k < vertex.properties.size(); ++k) {
+    const std::string& n = vertex.properties[k].name;
+    if (n == "x") ix = static_cast<int>(k);
+    if (n == "y") iy = static_cast<int>(k);
+    if (n == "z") iz = static_cast<int>(k);
+    if (n == "intensity") ii = static_cast<int>(k);
+    if (n == "ring") ir = static_cast<int>(k);
+  }
+  if (ix < 0 || iy < 0 || iz < 0) {
+    return Error{name + ": PLY vertex element lacks property " +
+                 std::string(ix < 0   ? "x"
+                             : iy < 0 ? "y"
+                                      : "z") +
+                 " (expected x, y, z)"};
+  }
+
+  PointCloud cloud;
+  cloud.points.reserve(vertex.count);
+  cloud.intensity.reserve(vertex.count);
+  if (ir >= 0) cloud.ring.reserve(vertex.count);
+  auto add_ring = [&](double value, const std::string& where) -> Status {
+    if (!(value >= 0.0 && value <= 65535.0) || value != std::floor(value)) {
+      return Error{name + ": " + where + ": ring is " + std::to_string(value) +
+                   ", expected a whole number 0..65535"};
+    }
+    cloud.ring.push_back(static_cast<std::int32_t>(value));
+    return Status::Ok();
+  };
+  if (!ascii) {
+    for (std::size_t e = 0; e < vertex_index; ++e) {
+      if (elements[e].has_list) {
+        return Error{name + ": PLY element '" + elements[e].name +
+                     "' before the vertices has a list property (not supported)"};
+      }
+      pos += elements[e].count * elements[e].stride;
+    }
+    const std::size_t need = pos + vertex.count * vertex.stride;
+    if (need > data.size()) {
+      const std::size_t whole = pos <= data.size() ? (data.size() - pos) / vertex.stride : 0;
+      return Error{name + ": PLY body is truncated: " + std::to_string(vertex.count) +
+                   " vertices of " + std::to_string(vertex.stride) + " bytes need " +
+                   std::to_string(need) + " bytes, the file has " + std::to_string(data.size()) +
+                   " (vertex " + std::to_string(whole) + " is incomplete at byte offset " +
+                   std::to_string(pos + whole * vertex.stride) + ")"};
+    }
+    const auto& props = vertex.properties;
+    for (std::size_t i = 0; i < vertex.count; ++i) {
+      const char* record = data.data() + pos + i * vertex.stride;
+      auto get = [&](int k) { return DecodePly(props[k].type, record + props[k].offset); };
+      const double xyz[3] = {get(ix), get(iy), get(iz)};
+      const std::string where = "vertex " + std::to_string(i) + " (byte offset " +
+                                std::to_string(pos + i * vertex.stride) + ")";
+      const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
+      if (Status s = AddPoint(cloud, xyz, ii >= 0 && !all_nan ? get(ii) : 0.0, name, where); !s) {
+        return s.error();
+      }
+      if (ir >= 0) {
+        if (Status s = add_ring(get(ir), where); !s) return s.error();
+      }
+    }
+    return cloud;
+  }
+  // ascii: one element per line.
+  auto next_line = [&](std::string_view* line) {
+    while (pos < data.size()) {
+      std::size_t eol = data.find('\n', pos);
+      if (eol == std::string::npos) eol = data.size();
+      *line = std::string_view(data.data() + pos, eol - pos);
+      pos = eol + 1;
+      ++line_number;
+      if (!Tokens(*line, false).empty()) return true;
+    }
+    return false;
+  };
+  std::string_view line;
+  for (std::size_t e = 0; e < vertex_index; ++e) {
+    for (std::size_t k = 0; k < elements[e].count; ++k) {
+      if (!next_line(&line)) {
+        return Error{name + ": PLY body ends at line " + std::to_string(line_number) +
+                     " inside element '" + elements[e].name + "'"};
+      }
+    }
+  }
+  for (std::size_t i = 0; i < vertex.count; ++i) {
+    if (!next_line(&line)) {
+      return Error{name + ": PLY body ends at line " + std::to_string(line_number) + " after " +
+                   std::to_string(i) + " of " + std::to_string(vertex.count) + " vertices"};
+    }
+    const std::vector<std::string_view> t = Tokens(line, false);
+    const std::string where = "line " + std::to_string(line_number);
+    if (t.size() != vertex.properties.size()) {
+      return Error{name + ": " + where + ": " + std::to_string(t.size()) + " values, expected " +
+                   std::to_string(vertex.properties.size()) + " (one per vertex property)"};
+    }
+    std::vector<double> v(t.size());
+    for (std::size_t k = 0; k < t.size(); ++k) {
+      if (!ParseNumber(t[k], &v[k])) {
+        return Error{name + ": " + where + ": '" + std::string(t[k]) + "' is not a number (" +
+                     vertex.properties[k].name + ")"};
+      }
+    }
+    const double xyz[3] = {v[ix], v[iy], v[iz]};
+    const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
+    if (Status s = AddPoint(cloud, xyz, ii >= 0 && !all_nan ? v[ii] : 0.0, name, where); !s) {
+      return s.error();
+    }
+    if (ir >= 0) {
+      if (Status s = add_ring(v[ir], where); !s) return s.error();
+    }
+  }
+  return cloud;
+}
+
+// --- Text scans ---------------------------------------------------------------------------
+
+namespace {
+
+Expected<std::string> DecompressBzip2(const std::string& compressed, const std::string& name) {
+  std::string out;
+  std::size_t consumed = 0;
+  // A .bz2 file may hold several streams back to back (pbzip2, cat a.bz2 b.bz2).
+  while (consumed < compressed.size()) {
+    bz_stream stream;
+    std::memset(&stream, 0, sizeof(stream));
+    if (BZ2_bzDecompressInit(&stream, 0, 0) != BZ_OK) {
+      return Error{name + ": cannot start bzip2 decompression"};
+    }
+    stream.next_in = const_cast<char*>(compressed.data() + consumed);
+    stream.avail_in = static_cast<unsigned int>(
+        std::min<std::size_t>(compressed.size() - consumed, std::numeric_limits<unsigned>::max()));
+    const std::size_t stream_start = consumed;
+    int rc = BZ_OK;
+    char buffer[1 << 16];
+    while (rc == BZ_OK) {
+      stream.next_out = buffer;
+      stream.avail_out = sizeof(buffer);
+      rc = BZ2_bzDecompress(&stream);
+      out.append(buffer, sizeof(buffer) - stream.avail_out);
+      if (rc == BZ_OK && stream.avail_in == 0 && stream.avail_out != 0) break;  // input ended
+    }
+    const std::size_t at = stream_start + (compressed.size() - stream_start - stream.avail_in);
+    BZ2_bzDecompressEnd(&stream);
+    if (rc == BZ_DATA_ERROR_MAGIC) {
+      return Error{name + ": not a bzip2 stream at byte offset " + std::to_string(stream_start) +
+                   " (expected 'BZh')"};
+    }
+    if (rc == BZ_DATA_ERROR) {
+      return Error{name + ": corrupt bzip2 data near byte offset " + std::to_string(at)};
+    }
+    if (rc == BZ_MEM_ERROR) return Error{name + ": out of memory decompressing bzip2"};
+    if (rc != BZ_STREAM_END) {
+      return Error{name + ": bzip2 stream is truncated (the file ends at byte " +
+                   std::to_string(compressed.size()) + " inside a stream)"};
+    }
+    consumed = at;
+  }
+  return out;
+}
+
+}  // namespace
+
+Expected<PointCloud> ReadXyzText(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  const bool bz2 = EndsWith(Lower(name), ".bz2");
+  Expected<std::string> bytes = ReadBytes(path, bz2 ? "bzip2-compressed text scan" : "text scan");
+  if (!bytes) return bytes.error();
+  if (bytes->empty()) return Error{name + ": the file is empty, expected lines of \"x y z\""};
+  std::string text;
+  if (bz2) {
+    Expected<std::string> plain = DecompressBzip2(*bytes, name);
+    if (!plain) return plain.error();
+    text = std::move(*plain);
+  } else {
+    text = std::move(*bytes);
+  }
+  PointCloud cloud;
+  std::size_t pos = 0;
+  int line_number = 0;
+  while (pos < text.size()) {
+    std::size_t eol = text.find('\n', pos);
+    if (eol == std::string::npos) eol = text.size();
+    const std::string_view line(text.data() + pos, eol - pos);
+    pos = eol + 1;
+    ++line_number;
+    const std::vector<std::string_view> t = Tokens(line, true);
+    if (t.empty() || t[0].front() == '#') continue;
+    const std::string where = "line " + std::to_string(line_number);
+    if (t.size() < 3 || t.size() > 4) {
+      return Error{name + ": " + where + ": " + std::to_string(t.size()) +
+                   " values, expected 3 or 4 (x y z [intensity])"};
+    }
+    double v[4] = {0.0, 0.0, 0.0, 0.0};
+    for (std::size_t k = 0; k < t.size(); ++k) {
+      if (!ParseNumber(t[k], &v[k])) {
+        return Error{name + ": " + where + ": '" + std::string(t[k]) +
+                     "' is not a number (expected x y z [intensity])"};
+      }
+    }
+    const bool all_nan = std::isnan(v[0]) && std::isnan(v[1]) && std::isnan(v[2]);
+    if (Status s = AddPoint(cloud, v, all_nan ? 0.0 : v[3], name, where); !s) return s.error();
+  }
+  if (cloud.points.empty()) {
+    return Error{name + ": no points (" + std::to_string(line_number) +
+                 " lines, none of them \"x y z\")"};
+  }
+  return cloud;
+}
+
+Expected<PointCloud> ReadPointFile(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  {
+    std::ifstream in(path, std::ios::binary);
+    char magic[4] = {0, 0, 0, 0};
+    if (in && in.read(magic, 4) && std::string_view(magic, 3) == "ply" &&
+        (magic[3] == '\n' || magic[3] == '\r')) {
+      return ReadPly(path);
+    }
+  }
+  std::string lower = Lower(name);
+  if (EndsWith(lower, ".ply")) return ReadPly(path);
+  if (EndsWith(lower, ".bin")) return ReadKittiBin(path);
+  if (EndsWith(lower, ".bz2")) lower.resize(lower.size() - 4);
+  for (const char* ext : {".txt", ".xyz", ".dat", ".pts", ".asc", ".csv"}) {
+    if (EndsWith(lower, ext)) return ReadXyzText(path);
+  }
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return Error{name + ": no such file (point cloud)"};
+  return Error{name +
+               ": unknown point file type, expected .bin (KITTI), .ply, or text "
+               "(.txt .xyz .dat .pts .asc .csv, optionally .bz2)"};
 }
 
 Status WriteKittiBin(const std::filesystem::path& path, const PointCloud& cloud) {
@@ -146,6 +654,436 @@ Expected<PointLayout> ResolveLayout(const PointCloud& cloud, const SphericalMode
   return layout;
 }
 
+const char* RingSourceName(RingSource source) {
+  switch (source) {
+    case RingSource::kRingField:
+      return "ring field";
+    case RingSource::kOrganised:
+      return "organised";
+    case RingSource::kRingBreaks:
+      return "ring breaks";
+    case RingSource::kElevationClusters:
+      return "elevation clusters";
+    case RingSource::kNominal:
+      return "nominal rings";
+    case RingSource::kUniformBins:
+      return "uniform elevation bins";
+  }
+  return "?";
+}
+
+Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points) {
+  constexpr int kMinRingPoints = 4;                 // a fall back within fewer points is jitter
+  constexpr double kSmallStep = 5.0 * kPi / 180.0;  // [rad] between neighbouring returns
+  std::vector<std::size_t> index;                   // returns, in storage order
+  std::vector<double> azimuth, elevation;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!IsReturn(points[i]) || !points[i].allFinite()) continue;
+    index.push_back(i);
+    azimuth.push_back(Azimuth(points[i]));
+    elevation.push_back(Elevation(points[i]));
+  }
+  const std::size_t m = index.size();
+  if (m < 3 * kMinRingPoints) {
+    return Error{"ring breaks: " + std::to_string(m) + " returns are too few"};
+  }
+  // The sweep's direction: the median step between neighbours in storage order.
+  std::vector<double> steps(m - 1);
+  for (std::size_t k = 1; k < m; ++k) steps[k - 1] = WrapPi(azimuth[k] - azimuth[k - 1]);
+  std::vector<double> sorted_steps = steps;
+  std::nth_element(sorted_steps.begin(), sorted_steps.begin() + sorted_steps.size() / 2,
+                   sorted_steps.end());
+  const double median_step = sorted_steps[sorted_steps.size() / 2];
+  if (median_step == 0.0) return Error{"ring breaks: the azimuth does not sweep along the order"};
+  const double sweep = median_step > 0.0 ? 1.0 : -1.0;
+  std::size_t small = 0;
+  for (double d : steps) small += sweep * d >= 0.0 && sweep * d <= kSmallStep;
+  if (small < 0.9 * steps.size()) {
+    return Error{"ring breaks: only " + std::to_string(100 * small / steps.size()) +
+                 "% of neighbouring returns step one way by under 5 deg (expected 90%): not "
+                 "stored ring after ring"};
+  }
+
+  RingBreaks result;
+  std::vector<std::size_t> breaks;  // returns (in `index`) that start a ring
+  auto cut = [&](double seam) {
+    result.ring.assign(points.size(), -1);
+    breaks.clear();
+    int ring = 0, count = 0;
+    double previous = 0.0;
+    for (std::size_t k = 0; k < m; ++k) {
+      const double phase = WrapPositive(sweep * (azimuth[k] - seam));
+      if (k > 0 && phase < previous - kPi && count >= kMinRingPoints) {
+        ++ring;
+        count = 0;
+        breaks.push_back(k);
+      }
+      result.ring[index[k]] = ring;
+      ++count;
+      previous = phase;
+    }
+    result.rings = ring + 1;
+  };
+  // First pass: rings start at the first return's azimuth, which may lie a little after
+  // the true seam, so a few returns of each ring would fall to the ring before.
+  const double first_seam = azimuth[0];
+  cut(first_seam);
+  if (breaks.empty()) return Error{"ring breaks: the azimuth never turns back: one sweep"};
+  // The true seam lies between the scan's last return (the last ring ends before it) and
+  // its first (ring 0 starts after it); the first return may start ring 0 a little late,
+  // and then the first returns of every other ring, between the seam and it, would fall to
+  // the ring before. No azimuth gap marks the seam (rings join seamlessly), but there the
+  // elevation steps by a ring spacing, with the same sign in every ring (rings are stored
+  // in elevation order), while along a ring it runs smoothly or, across an object's edge,
+  // jumps either way. In 0.1-degree bins over that interval, the step between the returns
+  // on either side of the bin is taken in every ring; the bin where its median over the
+  // rings is largest holds the seam.
+  constexpr int kBins = 3600;  // 0.1 deg
+  const double bin_rad = 2.0 * kPi / kBins;
+  auto phase_of = [&](std::size_t k) { return WrapPositive(sweep * (azimuth[k] - first_seam)); };
+  const double last_phase = phase_of(m - 1);
+  const int first_bin = static_cast<int>(std::ceil(last_phase / bin_rad));
+  result.seam_rad = first_seam;
+  double seam_phase = 0.0;
+  if (last_phase > kPi && first_bin < kBins) {
+    std::vector<std::vector<float>> steps_in(static_cast<std::size_t>(kBins - first_bin + 1));
+    for (std::size_t k = 1; k < m; ++k) {
+      double from = phase_of(k - 1), to = phase_of(k);
+      if (to < from - kPi) to += 2.0 * kPi;  // across the first-pass seam
+      if (to <= from) continue;              // a step backwards covers nothing
+      const float step = static_cast<float>(elevation[k] - elevation[k - 1]);
+      const int lo = std::max(first_bin, static_cast<int>(std::ceil(from / bin_rad)));
+      const int hi = std::min(kBins, static_cast<int>(std::floor(to / bin_rad)));
+      for (int b = lo; b <= hi; ++b) steps_in[b - first_bin].push_back(step);
+    }
+    float best = -1.f;
+    const std::size_t enough = static_cast<std::size_t>(result.rings / 2);
+    for (std::size_t b = 0; b < steps_in.size(); ++b) {
+      std::vector<float>& v = steps_in[b];
+      if (v.empty() || v.size() < enough) continue;
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      if (std::abs(v[v.size() / 2]) > best) {
+        best = std::abs(v[v.size() / 2]);
+        seam_phase = (first_bin + static_cast<int>(b)) * bin_rad;
+      }
+    }
+  }
+  // Refined: the median azimuth between the two returns that straddle that bin.
+  std::vector<double> straddle;
+  for (std::size_t k = 1; k < m; ++k) {
+    double from = phase_of(k - 1), to = phase_of(k);
+    if (to < from - kPi) to += 2.0 * kPi;
+    const double target = seam_phase < from ? seam_phase + 2.0 * kPi : seam_phase;
+    if (to > from && from <= target && target <= to) {
+      straddle.push_back(WrapPi(0.5 * (from + to) - seam_phase));
+    }
+  }
+  if (!straddle.empty()) {
+    std::nth_element(straddle.begin(), straddle.begin() + straddle.size() / 2, straddle.end());
+    seam_phase += straddle[straddle.size() / 2];
+  }
+  result.seam_rad = WrapPi(first_seam + sweep * seam_phase);
+  cut(result.seam_rad);
+
+  if (result.rings < 3) {
+    return Error{"ring breaks: " + std::to_string(result.rings) +
+                 " sweeps, expected 3 rings or more"};
+  }
+  // Within a ring the azimuth never jumps far back (a tilting 2-D laser's lines do, at
+  // every line's end, by less than the half turn that marks a new ring).
+  constexpr double kFarBack = 10.0 * kPi / 180.0;
+  std::size_t far_back = 0;
+  for (std::size_t k = 1; k < m; ++k) {
+    far_back += result.ring[index[k]] == result.ring[index[k - 1]] &&
+                sweep * WrapPi(azimuth[k] - azimuth[k - 1]) < -kFarBack;
+  }
+  if (far_back * 10 > static_cast<std::size_t>(result.rings)) {
+    return Error{"ring breaks: the azimuth jumps back by more than 10 deg " +
+                 std::to_string(far_back) + " times within " + std::to_string(result.rings) +
+                 " rings: not stored ring after ring"};
+  }
+  // Each ring sweeps nearly a turn (a tilting 2-D laser's lines sweep half of one).
+  std::vector<double> first(result.rings, -1.0), last(result.rings, 0.0);
+  for (std::size_t k = 0; k < m; ++k) {
+    const int r = result.ring[index[k]];
+    const double phase = WrapPositive(sweep * (azimuth[k] - result.seam_rad));
+    if (first[r] < 0.0) first[r] = phase;
+    last[r] = phase;
+  }
+  std::vector<double> travel(result.rings);
+  for (int r = 0; r < result.rings; ++r) travel[r] = last[r] - first[r];
+  std::nth_element(travel.begin(), travel.begin() + result.rings / 2, travel.end());
+  const double median_travel = travel[result.rings / 2];
+  if (median_travel < 1.5 * kPi) {
+    return Error{"ring breaks: the median ring sweeps " +
+                 std::to_string(static_cast<int>(median_travel * 180.0 / kPi)) +
+                 " deg, expected at least 270: not stored ring after ring"};
+  }
+  return result;
+}
+
+namespace {
+
+// Storage order index = col * rings + ring, judged from the data: the azimuth follows the
+// column (one step per column, either way) and the rows have distinct, tight elevations.
+struct OrganisedFit {
+  bool ok = false;
+  double resolved = 0.0;  // share of neighbouring rows (by elevation) told apart
+  bool azimuth_decreasing = true;
+};
+
+OrganisedFit CheckOrganised(const std::vector<Eigen::Vector3f>& points,
+                            const std::vector<double>& azimuth,
+                            const std::vector<double>& elevation, std::size_t rings) {
+  OrganisedFit fit;
+  const std::size_t n = points.size(), columns = n / rings;
+  if (rings < 2 || columns < 2 || n % rings != 0) return fit;
+  const double step = 2.0 * kPi / static_cast<double>(columns);
+  std::size_t pairs = 0, decreasing = 0, increasing = 0;
+  for (std::size_t i = 0; i + rings < n; ++i) {
+    const std::size_t next = i + rings;
+    if (!IsReturn(points[i]) || !IsReturn(points[next])) continue;
+    ++pairs;
+    const double d = WrapPi(azimuth[i] - azimuth[next]);
+    decreasing += d > -2.0 * step && d < 4.0 * step;
+    increasing += -d > -2.0 * step && -d < 4.0 * step;
+  }
+  if (pairs == 0 || std::max(decreasing, increasing) < kOrganisedAgreement * pairs) return fit;
+  fit.azimuth_decreasing = decreasing >= increasing;
+  std::vector<std::vector<double>> row_elevations(rings);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (IsReturn(points[i])) row_elevations[i % rings].push_back(elevation[i]);
+  }
+  struct Row {
+    double median, spread;
+  };
+  std::vector<Row> rows;
+  for (std::vector<double>& e : row_elevations) {
+    if (e.empty()) continue;
+    auto at = [&](double q) {
+      const auto it = e.begin() + static_cast<std::ptrdiff_t>(q * (e.size() - 1) + 0.5);
+      std::nth_element(e.begin(), it, e.end());
+      return *it;
+    };
+    const double p10 = at(0.1), p90 = at(0.9), median = at(0.5);
+    rows.push_back({median, p90 - p10});
+  }
+  if (rows.size() < 2) return fit;
+  std::sort(rows.begin(), rows.end(),
+            [](const Row& a, const Row& b) { return a.median > b.median; });
+  std::size_t apart = 0;
+  for (std::size_t k = 1; k < rows.size(); ++k) {
+    const double gap = rows[k - 1].median - rows[k].median;
+    // Beams with vertical offsets (HDL-64E) scatter over more than their spacing: a row is
+    // told apart from its neighbour when the gap is a quarter of their spread or more.
+    apart += gap > 1e-6 && gap > 0.25 * std::max(rows[k - 1].spread, rows[k].spread);
+  }
+  fit.resolved = static_cast<double>(apart) / static_cast<double>(rows.size() - 1);
+  fit.ok = fit.resolved >= kOrganisedAgreement;
+  return fit;
+}
+
+// Columns of an organised scan, and column 0's azimuth from the data.
+void OrganisedColumns(const PointCloud& cloud, std::size_t rings, bool azimuth_decreasing,
+                      SphericalModel& model, std::vector<std::int32_t>& cols) {
+  const std::size_t n = cloud.points.size(), columns = n / rings;
+  const double step = 2.0 * kPi / static_cast<double>(columns);
+  model.width = static_cast<int>(columns);
+  cols.assign(n, -1);
+  std::complex<double> start_sum(0.0, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t c = i / rings;
+    const std::size_t col = azimuth_decreasing ? c : columns - 1 - c;
+    if (!IsReturn(cloud.points[i])) continue;
+    cols[i] = static_cast<std::int32_t>(col);
+    start_sum += std::polar(1.0, Azimuth(cloud.points[i]) + static_cast<double>(col) * step);
+  }
+  model.azimuth_start_rad = std::abs(start_sum) > 0.0 ? std::arg(start_sum) : 0.0;
+}
+
+}  // namespace
+
+Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& options,
+                                 const std::string& source) {
+  const std::vector<Eigen::Vector3f>& points = cloud.points;
+  const std::size_t n = points.size();
+  if (n == 0) return Error{source + ": no points"};
+  if (options.preset) {
+    if (Status s = options.preset->Validate(); !s) return Error{source + ": " + s.message()};
+  }
+  if (options.columns < 0) return Error{source + ": columns must be positive (0: automatic)"};
+  if (Status s = options.elevation.Validate(); !s) return Error{source + ": " + s.message()};
+  FoundLayout layout;
+  std::string& note = layout.note;
+  auto add_note = [&](const std::string& text) { note += (note.empty() ? "" : "; ") + text; };
+
+  auto nominal = [&]() -> Expected<FoundLayout> {
+    layout.source = RingSource::kNominal;
+    layout.model = *options.preset;
+    if (options.columns > 0) layout.model.width = options.columns;
+    layout.rows.assign(n, -1);
+    layout.cols.assign(n, -1);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!IsReturn(points[i])) continue;
+      layout.rows[i] = layout.model.NearestRing(points[i].cast<double>());
+      layout.cols[i] = layout.model.Column(points[i].cast<double>());
+    }
+    return layout;
+  };
+  // Rows found in the data, columns from the azimuth unless given.
+  auto finish = [&](RingSource ring_source, RingFit fit,
+                    std::vector<std::int32_t> cols) -> Expected<FoundLayout> {
+    if (options.preset && fit.model.height() != options.preset->height()) {
+      add_note(std::string(RingSourceName(ring_source)) + " give " +
+               std::to_string(fit.model.height()) + " rings, the preset has " +
+               std::to_string(options.preset->height()) + ": nominal rings used");
+      return nominal();
+    }
+    layout.source = ring_source;
+    layout.rows = std::move(fit.rows);
+    layout.model = std::move(fit.model);
+    if (cols.empty()) {
+      int width = options.columns;
+      if (width == 0 && options.preset) width = options.preset->width;
+      if (width == 0 && layout.model.width > 1) width = layout.model.width;  // chosen already
+      if (width == 0) {
+        Expected<int> measured = MeasureAzimuthSteps(points, layout.rows);
+        if (!measured) return Error{source + ": " + measured.error().message};
+        width = *measured;
+      }
+      layout.model.width = width;
+      // Column centres on the returns' azimuths; forward (+x) in the middle column, so
+      // that range images read like the scene seen from the sensor.
+      layout.model.azimuth_start_rad =
+          WrapPi(FitAzimuthStart(points, width) + (width / 2) * (2.0 * kPi / width));
+      cols.assign(n, -1);
+      for (std::size_t i = 0; i < n; ++i) {
+        if (layout.rows[i] >= 0) cols[i] = layout.model.Column(points[i].cast<double>());
+      }
+    }
+    layout.cols = std::move(cols);
+    if (Status s = layout.model.Validate(); !s) return Error{source + ": " + s.message()};
+    return layout;
+  };
+
+  if (options.preset && options.organised == OrganisedMode::kNo) return nominal();
+
+  std::vector<double> azimuth(n), elevation(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    azimuth[i] = Azimuth(points[i]);
+    elevation[i] = Elevation(points[i]);
+  }
+
+  // 1. The file's ring field.
+  if (!cloud.ring.empty()) {
+    if (cloud.ring.size() != n) {
+      return Error{source + ": " + std::to_string(cloud.ring.size()) + " ring numbers for " +
+                   std::to_string(n) + " points"};
+    }
+    const std::int32_t rings = *std::max_element(cloud.ring.begin(), cloud.ring.end()) + 1;
+    Expected<RingFit> fit = FitRings(points, cloud.ring, rings, 1);
+    if (!fit) return Error{source + ": ring field: " + fit.error().message};
+    // Organised as well (Ouster): the columns are the storage order's.
+    std::vector<std::int32_t> cols;
+    const std::size_t r = static_cast<std::size_t>(rings);
+    bool in_order = options.organised != OrganisedMode::kNo && n % r == 0;
+    for (std::size_t i = 0; in_order && i < n; ++i) {
+      in_order = static_cast<std::size_t>(cloud.ring[i]) == i % r;
+    }
+    if (in_order) {
+      const OrganisedFit organised = CheckOrganised(points, azimuth, elevation, r);
+      OrganisedColumns(cloud, r, organised.azimuth_decreasing, fit->model, cols);
+    }
+    return finish(RingSource::kRingField, std::move(*fit), std::move(cols));
+  }
+
+  // 2. The storage order, organised.
+  if (options.organised != OrganisedMode::kNo) {
+    std::vector<std::size_t> candidates;
+    if (options.preset) {
+      candidates.push_back(static_cast<std::size_t>(options.preset->height()));
+    } else {
+      for (std::size_t r = 2; r <= 1024 && r <= n / 2; ++r) {
+        if (n % r == 0) candidates.push_back(r);
+      }
+    }
+    std::size_t best_rings = 0;
+    OrganisedFit best;
+    for (std::size_t r : candidates) {
+      const OrganisedFit fit = CheckOrganised(points, azimuth, elevation, r);
+      if (fit.ok && fit.resolved > best.resolved) {
+        best = fit;
+        best_rings = r;
+      }
+    }
+    if (best_rings == 0 && options.organised == OrganisedMode::kYes) {
+      if (!options.preset) {
+        return Error{source + ": " + std::to_string(n) +
+                     " points: no ring count makes an organised scan of them (index = col * "
+                     "rings + ring with tight rows); give --sensor"};
+      }
+      best_rings = candidates.front();
+      if (n % best_rings != 0) {
+        return Error{source + ": " + std::to_string(n) + " points cannot be an organised scan of " +
+                     std::to_string(best_rings) + " rings (not a multiple)"};
+      }
+      best = CheckOrganised(points, azimuth, elevation, best_rings);
+      best.azimuth_decreasing = true;  // forced: Ouster's convention
+    }
+    if (best_rings > 0) {
+      std::vector<std::int32_t> ring(n);
+      for (std::size_t i = 0; i < n; ++i) ring[i] = static_cast<std::int32_t>(i % best_rings);
+      Expected<RingFit> fit = FitRings(points, ring, static_cast<int>(best_rings), 1);
+      if (fit) {
+        std::vector<std::int32_t> cols;
+        OrganisedColumns(cloud, best_rings, best.azimuth_decreasing, fit->model, cols);
+        return finish(RingSource::kOrganised, std::move(*fit), std::move(cols));
+      }
+      add_note("organised: " + fit.error().message);
+    }
+  }
+
+  // 3. Ring after ring in the storage order.
+  Expected<RingBreaks> breaks = FindRingBreaks(points);
+  if (breaks) {
+    Expected<RingFit> fit = FitRings(points, breaks->ring, breaks->rings, 1);
+    if (fit) return finish(RingSource::kRingBreaks, std::move(*fit), {});
+    add_note(fit.error().message);
+  }
+
+  // 4. The elevation histogram.
+  Expected<RingFit> clusters = FindElevationRings(points, 1, options.elevation);
+  if (clusters) return finish(RingSource::kElevationClusters, std::move(*clusters), {});
+  add_note(clusters.error().message);
+
+  // 5. No rings in the data.
+  if (options.preset) return nominal();
+  int width = options.columns;
+  if (width == 0) {
+    // Square cells, about one return per cell over the directions seen: the band of
+    // elevations times the azimuths covered (in 1-degree sectors; a 2-D laser tilting in
+    // front of a robot covers half a turn).
+    double top = -kPi, bottom = kPi;
+    std::size_t returns = 0;
+    std::vector<char> sector(360, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!IsReturn(points[i])) continue;
+      top = std::max(top, elevation[i]);
+      bottom = std::min(bottom, elevation[i]);
+      sector[std::min<std::size_t>(
+          359, static_cast<std::size_t>(WrapPositive(azimuth[i]) / (2.0 * kPi) * 360.0))] = 1;
+      ++returns;
+    }
+    if (returns == 0) return Error{source + ": no returns (every point is at the origin)"};
+    const double covered = 2.0 * kPi * std::count(sector.begin(), sector.end(), 1) / 360.0;
+    const double cell = std::sqrt(covered * std::max(top - bottom, 1e-3) / returns);
+    width = static_cast<int>(std::clamp(std::round(2.0 * kPi / cell), 16.0, 65536.0));
+  }
+  Expected<RingFit> bins = UniformElevationBins(points, width);
+  if (!bins) return Error{source + ": " + bins.error().message};
+  return finish(RingSource::kUniformBins, std::move(*bins), {});
+}
+
 Expected<std::vector<std::uint32_t>> PointLabels(const RangeImage& image,
                                                  const Detection& detection,
                                                  const Classification& classification) {
@@ -165,8 +1103,7 @@ Expected<std::vector<std::uint32_t>> PointLabels(const RangeImage& image,
   return labels;
 }
 
-Status WriteLabelFile(const std::filesystem::path& path,
-                      const std::vector<std::uint32_t>& labels) {
+Status WriteLabelFile(const std::filesystem::path& path, const std::vector<std::uint32_t>& labels) {
   return WriteFileAtomic(
       path, std::string_view(reinterpret_cast<const char*>(labels.data()), labels.size() * 4));
 }
@@ -202,13 +1139,15 @@ Expected<RgbImage> RenderBirdsEye(const RangeImage& image,
   }
   if (!(options.metres_per_pixel > 0.0) || !(options.half_extent_m > 0.0) ||
       options.half_extent_m / options.metres_per_pixel > 10000.0) {
-    return Error{"bird's-eye view: metres_per_pixel and half_extent_m must be positive, "
-                 "at most 20000 px across"};
+    return Error{
+        "bird's-eye view: metres_per_pixel and half_extent_m must be positive, "
+        "at most 20000 px across"};
   }
-  const int side = static_cast<int>(std::ceil(2.0 * options.half_extent_m /
-                                               options.metres_per_pixel));
-  RgbImage out{side, side, std::vector<std::array<std::uint8_t, 3>>(
-                               static_cast<std::size_t>(side) * side, {0, 0, 0})};
+  const int side =
+      static_cast<int>(std::ceil(2.0 * options.half_extent_m / options.metres_per_pixel));
+  RgbImage out{
+      side, side,
+      std::vector<std::array<std::uint8_t, 3>>(static_cast<std::size_t>(side) * side, {0, 0, 0})};
   const Eigen::Matrix3f R = image.R_level_sensor().cast<float>();
   auto draw = [&](std::uint8_t wanted, std::array<std::uint8_t, 3> colour, int radius) {
     for (std::size_t i = 0; i < points.size(); ++i) {
@@ -216,7 +1155,8 @@ Expected<RgbImage> RenderBirdsEye(const RangeImage& image,
       const Eigen::Vector3f q = R * points[i];
       const double row_f = (options.half_extent_m - q.x()) / options.metres_per_pixel;
       const double col_f = (options.half_extent_m - q.y()) / options.metres_per_pixel;
-      const int row = static_cast<int>(std::floor(row_f)), col = static_cast<int>(std::floor(col_f));
+      const int row = static_cast<int>(std::floor(row_f)),
+                col = static_cast<int>(std::floor(col_f));
       for (int dr = -radius; dr <= radius; ++dr) {
         for (int dc = -radius; dc <= radius; ++dc) {
           const int rr = row + dr, cc = col + dc;
@@ -240,6 +1180,30 @@ Status WriteRgbPng(const std::filesystem::path& path, const RgbImage& image) {
     }
   }
   return detail::WritePngAtomic(path, bgr);
+}
+
+Expected<ScanOutputs> WriteScanOutputs(const std::filesystem::path& dir, const RangeImage& image,
+                                       const std::vector<Eigen::Vector3f>& points,
+                                       const Detection& detection,
+                                       const Classification& classification,
+                                       const RunDescription& run) {
+  ScanOutputs out;
+  Expected<std::vector<std::uint32_t>> labels = PointLabels(image, detection, classification);
+  if (!labels) return Error{dir.string() + ": " + labels.error().message};
+  Expected<DetectionFiles> files =
+      WriteDetectionFiles(dir, RangeGrid(image), detection, classification, run);
+  if (!files) return files.error();
+  out.images = std::move(*files);
+  out.labels = dir / "labels.label";
+  if (Status s = WriteLabelFile(out.labels, *labels); !s) return s.error();
+  std::vector<std::uint8_t> point_class(labels->size());
+  for (std::size_t i = 0; i < labels->size(); ++i) point_class[i] = (*labels)[i] & 0xFFFFu;
+  Expected<RgbImage> birds_eye = RenderBirdsEye(image, points, point_class);
+  if (!birds_eye) return birds_eye.error();
+  out.birds_eye = dir / "birds_eye.png";
+  if (Status s = WriteRgbPng(out.birds_eye, *birds_eye); !s) return s.error();
+  out.point_labels = std::move(*labels);
+  return out;
 }
 
 }  // namespace cairn::od::io

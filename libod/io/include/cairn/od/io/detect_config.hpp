@@ -1,5 +1,5 @@
-// The detection settings file of `cairn detect --config`: detector, rules and column
-// baseline parameters. Degrees in the file, radians in the structs.
+// The detection settings file of `cairn detect --config`: detector, rules, column baseline
+// and stereo matching parameters. Degrees in the file, radians in the structs.
 //
 // Strict: an unknown section or key, a duplicate key, a value of the wrong type or a
 // non-finite number is an error naming the file and the field, so that a typo never falls
@@ -20,6 +20,12 @@
 //     min_height_max [m]     min_pairs
 //   column:
 //     min_blob_pixels: 0     # column baseline blob-area rejection [px]
+//   stereo:                  # stereo pairs only (StereoConfig in stereo.hpp)
+//     min_depth [m]  num_disparities [px]  max_depth [m]  block_size [px]  p1  p2
+//     uniqueness [%]  speckle_window [px]  speckle_range [px]  disp12_max_diff [px]
+//     pre_filter_cap  mode (sgbm | sgbm_3way | hh | hh4)  min_texture [grey levels / px]
+//     disparity_sigma [px]
+// The `map:` section belongs to the mapping stage and is read by its own loader.
 #pragma once
 
 #include <filesystem>
@@ -27,6 +33,7 @@
 
 #include "cairn/od/detector.hpp"
 #include "cairn/od/expected.hpp"
+#include "cairn/od/io/stereo.hpp"
 #include "cairn/od/rules.hpp"
 
 namespace cairn::od::io {
@@ -36,6 +43,7 @@ struct DetectSettings {
   DetectorConfig detector;
   RuleConfig rules;
   int min_blob_pixels = 0;  ///< ColumnConfig::min_blob_pixels for the column baseline [px]
+  StereoConfig stereo;      ///< semi-global matching of stereo pairs
 };
 
 /// Reads and validates a settings file (see above).

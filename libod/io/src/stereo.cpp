@@ -1,0 +1,858 @@
+#include "cairn/od/io/stereo.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+#include "cairn/od/leveling.hpp"
+#include "png.hpp"
+#include "yaml_fields.hpp"
+
+namespace cairn::od::io {
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+/// A baseline longer than this is taken for a unit mistake (millimetres for metres).
+constexpr double kMaxBaselineM = 10.0;
+
+std::string Num(double v) {
+  std::ostringstream s;
+  s.precision(9);
+  s << v;
+  return s.str();
+}
+
+// ---------------------------------------------------------------------------------------
+// cairn's stereo YAML
+
+Expected<double> RequiredNumber(const detail::FieldReader& reader, const YAML::Node& node,
+                                const std::string& field, const char* what) {
+  if (!node) return reader.Fail(field, std::string("missing (expected ") + what + ")");
+  return reader.Double(node, field);
+}
+
+Expected<int> RequiredSize(const detail::FieldReader& reader, const YAML::Node& node,
+                           const std::string& field) {
+  if (!node) return reader.Fail(field, "missing (expected a positive integer [px])");
+  Expected<std::int64_t> v = reader.Integer(node, field);
+  if (!v) return v.error();
+  if (*v <= 0 || *v > std::numeric_limits<int>::max()) {
+    return reader.Fail(field, "expected a positive integer [px], got " + detail::Describe(node));
+  }
+  return static_cast<int>(*v);
+}
+
+/// up: [x, y, z], or pitch_deg (+ roll_deg), or neither (nullopt).
+Expected<std::optional<Eigen::Vector3d>> ReadUp(const detail::FieldReader& reader,
+                                                const YAML::Node& root) {
+  const YAML::Node up_node = root["up"];
+  const bool has_pitch = static_cast<bool>(root["pitch_deg"]);
+  const bool has_roll = static_cast<bool>(root["roll_deg"]);
+  if (up_node && (has_pitch || has_roll)) {
+    return reader.Fail(has_pitch ? "pitch_deg" : "roll_deg",
+                       "give either up or pitch_deg/roll_deg, not both");
+  }
+  if (up_node) {
+    if (!up_node.IsSequence() || up_node.size() != 3) {
+      return reader.Fail("up",
+                         "expected a sequence of 3 numbers [x, y, z] in the optical frame, got " +
+                             detail::Describe(up_node));
+    }
+    Eigen::Vector3d up;
+    for (int i = 0; i < 3; ++i) {
+      Expected<double> v = reader.Double(up_node[i], "up[" + std::to_string(i) + "]");
+      if (!v) return v.error();
+      up[i] = *v;
+    }
+    if (!(up.norm() > 1e-9)) {
+      return reader.Fail("up", "must not be the zero vector (it is gravity's up direction)");
+    }
+    return std::optional<Eigen::Vector3d>(up.normalized());
+  }
+  if (has_roll && !has_pitch) {
+    return reader.Fail("pitch_deg", "missing: roll_deg is given, pitch_deg must be too");
+  }
+  if (!has_pitch) return std::optional<Eigen::Vector3d>();
+  Expected<double> pitch = reader.Double(root["pitch_deg"], "pitch_deg");
+  if (!pitch) return pitch.error();
+  double roll = 0.0;
+  if (has_roll) {
+    Expected<double> r = reader.Double(root["roll_deg"], "roll_deg");
+    if (!r) return r.error();
+    roll = *r;
+  }
+  return std::optional<Eigen::Vector3d>(
+      CameraUpFromPitchRoll(*pitch * kDegToRad, roll * kDegToRad));
+}
+
+Status CheckBaseline(const std::string& source, const std::string& field, double baseline_m) {
+  if (!std::isfinite(baseline_m) || baseline_m <= 0.0) {
+    return Error{source + ": " + field + ": expected a positive baseline [m], got " +
+                 Num(baseline_m)};
+  }
+  if (baseline_m > kMaxBaselineM) {
+    return Error{source + ": " + field + ": baseline " + Num(baseline_m) +
+                 " is implausible in metres (more than " + Num(kMaxBaselineM) +
+                 " m); give it in metres (a calibration board measured in millimetres gives "
+                 "millimetres: divide by 1000)"};
+  }
+  return Status::Ok();
+}
+
+// ---------------------------------------------------------------------------------------
+// OpenCV FileStorage
+
+bool LooksLikeOpenCv(const std::string& text) {
+  const std::size_t start = text.find_first_not_of(" \t\r\n");
+  if (start == std::string::npos) return false;
+  return text.compare(start, 5, "%YAML") == 0 || text.compare(start, 5, "<?xml") == 0 ||
+         text.find("opencv-matrix") != std::string::npos ||
+         text.find("<opencv_storage>") != std::string::npos;
+}
+
+/// Every whitespace-separated token a number: the K.txt layout.
+bool LooksLikeNumbers(const std::string& text) {
+  std::istringstream in(text);
+  std::string token;
+  bool any = false;
+  while (in >> token) {
+    char* end = nullptr;
+    std::strtod(token.c_str(), &end);
+    if (end != token.c_str() + token.size()) return false;
+    any = true;
+  }
+  return any;
+}
+
+Expected<cv::Mat> ReadMatrix(const cv::FileStorage& fs, const std::string& source,
+                             const std::string& key, const std::string& expected) {
+  const cv::FileNode node = fs[key];
+  if (node.empty() || node.isNone()) {
+    return Error{source + ": " + key + ": missing (expected " + expected + ")"};
+  }
+  cv::Mat m;
+  if (node.isSeq()) {
+    // A plain list of numbers ([k1, k2, p1, p2, k3]; 9 entries of a 3x3 matrix row by row).
+    std::vector<double> values;
+    for (const cv::FileNode& item : node) {
+      if (!item.isReal() && !item.isInt()) {
+        return Error{source + ": " + key + ": expected " + expected + ", a list of numbers"};
+      }
+      values.push_back(static_cast<double>(item));
+    }
+    m = cv::Mat(values, true).reshape(1, 1);
+    if (values.size() == 9 && (key == "M1" || key == "M2" || key == "R")) m = m.reshape(1, 3);
+  } else {
+    try {
+      node >> m;
+    } catch (const cv::Exception&) {
+      m.release();
+    }
+  }
+  if (m.empty()) {
+    return Error{source + ": " + key + ": expected " + expected + ", not readable as a matrix"};
+  }
+  m.convertTo(m, CV_64F);
+  for (auto it = m.begin<double>(); it != m.end<double>(); ++it) {
+    if (!std::isfinite(*it)) return Error{source + ": " + key + ": has a non-finite entry"};
+  }
+  return m;
+}
+
+Expected<int> ReadPositiveInt(const cv::FileNode& node, const std::string& source,
+                              const std::string& field) {
+  if (!node.isInt() && !node.isReal()) {
+    return Error{source + ": " + field + ": expected a positive integer [px]"};
+  }
+  const double v = static_cast<double>(node);
+  if (!(v >= 1.0) || v != std::floor(v) || v > 1e6) {
+    return Error{source + ": " + field + ": expected a positive integer [px], got " + Num(v)};
+  }
+  return static_cast<int>(v);
+}
+
+Expected<cv::Size> ReadImageSize(const cv::FileStorage& fs, const std::string& source) {
+  const cv::FileNode size = fs["image_size"];
+  if (!size.empty() && !size.isNone()) {
+    if (!size.isSeq() || size.size() != 2) {
+      return Error{source + ": image_size: expected [width, height] [px]"};
+    }
+    Expected<int> w = ReadPositiveInt(size[0], source, "image_size[0]");
+    if (!w) return w.error();
+    Expected<int> h = ReadPositiveInt(size[1], source, "image_size[1]");
+    if (!h) return h.error();
+    return cv::Size(*w, *h);
+  }
+  const cv::FileNode width = fs["image_width"];
+  const cv::FileNode height = fs["image_height"];
+  if (width.empty() || width.isNone()) {
+    return Error{source +
+                 ": image_width: missing (expected the raw image size as image_width "
+                 "and image_height, or image_size: [width, height] [px])"};
+  }
+  if (height.empty() || height.isNone()) {
+    return Error{source + ": image_height: missing (expected with image_width [px])"};
+  }
+  Expected<int> w = ReadPositiveInt(width, source, "image_width");
+  if (!w) return w.error();
+  Expected<int> h = ReadPositiveInt(height, source, "image_height");
+  if (!h) return h.error();
+  return cv::Size(*w, *h);
+}
+
+Status CheckIntrinsicMatrix(const cv::Mat& K, const std::string& source, const std::string& key) {
+  const double fx = K.at<double>(0, 0), fy = K.at<double>(1, 1);
+  if (!(fx > 0.0) || !(fy > 0.0)) {
+    return Error{source + ": " + key + ": focal lengths K[0][0] and K[1][1] must be positive [px]"};
+  }
+  if (K.at<double>(1, 0) != 0.0 || K.at<double>(2, 0) != 0.0 || K.at<double>(2, 1) != 0.0 ||
+      K.at<double>(2, 2) != 1.0) {
+    return Error{source + ": " + key +
+                 ": expected an upper-triangular intrinsic matrix with K[2][2] = 1"};
+  }
+  return Status::Ok();
+}
+
+std::vector<double> ToVector(const cv::Mat& m) {
+  std::vector<double> v;
+  for (auto it = m.begin<double>(); it != m.end<double>(); ++it) v.push_back(*it);
+  return v;
+}
+
+Eigen::Matrix3d ToEigen3(const cv::Mat& m) {
+  Eigen::Matrix3d e;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) e(r, c) = m.at<double>(r, c);
+  }
+  return e;
+}
+
+cv::Mat ToCv(const Eigen::Matrix3d& e) {
+  cv::Mat m(3, 3, CV_64F);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) m.at<double>(r, c) = e(r, c);
+  }
+  return m;
+}
+
+// ---------------------------------------------------------------------------------------
+// Images
+
+cv::Mat AsMat(const GreyImage& image) {
+  // OpenCV only reads through this header: the const_cast never leads to a write.
+  return cv::Mat(image.height, image.width, CV_8UC1, const_cast<std::uint8_t*>(image.data.data()));
+}
+
+GreyImage FromMat(const cv::Mat& m) {
+  GreyImage image;
+  image.width = m.cols;
+  image.height = m.rows;
+  image.data.resize(static_cast<std::size_t>(m.cols) * m.rows);
+  for (int r = 0; r < m.rows; ++r) {
+    std::memcpy(&image.data[static_cast<std::size_t>(r) * m.cols], m.ptr<std::uint8_t>(r), m.cols);
+  }
+  return image;
+}
+
+bool WellFormed(const GreyImage& image) {
+  return image.width > 0 && image.height > 0 &&
+         image.data.size() == static_cast<std::size_t>(image.width) * image.height;
+}
+
+std::string SizeText(int width, int height) {
+  return std::to_string(width) + "x" + std::to_string(height);
+}
+
+int OpenCvMode(StereoMode mode) {
+  switch (mode) {
+    case StereoMode::kSgbm:
+      return cv::StereoSGBM::MODE_SGBM;
+    case StereoMode::kSgbm3Way:
+      return cv::StereoSGBM::MODE_SGBM_3WAY;
+    case StereoMode::kHh:
+      return cv::StereoSGBM::MODE_HH;
+    case StereoMode::kHh4:
+      return cv::StereoSGBM::MODE_HH4;
+  }
+  return cv::StereoSGBM::MODE_SGBM;
+}
+
+}  // namespace
+
+// -----------------------------------------------------------------------------------------
+// Calibration files
+
+Expected<StereoCalibration> ParseStereoCalibrationYaml(const std::string& yaml_text,
+                                                       const std::string& source) {
+  Expected<YAML::Node> root = detail::ParseYaml(yaml_text, source);
+  if (!root) return root.error();
+  const detail::FieldReader reader(source);
+  if (Status s = reader.CheckMapping(
+          *root, "",
+          {"width", "height", "fx", "fy", "cx", "cy", "baseline", "up", "pitch_deg", "roll_deg"});
+      !s) {
+    return s.error();
+  }
+  const YAML::Node& node = *root;
+  StereoCalibration calib;
+  PinholeModel& m = calib.model;
+  Expected<int> w = RequiredSize(reader, node["width"], "width");
+  if (!w) return w.error();
+  Expected<int> h = RequiredSize(reader, node["height"], "height");
+  if (!h) return h.error();
+  m.width = *w;
+  m.height = *h;
+  Expected<double> fx = RequiredNumber(reader, node["fx"], "fx", "a focal length [px]");
+  if (!fx) return fx.error();
+  m.fx = *fx;
+  m.fy = *fx;
+  if (node["fy"]) {
+    Expected<double> fy = reader.Double(node["fy"], "fy");
+    if (!fy) return fy.error();
+    m.fy = *fy;
+  }
+  Expected<double> cx = RequiredNumber(reader, node["cx"], "cx", "a principal point column [px]");
+  if (!cx) return cx.error();
+  Expected<double> cy = RequiredNumber(reader, node["cy"], "cy", "a principal point row [px]");
+  if (!cy) return cy.error();
+  m.cx = *cx;
+  m.cy = *cy;
+  if (!(m.fx > 0.0)) return reader.Fail("fx", "expected a positive focal length [px]");
+  if (!(m.fy > 0.0)) return reader.Fail("fy", "expected a positive focal length [px]");
+  Expected<double> baseline =
+      RequiredNumber(reader, node["baseline"], "baseline", "the distance between the cameras [m]");
+  if (!baseline) return baseline.error();
+  if (Status s = CheckBaseline(source, "baseline", *baseline); !s) return s.error();
+  calib.baseline_m = *baseline;
+  Expected<std::optional<Eigen::Vector3d>> up = ReadUp(reader, node);
+  if (!up) return up.error();
+  calib.up = *up;
+  if (Status s = m.Validate(); !s) return Error{source + ": " + s.message()};
+  return calib;
+}
+
+Expected<StereoCalibration> ParseFoundationStereoK(const std::string& text,
+                                                   const std::string& source) {
+  std::vector<std::vector<double>> lines;
+  std::istringstream in(text);
+  std::string line;
+  int line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    std::istringstream words(line);
+    std::vector<double> values;
+    std::string token;
+    while (words >> token) {
+      char* end = nullptr;
+      const double v = std::strtod(token.c_str(), &end);
+      if (end != token.c_str() + token.size() || !std::isfinite(v)) {
+        return Error{source + ": line " + std::to_string(line_number) + ": '" + token +
+                     "' is not a number (K.txt: line 1 the 9 entries of K, line 2 the baseline "
+                     "[m])"};
+      }
+      values.push_back(v);
+    }
+    if (!values.empty()) lines.push_back(values);
+  }
+  if (lines.empty() || lines[0].size() != 9) {
+    return Error{source + ": line 1: K: expected the 9 entries of the 3x3 intrinsic matrix, got " +
+                 std::to_string(lines.empty() ? 0 : lines[0].size()) + " numbers"};
+  }
+  if (lines.size() < 2) {
+    return Error{source + ": line 2: baseline: missing (expected the baseline [m])"};
+  }
+  if (lines[1].size() != 1 || lines.size() > 2) {
+    return Error{source +
+                 ": line 2: baseline: expected one number, the baseline [m], and "
+                 "nothing after it"};
+  }
+  const std::vector<double>& k = lines[0];
+  StereoCalibration calib;
+  calib.model.fx = k[0];
+  calib.model.fy = k[4];
+  calib.model.cx = k[2];
+  calib.model.cy = k[5];
+  if (!(k[0] > 0.0) || !(k[4] > 0.0)) {
+    return Error{source + ": line 1: K: focal lengths K[0][0] and K[1][1] must be positive [px]"};
+  }
+  if (k[1] != 0.0 || k[3] != 0.0 || k[6] != 0.0 || k[7] != 0.0 || k[8] != 1.0) {
+    return Error{source + ": line 1: K: expected [fx 0 cx; 0 fy cy; 0 0 1] (no skew)"};
+  }
+  if (Status s = CheckBaseline(source, "line 2: baseline", lines[1][0]); !s) return s.error();
+  calib.baseline_m = lines[1][0];
+  return calib;
+}
+
+Expected<StereoCalibration> ParseOpenCvStereoCalibration(const std::string& text,
+                                                         const std::string& source) {
+  cv::FileStorage fs;
+  try {
+    // OpenCV tells YAML from XML and JSON by the first line; plain YAML has no %YAML line.
+    const std::size_t start = text.find_first_not_of(" \t\r\n");
+    const bool headed = start != std::string::npos && (text.compare(start, 5, "%YAML") == 0 ||
+                                                       text[start] == '<' || text[start] == '{');
+    fs.open(headed ? text : "%YAML:1.0\n" + text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
+  } catch (const cv::Exception& e) {
+    return Error{source + ": not a readable OpenCV calibration file (cv::FileStorage: " + e.err +
+                 ")"};
+  }
+  if (!fs.isOpened()) return Error{source + ": not a readable OpenCV calibration file"};
+
+  Expected<cv::Mat> M1 = ReadMatrix(fs, source, "M1", "the left 3x3 intrinsic matrix");
+  if (!M1) return M1.error();
+  Expected<cv::Mat> D1 = ReadMatrix(fs, source, "D1", "the left distortion coefficients");
+  if (!D1) return D1.error();
+  Expected<cv::Mat> M2 = ReadMatrix(fs, source, "M2", "the right 3x3 intrinsic matrix");
+  if (!M2) return M2.error();
+  Expected<cv::Mat> D2 = ReadMatrix(fs, source, "D2", "the right distortion coefficients");
+  if (!D2) return D2.error();
+  Expected<cv::Mat> R =
+      ReadMatrix(fs, source, "R", "the 3x3 rotation (or rotation vector) right from left");
+  if (!R) return R.error();
+  Expected<cv::Mat> T = ReadMatrix(fs, source, "T", "the 3-vector translation right from left [m]");
+  if (!T) return T.error();
+  Expected<cv::Size> size = ReadImageSize(fs, source);
+  if (!size) return size.error();
+
+  for (const auto& [key, m] : {std::pair<const char*, const cv::Mat*>{"M1", &*M1}, {"M2", &*M2}}) {
+    if (m->rows != 3 || m->cols != 3) {
+      return Error{source + ": " + key + ": expected a 3x3 matrix, got " + std::to_string(m->rows) +
+                   "x" + std::to_string(m->cols)};
+    }
+    if (Status s = CheckIntrinsicMatrix(*m, source, key); !s) return s.error();
+  }
+  for (const auto& [key, m] : {std::pair<const char*, const cv::Mat*>{"D1", &*D1}, {"D2", &*D2}}) {
+    const int n = static_cast<int>(m->total());
+    if ((m->rows != 1 && m->cols != 1) || (n != 4 && n != 5 && n != 8 && n != 12 && n != 14)) {
+      return Error{source + ": " + key +
+                   ": expected a vector of 4, 5, 8, 12 or 14 distortion coefficients, got " +
+                   std::to_string(m->rows) + "x" + std::to_string(m->cols)};
+    }
+  }
+  cv::Mat rotation = *R;
+  if (rotation.total() == 3 && (rotation.rows == 1 || rotation.cols == 1)) {
+    cv::Rodrigues(rotation.reshape(1, 3), rotation);
+  } else if (rotation.rows != 3 || rotation.cols != 3) {
+    return Error{source + ": R: expected a 3x3 rotation matrix or a 3-vector, got " +
+                 std::to_string(rotation.rows) + "x" + std::to_string(rotation.cols)};
+  }
+  {
+    const cv::Mat should_be_identity = rotation * rotation.t();
+    if (cv::norm(should_be_identity, cv::Mat::eye(3, 3, CV_64F), cv::NORM_INF) > 1e-4 ||
+        cv::determinant(rotation) < 0.0) {
+      return Error{source + ": R: not a rotation matrix (R R^T must be I, det R = +1)"};
+    }
+  }
+  if (T->total() != 3 || (T->rows != 1 && T->cols != 1)) {
+    return Error{source + ": T: expected a 3-vector, got " + std::to_string(T->rows) + "x" +
+                 std::to_string(T->cols)};
+  }
+  const cv::Mat translation = T->reshape(1, 3);
+
+  cv::Mat R1, R2, P1, P2, Q;
+  try {
+    cv::stereoRectify(*M1, *D1, *M2, *D2, *size, rotation, translation, R1, R2, P1, P2, Q,
+                      cv::CALIB_ZERO_DISPARITY, 0.0);
+  } catch (const cv::Exception& e) {
+    return Error{source + ": rectification failed: " + e.err};
+  }
+  const double tx = P2.at<double>(0, 3), ty = P2.at<double>(1, 3);
+  if (std::abs(ty) > std::abs(tx)) {
+    return Error{source +
+                 ": T: the cameras are stacked vertically; only side-by-side rigs are "
+                 "supported"};
+  }
+  const double baseline = -tx / P2.at<double>(0, 0);
+  if (!(baseline > 0.0)) {
+    return Error{source +
+                 ": T: camera 2 is left of camera 1 (T.x = " + Num(translation.at<double>(0)) +
+                 " > 0); give the left camera as camera 1 (M1, D1) and T with a negative x"};
+  }
+  if (Status s = CheckBaseline(source, "T", baseline); !s) return s.error();
+
+  StereoCalibration calib;
+  calib.model.width = size->width;
+  calib.model.height = size->height;
+  calib.model.fx = P1.at<double>(0, 0);
+  calib.model.fy = P1.at<double>(1, 1);
+  calib.model.cx = P1.at<double>(0, 2);
+  calib.model.cy = P1.at<double>(1, 2);
+  calib.baseline_m = baseline;
+  if (Status s = calib.model.Validate(); !s) {
+    return Error{source + ": rectified camera: " + s.message()};
+  }
+  StereoRectification rect;
+  rect.raw_width = size->width;
+  rect.raw_height = size->height;
+  rect.K1 = ToEigen3(*M1);
+  rect.K2 = ToEigen3(*M2);
+  rect.D1 = ToVector(*D1);
+  rect.D2 = ToVector(*D2);
+  rect.R1 = ToEigen3(R1);
+  rect.R2 = ToEigen3(R2);
+  rect.P1 = ToEigen3(P1.colRange(0, 3));
+  rect.P2 = ToEigen3(P2.colRange(0, 3));
+  calib.rectification = rect;
+  return calib;
+}
+
+Expected<StereoCalibration> LoadStereoCalibration(const std::filesystem::path& path) {
+  Expected<std::string> text = detail::ReadTextFile(path);
+  if (!text) return text.error();
+  const std::string source = path.string();
+  if (LooksLikeOpenCv(*text)) return ParseOpenCvStereoCalibration(*text, source);
+  if (LooksLikeNumbers(*text)) return ParseFoundationStereoK(*text, source);
+  Expected<YAML::Node> root = detail::ParseYaml(*text, source);
+  if (!root) return root.error();
+  if (root->IsMap() && (*root)["M1"]) return ParseOpenCvStereoCalibration(*text, source);
+  if (!root->IsMap()) {
+    return Error{source +
+                 ": not a stereo calibration: expected cairn's stereo YAML (width, "
+                 "height, fx, cx, cy, baseline), FoundationStereo's K.txt or an OpenCV "
+                 "calibration (M1, D1, M2, D2, R, T)"};
+  }
+  return ParseStereoCalibrationYaml(*text, source);
+}
+
+// -----------------------------------------------------------------------------------------
+// Images
+
+Expected<GreyImage> ReadGreyImage(const std::filesystem::path& path) {
+  Expected<std::string> bytes = detail::ReadTextFile(path);
+  if (!bytes) return bytes.error();
+  cv::Mat image;
+  try {
+    const cv::Mat raw(1, static_cast<int>(bytes->size()), CV_8UC1, bytes->data());
+    image = cv::imdecode(raw, cv::IMREAD_GRAYSCALE);
+  } catch (const cv::Exception& e) {
+    return Error{path.string() + ": unreadable image: " + e.err};
+  }
+  if (image.empty()) {
+    return Error{path.string() + ": unreadable image (not a format OpenCV decodes, or corrupt)"};
+  }
+  return FromMat(image);
+}
+
+Status WriteGreyPng(const std::filesystem::path& path, const GreyImage& image) {
+  if (!WellFormed(image)) {
+    return Error{path.string() + ": grey image of " + std::to_string(image.data.size()) +
+                 " values does not match its size " + SizeText(image.width, image.height)};
+  }
+  return detail::WritePngAtomic(path, AsMat(image));
+}
+
+Expected<StereoPair> PrepareStereoPair(GreyImage left, GreyImage right,
+                                       const StereoCalibration& calibration,
+                                       const std::string& left_name,
+                                       const std::string& right_name) {
+  if (!WellFormed(left)) return Error{left_name + ": malformed image"};
+  if (!WellFormed(right)) return Error{right_name + ": malformed image"};
+  if (left.width != right.width || left.height != right.height) {
+    return Error{right_name + ": is " + SizeText(right.width, right.height) +
+                 " px, the left image " + left_name + " is " + SizeText(left.width, left.height)};
+  }
+  if (!(calibration.baseline_m > 0.0) || !std::isfinite(calibration.baseline_m)) {
+    return Error{"stereo calibration: baseline must be positive [m], got " +
+                 Num(calibration.baseline_m)};
+  }
+  StereoPair pair;
+  pair.calibration = calibration;
+  if (!calibration.rectification) {
+    PinholeModel& m = pair.calibration.model;
+    if (m.width == 0 && m.height == 0) {  // the calibration leaves the size to the images
+      m.width = left.width;
+      m.height = left.height;
+    } else if (m.width != left.width || m.height != left.height) {
+      return Error{left_name + ": is " + SizeText(left.width, left.height) +
+                   " px, the stereo calibration says " + SizeText(m.width, m.height)};
+    }
+    if (Status s = m.Validate(); !s) return Error{"stereo calibration: " + s.message()};
+    pair.left = std::move(left);
+    pair.right = std::move(right);
+    return pair;
+  }
+  const StereoRectification& rect = *calibration.rectification;
+  if (rect.raw_width != left.width || rect.raw_height != left.height) {
+    return Error{left_name + ": is " + SizeText(left.width, left.height) +
+                 " px, the stereo calibration's raw images are " +
+                 SizeText(rect.raw_width, rect.raw_height)};
+  }
+  const cv::Size size(rect.raw_width, rect.raw_height);
+  cv::Mat rectified[2];
+  try {
+    const GreyImage* raw[2] = {&left, &right};
+    const Eigen::Matrix3d* K[2] = {&rect.K1, &rect.K2};
+    const std::vector<double>* D[2] = {&rect.D1, &rect.D2};
+    const Eigen::Matrix3d* R[2] = {&rect.R1, &rect.R2};
+    const Eigen::Matrix3d* P[2] = {&rect.P1, &rect.P2};
+    for (int i = 0; i < 2; ++i) {
+      cv::Mat map_x, map_y;
+      cv::initUndistortRectifyMap(ToCv(*K[i]), cv::Mat(*D[i]), ToCv(*R[i]), ToCv(*P[i]), size,
+                                  CV_32FC1, map_x, map_y);
+      cv::remap(AsMat(*raw[i]), rectified[i], map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+                cv::Scalar(0));
+    }
+  } catch (const cv::Exception& e) {
+    return Error{"stereo rectification failed: " + e.err};
+  }
+  pair.left = FromMat(rectified[0]);
+  pair.right = FromMat(rectified[1]);
+  pair.calibration.rectification.reset();
+  return pair;
+}
+
+// -----------------------------------------------------------------------------------------
+// Matching
+
+const char* StereoModeName(StereoMode mode) {
+  switch (mode) {
+    case StereoMode::kSgbm:
+      return "sgbm";
+    case StereoMode::kSgbm3Way:
+      return "sgbm_3way";
+    case StereoMode::kHh:
+      return "hh";
+    case StereoMode::kHh4:
+      return "hh4";
+  }
+  return "unknown";
+}
+
+Status StereoConfig::Validate() const {
+  auto bad = [](const char* field, const std::string& expected) {
+    return Error{std::string("stereo config: ") + field + " must be " + expected};
+  };
+  if (!std::isfinite(min_depth_m) || min_depth_m <= 0.0) {
+    return bad("min_depth_m", "a positive depth [m]");
+  }
+  if (num_disparities < 0 || num_disparities % 16 != 0) {
+    return bad("num_disparities", "0 (from min_depth) or a positive multiple of 16 [px]");
+  }
+  if (!std::isfinite(max_depth_m) || max_depth_m < 0.0) {
+    return bad("max_depth_m", "0 (no limit) or a positive depth [m]");
+  }
+  if (max_depth_m > 0.0 && max_depth_m <= min_depth_m) {
+    return bad("max_depth_m", "0 or more than min_depth_m");
+  }
+  if (block_size < 1 || block_size > 31 || block_size % 2 == 0) {
+    return bad("block_size", "odd, 1..31 [px]");
+  }
+  if (p1 < 0) return bad("p1", "0 (8 * block_size^2) or positive");
+  if (p2 < 0) return bad("p2", "0 (32 * block_size^2) or positive");
+  const int eff_p1 = p1 > 0 ? p1 : 8 * block_size * block_size;
+  const int eff_p2 = p2 > 0 ? p2 : 32 * block_size * block_size;
+  if (eff_p2 <= eff_p1) {
+    return bad("p2",
+               "greater than p1 (" + std::to_string(eff_p1) + "), got " + std::to_string(eff_p2));
+  }
+  if (uniqueness < 0 || uniqueness > 100) return bad("uniqueness", "0..100 [%]");
+  if (speckle_window < 0) return bad("speckle_window", "0 (off) or a positive pixel count");
+  if (speckle_range < 0) return bad("speckle_range", ">= 0 [px]");
+  if (pre_filter_cap < 1 || pre_filter_cap > 63) return bad("pre_filter_cap", "1..63");
+  if (!std::isfinite(min_texture) || min_texture < 0.0) {
+    return bad("min_texture", ">= 0 [grey levels per px]");
+  }
+  if (!std::isfinite(disparity_sigma_px) || disparity_sigma_px <= 0.0) {
+    return bad("disparity_sigma_px", "a positive disparity noise [px]");
+  }
+  return Status::Ok();
+}
+
+Expected<int> StereoConfig::NumDisparities(double fx_baseline, int width) const {
+  if (Status s = Validate(); !s) return s.error();
+  int n = num_disparities;
+  if (n == 0) {
+    if (!(fx_baseline > 0.0) || !std::isfinite(fx_baseline)) {
+      return Error{"stereo config: fx * baseline must be positive to derive num_disparities"};
+    }
+    const double d_max = fx_baseline / min_depth_m;
+    n = 16 * static_cast<int>(std::ceil(std::min(d_max, 1e6) / 16.0));
+    n = std::max(n, 16);
+    if (n >= width) {
+      return Error{"stereo config: min_depth_m " + Num(min_depth_m) +
+                   " m needs disparities up to " + Num(d_max) + " px, more than the image's " +
+                   std::to_string(width) +
+                   " columns allow; raise min_depth (stereo.min_depth in the settings)"};
+    }
+  } else if (n >= width) {
+    return Error{"stereo config: num_disparities " + std::to_string(n) + " must be less than the " +
+                 "image width " + std::to_string(width)};
+  }
+  return n;
+}
+
+Expected<StereoDisparity> ComputeDisparity(const GreyImage& left, const GreyImage& right,
+                                           const StereoConfig& config, int num_disparities) {
+  if (Status s = config.Validate(); !s) return s.error();
+  if (!WellFormed(left) || !WellFormed(right)) return Error{"stereo: malformed image"};
+  if (left.width != right.width || left.height != right.height) {
+    return Error{"stereo: the images differ in size: " + SizeText(left.width, left.height) +
+                 " and " + SizeText(right.width, right.height)};
+  }
+  if (num_disparities < 16 || num_disparities % 16 != 0 || num_disparities >= left.width) {
+    return Error{"stereo: num_disparities must be a positive multiple of 16 below the width " +
+                 std::to_string(left.width) + ", got " + std::to_string(num_disparities)};
+  }
+  const int b = config.block_size;
+  const int p1 = config.p1 > 0 ? config.p1 : 8 * b * b;
+  const int p2 = config.p2 > 0 ? config.p2 : 32 * b * b;
+  cv::Mat disparity_fixed;  // CV_16S, 1/16 px; invalid = -16 (minDisparity - 1, times 16)
+  try {
+    cv::Ptr<cv::StereoSGBM> matcher = cv::StereoSGBM::create(
+        0, num_disparities, b, p1, p2, config.disp12_max_diff, config.pre_filter_cap,
+        config.uniqueness, config.speckle_window, config.speckle_range, OpenCvMode(config.mode));
+    matcher->compute(AsMat(left), AsMat(right), disparity_fixed);
+  } catch (const cv::Exception& e) {
+    return Error{std::string("stereo: semi-global matching failed: ") + e.err};
+  }
+
+  // Texture along x in each matching window: the mean |dI/dx| (central difference).
+  cv::Mat texture;
+  if (config.min_texture > 0.0) {
+    cv::Mat gradient;
+    cv::Sobel(AsMat(left), gradient, CV_32F, 1, 0, 1, 0.5, 0.0, cv::BORDER_REPLICATE);
+    gradient = cv::abs(gradient);
+    cv::boxFilter(gradient, texture, CV_32F, cv::Size(b, b), cv::Point(-1, -1), true,
+                  cv::BORDER_REPLICATE);
+  }
+
+  StereoDisparity out;
+  out.num_disparities = num_disparities;
+  out.disparity_px = Grid<float>{left.width, left.height, {}};
+  out.disparity_px.data.assign(left.data.size(), 0.0f);
+  out.hole = Grid<std::uint8_t>{left.width, left.height, {}};
+  out.hole.data.assign(left.data.size(), static_cast<std::uint8_t>(StereoHole::kNone));
+  for (int r = 0; r < left.height; ++r) {
+    const std::int16_t* d_row = disparity_fixed.ptr<std::int16_t>(r);
+    const float* t_row = texture.empty() ? nullptr : texture.ptr<float>(r);
+    for (int c = 0; c < left.width; ++c) {
+      StereoHole reason = StereoHole::kNone;
+      if (d_row[c] < 0) {
+        reason = StereoHole::kNoMatch;
+      } else if (t_row != nullptr && t_row[c] < config.min_texture) {
+        reason = StereoHole::kLowTexture;
+      } else if (d_row[c] == 0) {
+        reason = StereoHole::kOutOfRange;
+      }
+      switch (reason) {
+        case StereoHole::kNone:
+          out.disparity_px.at(r, c) = static_cast<float>(d_row[c]) / 16.0f;
+          continue;
+        case StereoHole::kNoMatch:
+          ++out.holes.no_match;
+          break;
+        case StereoHole::kLowTexture:
+          ++out.holes.low_texture;
+          break;
+        case StereoHole::kOutOfRange:
+          ++out.holes.out_of_range;
+          break;
+      }
+      out.hole.at(r, c) = static_cast<std::uint8_t>(reason);
+    }
+  }
+  return out;
+}
+
+Expected<StereoDepth> ComputeStereoDepth(const StereoPair& pair, const StereoConfig& config) {
+  const StereoCalibration& calib = pair.calibration;
+  if (Status s = calib.model.Validate(); !s) return Error{"stereo calibration: " + s.message()};
+  if (!(calib.baseline_m > 0.0) || !std::isfinite(calib.baseline_m)) {
+    return Error{"stereo calibration: baseline must be positive [m], got " + Num(calib.baseline_m)};
+  }
+  if (calib.rectification) {
+    return Error{"stereo: the pair is not rectified yet (PrepareStereoPair rectifies it)"};
+  }
+  if (pair.left.width != calib.model.width || pair.left.height != calib.model.height) {
+    return Error{"stereo: images are " + SizeText(pair.left.width, pair.left.height) +
+                 " px, the calibration says " + SizeText(calib.model.width, calib.model.height)};
+  }
+  const double fb = calib.fx_baseline();
+  Expected<int> n = config.NumDisparities(fb, pair.left.width);
+  if (!n) return n.error();
+  Expected<StereoDisparity> disparity = ComputeDisparity(pair.left, pair.right, config, *n);
+  if (!disparity) return disparity.error();
+
+  StereoDepth out;
+  out.depth_m = Grid<float>{pair.left.width, pair.left.height, {}};
+  out.depth_m.data.assign(pair.left.data.size(), 0.0f);
+  out.sigma_m = out.depth_m;
+  StereoDisparity& d = *disparity;
+  for (std::size_t i = 0; i < d.disparity_px.data.size(); ++i) {
+    const double disp = d.disparity_px.data[i];
+    if (!(disp > 0.0)) continue;
+    const double z = fb / disp;
+    if (config.max_depth_m > 0.0 && z > config.max_depth_m) {
+      d.disparity_px.data[i] = 0.0f;
+      d.hole.data[i] = static_cast<std::uint8_t>(StereoHole::kOutOfRange);
+      ++d.holes.out_of_range;
+      continue;
+    }
+    out.depth_m.data[i] = static_cast<float>(z);
+    out.sigma_m.data[i] = static_cast<float>(z * z / fb * config.disparity_sigma_px);
+  }
+  out.disparity = std::move(d);
+  return out;
+}
+
+Status WriteDisparityPng(const std::filesystem::path& path, const Grid<float>& disparity_px) {
+  if (disparity_px.width <= 0 || disparity_px.height <= 0 ||
+      disparity_px.data.size() !=
+          static_cast<std::size_t>(disparity_px.width) * disparity_px.height) {
+    return Error{path.string() + ": disparity grid does not match its size"};
+  }
+  cv::Mat image(disparity_px.height, disparity_px.width, CV_16UC1);
+  for (int r = 0; r < disparity_px.height; ++r) {
+    std::uint16_t* row = image.ptr<std::uint16_t>(r);
+    for (int c = 0; c < disparity_px.width; ++c) {
+      const double d = disparity_px.at(r, c);
+      if (!(d > 0.0)) {
+        row[c] = 0;
+        continue;
+      }
+      const double units = std::round(d * 256.0);
+      if (units > 65535.0) {
+        return Error{path.string() + ": disparity " + Num(d) + " px at row " + std::to_string(r) +
+                     ", col " + std::to_string(c) + " exceeds the 16-bit range (255.99 px)"};
+      }
+      row[c] = static_cast<std::uint16_t>(std::max(1.0, units));
+    }
+  }
+  return detail::WritePngAtomic(path, image);
+}
+
+Status WriteDisparityColorPng(const std::filesystem::path& path, const Grid<float>& disparity_px,
+                              double max_disparity_px) {
+  if (disparity_px.width <= 0 || disparity_px.height <= 0 ||
+      disparity_px.data.size() !=
+          static_cast<std::size_t>(disparity_px.width) * disparity_px.height) {
+    return Error{path.string() + ": disparity grid does not match its size"};
+  }
+  if (!(max_disparity_px > 0.0)) {
+    return Error{path.string() + ": the colour scale needs a positive maximum disparity"};
+  }
+  cv::Mat grey(disparity_px.height, disparity_px.width, CV_8UC1);
+  for (int r = 0; r < disparity_px.height; ++r) {
+    for (int c = 0; c < disparity_px.width; ++c) {
+      const double d = disparity_px.at(r, c);
+      grey.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(
+          std::clamp(std::round(d / max_disparity_px * 255.0), 0.0, 255.0));
+    }
+  }
+  cv::Mat colour;
+  cv::applyColorMap(grey, colour, cv::COLORMAP_TURBO);
+  for (int r = 0; r < disparity_px.height; ++r) {
+    for (int c = 0; c < disparity_px.width; ++c) {
+      if (!(disparity_px.at(r, c) > 0.0)) colour.at<cv::Vec3b>(r, c) = cv::Vec3b(0, 0, 0);
+    }
+  }
+  return detail::WritePngAtomic(path, colour);
+}
+
+}  // namespace cairn::od::io
