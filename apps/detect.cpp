@@ -80,28 +80,26 @@ namespace io = od::io;
 using Clock = DetectClock;
 using Options = DetectOptions;
 
-/// Azimuth steps of an unorganised scan when --columns is not given: about the sensor's
-/// horizontal resolution at 10 Hz.
-int DefaultColumns(const std::string& sensor) {
-  if (sensor == "VLP-16" || sensor == "VLP-32C") return 1800;  // 0.2 deg
-  return 2048;                                                   // HDL-64E, OS1-64
-}
-
 int RunDetectPoints(const DetectOptions& options) {
   const Clock::time_point start = Clock::now();
   Expected<io::DetectSettings> settings = LoadDetectSettingsOrDefaults(options);
   if (!settings) return DetectFail(settings.error().message);
   Expected<Eigen::Vector3d> up = ParseUpVector(options.up);
   if (!up) return DetectFail(up.error().message);
-  const int columns = options.columns > 0 ? options.columns : DefaultColumns(options.sensor);
-  Expected<od::SphericalModel> preset = od::SphericalModel::Preset(options.sensor, columns);
-  if (!preset) return DetectFail("--sensor: " + preset.error().message);
-  Expected<io::PointCloud> cloud = io::ReadKittiBin(options.points);
+  io::LayoutOptions layout_options;
+  layout_options.columns = options.columns;
+  layout_options.organised = options.organised == "yes"  ? io::OrganisedMode::kYes
+                             : options.organised == "no" ? io::OrganisedMode::kNo
+                                                         : io::OrganisedMode::kAuto;
+  if (!options.sensor.empty()) {
+    Expected<od::SphericalModel> preset =
+        od::SphericalModel::Preset(options.sensor, options.columns);
+    if (!preset) return DetectFail("--sensor: " + preset.error().message);
+    layout_options.preset = *preset;
+  }
+  Expected<io::PointCloud> cloud = io::ReadPointFile(options.points);
   if (!cloud) return DetectFail(cloud.error().message);
-  const io::OrganisedMode mode = options.organised == "yes"  ? io::OrganisedMode::kYes
-                                 : options.organised == "no" ? io::OrganisedMode::kNo
-                                                             : io::OrganisedMode::kAuto;
-  Expected<io::PointLayout> layout = io::ResolveLayout(*cloud, *preset, mode, options.points);
+  Expected<io::FoundLayout> layout = io::FindLayout(*cloud, layout_options, options.points);
   if (!layout) return DetectFail(layout.error().message);
   Expected<od::RangeImage> image =
       od::RangeImage::FromPoints(cloud->points, layout->model, *up, layout->rows, layout->cols);
@@ -111,35 +109,27 @@ int RunDetectPoints(const DetectOptions& options) {
   if (!result) return DetectFail(result.error().message);
   const od::Detection& d = result->detection;
 
-  Expected<std::vector<std::uint32_t>> labels =
-      io::PointLabels(*image, d, result->classification);
-  if (!labels) return DetectFail(options.points + ": " + labels.error().message);
+  const std::string rings = std::to_string(image->height()) + " rings (" +
+                            io::RingSourceName(layout->source) + ") x " +
+                            std::to_string(image->width()) + " columns";
   io::RunDescription run;
   run.method = options.method;
   run.rules_applied = !options.no_rules;
   run.settings = *settings;
   run.depth_file = options.points;
-  run.intrinsics_file = "sensor " + options.sensor + (layout->organised ? ", organised " : ", ") +
-                        std::to_string(image->height()) + "x" + std::to_string(image->width());
+  run.intrinsics_file =
+      (options.sensor.empty() ? "rings from the data" : "sensor " + options.sensor) + ", " + rings;
   run.config_file = options.config;
-  Expected<io::DetectionFiles> files = io::WriteDetectionFiles(
-      options.out, io::RangeGrid(*image), d, result->classification, run);
+  Expected<io::ScanOutputs> files =
+      io::WriteScanOutputs(options.out, *image, cloud->points, d, result->classification, run);
   if (!files) return DetectFail(files.error().message);
-  const std::filesystem::path label_path = std::filesystem::path(options.out) / "labels.label";
-  if (Status s = io::WriteLabelFile(label_path, *labels); !s) return DetectFail(s.message());
-  std::vector<std::uint8_t> point_class(labels->size());
-  for (std::size_t i = 0; i < labels->size(); ++i) point_class[i] = (*labels)[i] & 0xFFFFu;
-  Expected<io::RgbImage> birds_eye = io::RenderBirdsEye(*image, cloud->points, point_class);
-  if (!birds_eye) return DetectFail(birds_eye.error().message);
-  const std::filesystem::path birds_eye_path = std::filesystem::path(options.out) / "birds_eye.png";
-  if (Status s = io::WriteRgbPng(birds_eye_path, *birds_eye); !s) return DetectFail(s.message());
   const double total_ms = MillisecondsSince(start);
 
+  if (!layout->note.empty()) std::cerr << "cairn detect: note: " << layout->note << "\n";
   std::cout << std::fixed << std::setprecision(1) << "cairn detect: " << options.points << " ("
-            << cloud->points.size() << " points, " << options.sensor << ", "
-            << (layout->organised ? "organised" : "unorganised") << ", range image "
-            << d.height << "x" << d.width << ", " << image->valid_count()
-            << " valid cells), method " << options.method;
+            << cloud->points.size() << " points, "
+            << (options.sensor.empty() ? "no preset" : options.sensor) << ", " << rings << ", "
+            << image->valid_count() << " valid cells), method " << options.method;
   if (options.method == "cone")
     std::cout << " (" << io::SearchModeName(settings->detector.search) << " search)";
   std::cout << ", rules " << (options.no_rules ? "off" : "on") << "\n"
@@ -148,17 +138,23 @@ int RunDetectPoints(const DetectOptions& options) {
             << d.stats.obstacle_points << " obstacle cells, " << d.stats.pairs_compatible
             << " compatible pairs)\n"
             << "  time: detect " << result->detect_ms << " ms, total " << total_ms << " ms\n"
-            << "  wrote: " << label_path.string() << "\n"
-            << "         " << birds_eye_path.string() << " (5 m per 100 px, sensor at the centre)\n"
-            << "         " << files->segments_png.string() << "\n"
-            << "         " << files->classes_png.string() << "\n"
-            << "         " << files->segments_json.string() << "\n"
-            << "         " << files->overlay_png.string() << "\n"
-            << "         " << files->segments_color_png.string() << "\n";
+            << "  wrote: " << files->labels.string() << "\n"
+            << "         " << files->birds_eye.string()
+            << " (5 m per 100 px, sensor at the centre)\n"
+            << "         " << files->images.segments_png.string() << "\n"
+            << "         " << files->images.classes_png.string() << "\n"
+            << "         " << files->images.segments_json.string() << "\n"
+            << "         " << files->images.overlay_png.string() << "\n"
+            << "         " << files->images.segments_color_png.string() << "\n";
   return kExitOk;
 }
 
 int RunDetect(const DetectOptions& options) {
+  if (options.points.empty() && options.kitti.empty() &&
+      (!options.sensor.empty() || options.organised != "auto" || options.columns != 0 ||
+       options.up != "0,0,1")) {
+    return DetectFail("--sensor, --organised, --columns and --up go with --points or --kitti");
+  }
   if (!options.points.empty()) return RunDetectPoints(options);
 #ifdef CAIRN_HAVE_SOURCES
   if (!options.rawlog.empty()) return RunDetectRawlog(options);
@@ -170,8 +166,9 @@ int RunDetect(const DetectOptions& options) {
   if (!options.kitti.empty()) return RunDetectKitti(options);
 #endif
   if (options.depth.empty() || options.intrinsics.empty()) {
-    return DetectFail("give --depth FILE.png with --intrinsics FILE.yaml, or --points FILE.bin with "
-                "--sensor PRESET");
+    return DetectFail(
+        "give --depth FILE.png with --intrinsics FILE.yaml, or --points FILE "
+        "(with --sensor PRESET or rings found from the data)");
   }
   const Clock::time_point start = Clock::now();
 
@@ -180,7 +177,7 @@ int RunDetect(const DetectOptions& options) {
   Expected<io::DetectSettings> loaded_settings = LoadDetectSettingsOrDefaults(options);
   if (!loaded_settings) return DetectFail(loaded_settings.error().message);
   const io::DetectSettings settings = *loaded_settings;
-  Expected<io::Grid<float>> depth = io::ReadDepthPng(options.depth, *intrinsics);
+  Expected<io::Grid<float>> depth = io::ReadDepthImage(options.depth, *intrinsics);
   if (!depth) return DetectFail(depth.error().message);
   Expected<od::RangeImage> image =
       od::RangeImage::FromDepth(depth->data, intrinsics->model, intrinsics->up);
@@ -232,8 +229,10 @@ Subcommand AddDetectCommand(CLI::App& parent) {
       "Find obstacles in one z-depth frame or LiDAR scan and write labels, classes, overlays "
       "and per-segment measures");
   CLI::Option* depth =
-      app->add_option("--depth", options->depth, "16-bit z-depth PNG (0 = no return)")
-          ->type_name("FILE.png");
+      app->add_option("--depth", options->depth,
+                      "z-depth: 16-bit PNG (value * depth_scale) or 32-bit float TIFF "
+                      "(metres); 0 = no return")
+          ->type_name("FILE");
   CLI::Option* intrinsics =
       app->add_option("--intrinsics", options->intrinsics,
                       "camera YAML: width, height, fx, fy, cx, cy, depth_scale, up or pitch_deg")
@@ -242,31 +241,30 @@ Subcommand AddDetectCommand(CLI::App& parent) {
   intrinsics->needs(depth);
   CLI::Option* points =
       app->add_option("--points", options->points,
-                      "LiDAR scan, KITTI layout (float32 x, y, z, intensity per point; "
-                      "instead of --depth)")
-          ->type_name("FILE.bin")
+                      "LiDAR scan (instead of --depth): KITTI .bin (float32 x, y, z, intensity "
+                      "per point), PLY (x, y, z, optional intensity and ring), or text "
+                      "\"x y z [intensity]\" per line (.txt .xyz .dat .pts .asc .csv, optionally "
+                      ".bz2)")
+          ->type_name("FILE")
           ->excludes(depth);
-  CLI::Option* sensor =
-      app->add_option("--sensor", options->sensor, "sensor preset of the scan")
-          ->check(CLI::IsMember({"HDL-64E", "VLP-16", "VLP-32C", "OS1-64"}))
-          ->type_name("PRESET");
-  points->needs(sensor);
-  sensor->needs(points);
+  app->add_option("--sensor", options->sensor,
+                  "sensor preset of the scan (or of every scan of --kitti); default: rings "
+                  "found from the data (ring field, organised order, ring breaks, elevation "
+                  "clusters, else uniform elevation bins)")
+      ->check(CLI::IsMember({"HDL-64E", "VLP-16", "VLP-32C", "OS1-64"}))
+      ->type_name("PRESET");
   app->add_option("--organised", options->organised,
                   "auto: organised (index = col * rings + ring, Ouster) when the data says so; "
                   "yes / no to force")
       ->check(CLI::IsMember({"auto", "yes", "no"}))
-      ->capture_default_str()
-      ->needs(points);
+      ->capture_default_str();
   app->add_option("--columns", options->columns,
-                  "azimuth steps of an unorganised scan (default: 1800 for VLP-16/VLP-32C, "
-                  "2048 otherwise)")
-      ->check(CLI::PositiveNumber)
-      ->needs(points);
+                  "azimuth steps of a scan that is not organised (default: the preset's, 1800 "
+                  "for VLP-16/VLP-32C and 2048 otherwise, or measured on the data)")
+      ->check(CLI::PositiveNumber);
   app->add_option("--up", options->up, "gravity's up vector in the LiDAR frame, x,y,z")
       ->capture_default_str()
-      ->type_name("X,Y,Z")
-      ->needs(points);
+      ->type_name("X,Y,Z");
 #ifdef CAIRN_HAVE_SOURCES
   CLI::Option* rawlog =
       app->add_option("--rawlog", options->rawlog,

@@ -25,6 +25,9 @@
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
 #include "cairn/sim/world.hpp"
+#include "cairn/sources/decode.hpp"
+#include "cairn/sources/mrpt_convert.hpp"
+#include "cairn/sources/rawlog_file.hpp"
 #include "io/temp_dir.hpp"
 
 namespace cairn::sim {
@@ -35,6 +38,15 @@ using ::mrpt::obs::CObservation3DRangeScan;
 using ::mrpt::obs::CObservationIMU;
 using ::mrpt::obs::CObservationOdometry;
 using ::mrpt::obs::CObservationPointCloud;
+// The generic rawlog plumbing lives in cairn::sources; libsim/mrpt makes the observations.
+using sources::DecodeRangeScan;
+using sources::FromCPose3D;
+using sources::FromMrptTime;
+using sources::RawlogReader;
+using sources::RawlogWriter;
+using sources::ReadRawlogObservations;
+using sources::ToCPose3D;
+using sources::ToMrptTime;
 
 constexpr double kStart = 1704067200.0;
 
@@ -154,19 +166,19 @@ TEST(SimRawlog, WrittenRawlogReadsBackTheSame) {
       ASSERT_TRUE(scan->hasRangeImage);
       EXPECT_TRUE(scan->range_is_depth);
       EXPECT_EQ(scan->rangeImage.asEigen(), w.scans[k]->rangeImage.asEigen()) << "frame " << k;
-      Expected<RangeScanFrame> decoded = DecodeRangeScan(*scan);
+      Expected<sources::Frame> decoded = DecodeRangeScan(*scan);
       ASSERT_TRUE(decoded.ok()) << decoded.error().message;
       const DepthFrame& frame = w.frames[k];
-      EXPECT_EQ(decoded->model.width, frame.model.width);
-      EXPECT_EQ(decoded->model.fx, frame.model.fx);
-      EXPECT_EQ(decoded->model.cy, frame.model.cy);
+      EXPECT_EQ(decoded->depth()->model.width, frame.model.width);
+      EXPECT_EQ(decoded->depth()->model.fx, frame.model.fx);
+      EXPECT_EQ(decoded->depth()->model.cy, frame.model.cy);
       int valid = 0;
       for (std::size_t i = 0; i < frame.depth_m.size(); ++i) {
         if (frame.depth_m[i] > 0.0f) ++valid;
-        ASSERT_NEAR(decoded->depth_m[i], frame.depth_m[i], 0.0005 + 1e-6) << "pixel " << i;
+        ASSERT_NEAR(decoded->depth()->depth_m[i], frame.depth_m[i], 0.0005 + 1e-6) << "pixel " << i;
       }
       EXPECT_GT(valid, static_cast<int>(frame.depth_m.size() / 3));  // the rest is sky
-      EXPECT_TRUE(decoded->T_body_camera.isApprox(w.drive.T_body_sensor, 1e-12));
+      EXPECT_TRUE(decoded->T_body_sensor.isApprox(w.drive.T_body_sensor, 1e-12));
       EXPECT_NEAR(decoded->stamp_s, kStart + s.stamp_s, 1e-7);
     }
   }
@@ -302,12 +314,12 @@ TEST(SimRawlog, ReadsMrptsRgbdDataset) {
     const auto scan = std::dynamic_pointer_cast<CObservation3DRangeScan>(*next);
     if (!scan || !scan->hasRangeImage) continue;
     ++scans;
-    Expected<RangeScanFrame> frame = DecodeRangeScan(*scan);
+    Expected<sources::Frame> frame = DecodeRangeScan(*scan);
     ASSERT_TRUE(frame.ok()) << frame.error().message;
-    EXPECT_GT(frame->model.width, 0);
+    EXPECT_GT(frame->depth()->model.width, 0);
     int valid = 0;
-    for (float d : frame->depth_m) valid += d > 0.0f && d < 20.0f;
-    EXPECT_GT(valid, static_cast<int>(frame->depth_m.size() / 4)) << "scan " << scans;
+    for (float d : frame->depth()->depth_m) valid += d > 0.0f && d < 20.0f;
+    EXPECT_GT(valid, static_cast<int>(frame->depth()->depth_m.size() / 4)) << "scan " << scans;
   }
   EXPECT_GT(scans, 0);
   EXPECT_GE(observations, scans);
@@ -465,14 +477,14 @@ TEST(SimSequence, DriveSequenceReadsBackLikeRealData) {
     EXPECT_TRUE((*sensor)[k].pose.linear().isApprox(s.T_world_sensor.linear(), 1e-8));
 
     // The range image is the camera's view from the true pose, its truth beside it.
-    Expected<RangeScanFrame> decoded = DecodeRangeScan(*scan);
+    Expected<sources::Frame> decoded = DecodeRangeScan(*scan);
     ASSERT_TRUE(decoded.ok()) << decoded.error().message;
-    EXPECT_TRUE(decoded->T_body_camera.isApprox(drive->T_body_sensor, 1e-12));
-    EXPECT_TRUE((s.T_world_body * decoded->T_body_camera).isApprox(s.T_world_sensor, 1e-12));
+    EXPECT_TRUE(decoded->T_body_sensor.isApprox(drive->T_body_sensor, 1e-12));
+    EXPECT_TRUE((s.T_world_body * decoded->T_body_sensor).isApprox(s.T_world_sensor, 1e-12));
     const Expected<DepthFrame> frame = RenderDriveCamera(world, s.T_world_sensor, k, false);
     ASSERT_TRUE(frame.ok());
     for (std::size_t i = 0; i < frame->depth_m.size(); ++i) {
-      ASSERT_NEAR(decoded->depth_m[i], frame->depth_m[i], 0.0005 + 1e-6) << "frame " << k;
+      ASSERT_NEAR(decoded->depth()->depth_m[i], frame->depth_m[i], 0.0005 + 1e-6) << "frame " << k;
     }
     char name[32];
     std::snprintf(name, sizeof(name), "truth/%06d.png", k);

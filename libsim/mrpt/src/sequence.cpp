@@ -13,6 +13,8 @@
 #include "cairn/od/io/atomic_file.hpp"
 #include "cairn/sim/mrpt/frame_files.hpp"
 #include "cairn/sim/mrpt/rawlog.hpp"
+#include "cairn/sources/mrpt_convert.hpp"
+#include "cairn/sources/rawlog_file.hpp"
 
 namespace cairn::sim {
 namespace {
@@ -139,7 +141,7 @@ Expected<SequenceSummary> WriteDriveSequence(const World& world, const fs::path&
   summary.poses_sensor = dir / "poses_sensor.tum";
   summary.truth_yaml = dir / "truth.yaml";
   summary.sequence_yaml = dir / "sequence.yaml";
-  Expected<RawlogWriter> writer = RawlogWriter::Create(summary.rawlog, options.gzip_level);
+  Expected<sources::RawlogWriter> writer = sources::RawlogWriter::Create(summary.rawlog, options.gzip_level);
   if (!writer) return writer.error();
 
   // Frames render on other threads, a few ahead and in order of need, while this thread
@@ -175,7 +177,7 @@ Expected<SequenceSummary> WriteDriveSequence(const World& world, const fs::path&
     in_flight.pop_front();
     const DriveSample& sample = drive.samples[k];
     const double stamp_s = options.start_unix_s + sample.stamp_s;
-    const ::mrpt::Clock::time_point stamp = ToMrptTime(stamp_s);
+    const ::mrpt::Clock::time_point stamp = sources::ToMrptTime(stamp_s);
     const std::string frame_name = FrameName(k);
 
     // Odometry and IMU, then the sensor's observation with its truth file.
