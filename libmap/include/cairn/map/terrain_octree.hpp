@@ -1,0 +1,113 @@
+// TerrainOcTree: an OctoMap occupancy octree whose voxels also know whether obstacle points
+// put them there.
+//
+// Each node carries two log-odds, updated together by the same sensor model:
+//  - occupancy (OctoMap's own): + hit for any return ending in the voxel, + miss for a ray
+//    passing through it;
+//  - obstacle: + hit for a return of an obstacle point (a kept segment, above its foot),
+//    + miss for a ray passing through it and for a return of a ground point.
+// A voxel is an obstacle voxel while it is occupied and its obstacle log-odds is above 0.
+// Both are clamped with the tree's clamping thresholds, so that an object that moves away,
+// or a false obstacle seen once, is cleared by the rays of later frames. Inner nodes hold
+// the maximum of their children for both; nodes collapse only when both values agree.
+//
+// World frame (z up), metres. Files are written as plain octomap::OcTree / ColorOcTree
+// (see map_files.hpp), which OctoMap's tools read; this type is not registered with
+// OctoMap's .ot factory.
+#pragma once
+
+#include <octomap/OcTreeNode.h>
+#include <octomap/OccupancyOcTreeBase.h>
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <istream>
+#include <ostream>
+#include <string>
+
+namespace cairn::map {
+
+class TerrainOcTreeNode : public octomap::OcTreeNode {
+ public:
+  TerrainOcTreeNode() = default;
+  TerrainOcTreeNode(const TerrainOcTreeNode& rhs) = default;
+
+  float obstacle_log_odds() const { return obstacle_; }
+  void set_obstacle_log_odds(float l) { obstacle_ = l; }
+
+  // OctoMap's node interface (names as OctoMap calls them).
+  bool operator==(const TerrainOcTreeNode& rhs) const {
+    return rhs.value == value && rhs.obstacle_ == obstacle_;
+  }
+  void copyData(const TerrainOcTreeNode& from) {
+    OcTreeNode::copyData(from);
+    obstacle_ = from.obstacle_;
+  }
+  /// Inner nodes: the maximum of the children, for both values.
+  void updateOccupancyChildren();
+  std::istream& readData(std::istream& s);
+  std::ostream& writeData(std::ostream& s) const;
+
+ private:
+  friend class TerrainOcTree;
+  // Frees the child pointer array once every child is gone (OctoMap's deleteNodeChild
+  // leaves it, and a node with an array must not be deleted).
+  void ReleaseChildArray() {
+    delete[] children;
+    children = nullptr;
+  }
+
+  float obstacle_ = 0.0f;
+};
+
+class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
+ public:
+  explicit TerrainOcTree(double resolution_m);
+  // OctoMap's node copy constructor copies children as its own base type, which would slice
+  // ours: no copies (TerrainMap owns its tree; map_files.hpp converts it).
+  TerrainOcTree(const TerrainOcTree&) = delete;
+  TerrainOcTree& operator=(const TerrainOcTree&) = delete;
+
+  TerrainOcTree* create() const override { return new TerrainOcTree(resolution); }
+  std::string getTreeType() const override { return "TerrainOcTree"; }
+
+  /// The leaf at full depth for `key`, created, or expanded from a pruned ancestor. Inner
+  /// nodes are not updated (call updateInnerOccupancy() after a batch, as with lazy_eval).
+  TerrainOcTreeNode* TouchLeaf(const octomap::OcTreeKey& key);
+
+  /// One update of both log-odds of a leaf, clamped with the tree's thresholds:
+  /// `occupied` adds the hit (else the miss) log-odds to occupancy; `obstacle` adds the hit
+  /// (else the miss) log-odds to the obstacle value.
+  void Update(TerrainOcTreeNode* leaf, bool occupied, bool obstacle) const;
+
+  /// One free update (a ray passed through) of the voxel `key`, walking the tree once: a
+  /// voxel inside a pruned node saturated free in both values is left alone (the update
+  /// would change nothing), without expanding it. Returns whether the voxel was an obstacle
+  /// voxel before the update, and whether it changed.
+  struct FreeUpdate {
+    bool changed = false;
+    bool was_obstacle = false;
+  };
+  FreeUpdate UpdateFree(const octomap::OcTreeKey& key);
+
+  /// Whether a node is saturated free in both values (a free update changes nothing).
+  bool IsSaturatedFree(const TerrainOcTreeNode& node) const;
+  bool IsObstacle(const TerrainOcTreeNode& node) const {
+    return isNodeOccupied(node) && node.obstacle_log_odds() > 0.0f;
+  }
+
+  /// Deletes every node whose box lies entirely outside [min, max] in x and y (world) and
+  /// returns how many nodes went; nodes that straddle the border stay, and inner nodes keep
+  /// the maximum of the children left.
+  std::size_t DeleteOutsideXY(const Eigen::Vector2d& min, const Eigen::Vector2d& max);
+
+ private:
+  // Deletes every descendant of `node` (not the node itself); counts them.
+  void DeleteDescendants(TerrainOcTreeNode* node, std::size_t& count);
+  // Returns true when `node` has no child left and must go too.
+  bool DeleteOutsideRecurs(TerrainOcTreeNode* node, const octomap::OcTreeKey& key, unsigned depth,
+                           const Eigen::Vector2d& min, const Eigen::Vector2d& max,
+                           std::size_t& count);
+};
+
+}  // namespace cairn::map

@@ -1,0 +1,849 @@
+#include "cairn/map/terrain_map.hpp"
+
+#include <octomap/OcTreeKey.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <unordered_map>
+#include <utility>
+
+namespace cairn::map {
+namespace {
+
+constexpr float kInfinity = std::numeric_limits<float>::infinity();
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+constexpr std::int64_t kOctreeFlushFrames = 8;
+
+float LogOdds(double p) { return static_cast<float>(std::log(p / (1.0 - p))); }
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+/// Cell offsets whose centres lie within `radius_m` of the centre cell's (itself included).
+std::vector<CellIndex> DiscOffsets(double radius_m, double cell_size_m) {
+  const int r = static_cast<int>(std::floor(radius_m / cell_size_m));
+  std::vector<CellIndex> offsets;
+  for (int dy = -r; dy <= r; ++dy) {
+    for (int dx = -r; dx <= r; ++dx) {
+      if (std::hypot(dx, dy) * cell_size_m <= radius_m + 1e-9) offsets.emplace_back(dx, dy);
+    }
+  }
+  return offsets;
+}
+
+CellIndex Grow(const CellIndex& index, int cells) { return index + CellIndex::Constant(cells); }
+
+// What one return is, for this frame.
+enum PointClass : std::uint8_t {
+  kNone = 0,     // no return
+  kFar = 1,      // beyond max_range: free space up to max_range, nothing else
+  kGround = 2,   // in range, not an obstacle point
+  kObstacle = 3  // in range, kept segment, above its foot
+};
+
+// A set of OcTreeKeys with open addressing (linear probing) in one flat array: the free
+// voxels of a frame, a million insertions with many repeats, several times faster than
+// OctoMap's node-based KeySet. Keys are packed into 48 bits (+1, so that 0 marks a free
+// slot).
+class FlatKeySet {
+ public:
+  void Clear() {
+    std::fill(slots_.begin(), slots_.end(), 0);
+    size_ = 0;
+  }
+  void Insert(const octomap::OcTreeKey& key) {
+    if (2 * (size_ + 1) > slots_.size()) Grow();
+    const std::uint64_t packed = Pack(key);
+    const std::size_t mask = slots_.size() - 1;
+    for (std::size_t i = Hash(packed) & mask;; i = (i + 1) & mask) {
+      if (slots_[i] == packed) return;
+      if (slots_[i] == 0) {
+        slots_[i] = packed;
+        ++size_;
+        return;
+      }
+    }
+  }
+  /// The keys in Morton order (x, y, z bits interleaved), so that a walk over them visits
+  /// the octree with few cache misses. `codes` and `scratch` are reused buffers.
+  template <typename F>
+  void ForEachInMortonOrder(std::vector<std::uint64_t>& codes, std::vector<std::uint64_t>& scratch,
+                            F&& f) const {
+    codes.clear();
+    for (const std::uint64_t packed : slots_) {
+      if (packed != 0) codes.push_back(Morton(packed - 1));
+    }
+    // LSD radix sort of the 48-bit codes, 16 bits per pass.
+    scratch.resize(codes.size());
+    std::vector<std::size_t> count(1 << 16);
+    for (int shift = 0; shift < 48; shift += 16) {
+      std::fill(count.begin(), count.end(), 0);
+      for (const std::uint64_t c : codes) ++count[(c >> shift) & 0xffff];
+      std::size_t sum = 0;
+      for (std::size_t& n : count) {
+        const std::size_t here = n;
+        n = sum;
+        sum += here;
+      }
+      for (const std::uint64_t c : codes) scratch[count[(c >> shift) & 0xffff]++] = c;
+      codes.swap(scratch);
+    }
+    for (const std::uint64_t c : codes) f(Unpack(Unmorton(c) + 1));
+  }
+  std::size_t size() const { return size_; }
+
+ private:
+  static std::uint64_t Pack(const octomap::OcTreeKey& k) {
+    return (static_cast<std::uint64_t>(k[0]) | static_cast<std::uint64_t>(k[1]) << 16 |
+            static_cast<std::uint64_t>(k[2]) << 32) +
+           1;
+  }
+  static octomap::OcTreeKey Unpack(std::uint64_t packed) {
+    --packed;
+    return octomap::OcTreeKey(static_cast<octomap::key_type>(packed & 0xffff),
+                              static_cast<octomap::key_type>((packed >> 16) & 0xffff),
+                              static_cast<octomap::key_type>((packed >> 32) & 0xffff));
+  }
+  static std::uint64_t Morton(std::uint64_t packed) {
+    std::uint64_t code = 0;
+    for (int b = 0; b < 16; ++b) {
+      code |= ((packed >> b) & 1u) << (3 * b);
+      code |= ((packed >> (16 + b)) & 1u) << (3 * b + 1);
+      code |= ((packed >> (32 + b)) & 1u) << (3 * b + 2);
+    }
+    return code;
+  }
+  static std::uint64_t Unmorton(std::uint64_t code) {
+    std::uint64_t packed = 0;
+    for (int b = 0; b < 16; ++b) {
+      packed |= ((code >> (3 * b)) & 1u) << b;
+      packed |= ((code >> (3 * b + 1)) & 1u) << (16 + b);
+      packed |= ((code >> (3 * b + 2)) & 1u) << (32 + b);
+    }
+    return packed;
+  }
+  static std::size_t Hash(std::uint64_t x) {  // splitmix64's finaliser
+    x ^= x >> 30;
+    x *= 0xbf58476d1ce4e5b9ULL;
+    x ^= x >> 27;
+    x *= 0x94d049bb133111ebULL;
+    x ^= x >> 31;
+    return static_cast<std::size_t>(x);
+  }
+  void Grow() {
+    std::vector<std::uint64_t> old = std::move(slots_);
+    slots_.assign(std::max<std::size_t>(1024, old.size() * 2), 0);
+    size_ = 0;
+    const std::size_t mask = slots_.size() - 1;
+    for (const std::uint64_t packed : old) {
+      if (packed == 0) continue;
+      std::size_t i = Hash(packed) & mask;
+      while (slots_[i] != 0) i = (i + 1) & mask;
+      slots_[i] = packed;
+      ++size_;
+    }
+  }
+  std::vector<std::uint64_t> slots_;
+  std::size_t size_ = 0;
+};
+
+}  // namespace
+
+// Per-slot values that live for one frame (stamped with the frame, reset lazily).
+struct TerrainMap::Scratch {
+  struct Slot {
+    std::int64_t stamp = -1;
+    Eigen::Vector3f lowest = Eigen::Vector3f::Constant(kInfinity);  // lowest return this frame
+    std::int64_t around_stamp = -1;
+    float lowest_around = kInfinity;  // the lowest of `lowest` over the cells within reach
+    int ground = 0;
+    int obstacle = 0;
+    bool seen_through = false;
+  };
+  std::vector<Slot> slots;
+  std::vector<CellIndex> touched;  // cells stamped this frame
+  std::vector<std::uint8_t> point_class;
+  std::vector<Eigen::Vector3d> world;  // per pixel: the return (or the clipped ray end)
+  std::unordered_map<octomap::OcTreeKey, std::pair<int, int>, octomap::OcTreeKey::KeyHash>
+      endpoints;  // key -> (obstacle returns, ground returns)
+  octomap::KeySet far_ends;
+  FlatKeySet free_keys;
+  std::vector<std::uint64_t> morton, morton_scratch;
+  octomap::KeyRay ray;
+  std::vector<CellIndex> ground_disc;  // cells that may hold a return within ground_radius
+  std::vector<CellIndex> fit_disc;     // offsets within plane_fit_radius
+  std::vector<CellIndex> merge_disc;   // offsets within merge_distance
+  std::vector<std::pair<CellIndex, Cost>> inflation;  // offsets within inflation_radius
+  int inflation_cells = 0;
+};
+
+// A kept segment as this frame saw it.
+struct TerrainMap::FrameSegment {
+  int label = 0;
+  std::vector<CellIndex> cells;
+  Eigen::Vector3d bbox_min = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
+  Eigen::Vector3d bbox_max = Eigen::Vector3d::Constant(std::numeric_limits<double>::lowest());
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  std::int64_t count = 0;
+  double height_m = 0.0;
+};
+
+TerrainMap::TerrainMap(const MapConfig& config)
+    : config_(config),
+      grid_(config.cell_size_m,
+            config.window_size_m > 0.0
+                ? static_cast<int>(std::ceil(config.window_size_m / config.cell_size_m - 1e-9))
+                : 0),
+      octree_(std::make_unique<TerrainOcTree>(config.voxel_size_m)),
+      scratch_(std::make_unique<Scratch>()) {
+  octree_->setProbHit(config.voxel_hit_probability);
+  octree_->setProbMiss(config.voxel_miss_probability);
+  octree_->setClampingThresMin(config.voxel_min_probability);
+  octree_->setClampingThresMax(config.voxel_max_probability);
+  cell_hit_ = LogOdds(config.cell_hit_probability);
+  cell_miss_ = LogOdds(config.cell_miss_probability);
+  cell_min_ = LogOdds(config.cell_min_probability);
+  cell_max_ = LogOdds(config.cell_max_probability);
+  lethal_log_odds_ = LogOdds(config.obstacle_probability);
+  const double s = config.cell_size_m;
+  // Any point of a cell within ground_radius of any point of the centre cell.
+  scratch_->ground_disc = DiscOffsets(config.ground_radius_m + std::sqrt(2.0) * s, s);
+  scratch_->fit_disc = DiscOffsets(config.plane_fit_radius_m, s);
+  scratch_->merge_disc = DiscOffsets(config.merge_distance_m, s);
+  for (const CellIndex& d : DiscOffsets(config.inflation_radius_m, s)) {
+    if (d.isZero()) continue;
+    const double distance = std::hypot(d.x(), d.y()) * s;
+    scratch_->inflation.emplace_back(
+        d, InflationCost(distance, config.robot_radius_m, config.cost_scaling_factor));
+  }
+  scratch_->inflation_cells = static_cast<int>(std::floor(config.inflation_radius_m / s));
+  pruned_at_ = grid_.min_index();
+  PrepareScratch();
+}
+
+TerrainMap::TerrainMap(TerrainMap&&) noexcept = default;
+TerrainMap& TerrainMap::operator=(TerrainMap&&) noexcept = default;
+TerrainMap::~TerrainMap() = default;
+
+Expected<TerrainMap> TerrainMap::Create(const MapConfig& config) {
+  if (Status s = config.Validate(); !s) return s.error();
+  return TerrainMap(config);
+}
+
+void TerrainMap::PrepareScratch() { scratch_->slots.assign(grid_.slot_count(), Scratch::Slot{}); }
+
+Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
+                                             const od::Detection& detection,
+                                             const od::Classification& classification,
+                                             const Eigen::Isometry3d& T_world_sensor,
+                                             double stamp_s, std::int64_t frame_id) {
+  const std::string where = "frame " + std::to_string(frame_id) + ": ";
+  if (detection.width != image.width() || detection.height != image.height() ||
+      detection.labels.size() != static_cast<std::size_t>(image.size())) {
+    return Error{where + "the detection is " + std::to_string(detection.width) + "x" +
+                 std::to_string(detection.height) + " but the range image is " +
+                 std::to_string(image.width()) + "x" + std::to_string(image.height())};
+  }
+  if (classification.verdicts.size() != detection.segments.size()) {
+    return Error{where + "the classification has " +
+                 std::to_string(classification.verdicts.size()) + " verdicts for " +
+                 std::to_string(detection.segments.size()) + " segments"};
+  }
+  const int segment_count = static_cast<int>(detection.segments.size());
+  for (const std::int32_t label : detection.labels) {
+    if (label < 0 || label > segment_count) {
+      return Error{where + "segment label " + std::to_string(label) + " out of range 0.." +
+                   std::to_string(segment_count)};
+    }
+  }
+  if (!T_world_sensor.matrix().allFinite()) return Error{where + "the pose is not finite"};
+  if (!std::isfinite(stamp_s)) return Error{where + "the time stamp is not finite"};
+
+  Scratch& sc = *scratch_;
+  FrameSummary summary;
+  summary.frame_id = frame_id;
+  summary.stamp_s = stamp_s;
+  const std::int64_t stamp = ++frames_;
+  const Eigen::Vector3d origin = T_world_sensor.translation();
+  const double s = config_.cell_size_m;
+  auto start = std::chrono::steady_clock::now();
+
+  // --- the window follows the sensor ---
+  if (grid_.rolling()) {
+    summary.window_moved = grid_.MoveTo(origin.head<2>());
+    const CellIndex moved = (grid_.min_index() - pruned_at_).cwiseAbs();
+    if (moved.maxCoeff() >= std::max(1, grid_.extent().x() / 16)) PruneOctreeToWindow();
+  }
+
+  // --- returns into the world; the grid takes every cell a ray may cross ---
+  const int n = image.size();
+  sc.point_class.assign(n, kNone);
+  sc.world.resize(n);
+  CellIndex lo = grid_.IndexOf(origin.head<2>());
+  CellIndex hi = lo;
+  for (int i = 0; i < n; ++i) {
+    if (!image.valid(i)) continue;
+    const Eigen::Vector3d p = image.point(i);
+    const double range = p.norm();
+    if (!(range > 0.0)) continue;
+    ++summary.valid_points;
+    if (range > config_.max_range_m) {
+      sc.point_class[i] = kFar;
+      sc.world[i] = T_world_sensor * (p * (config_.max_range_m / range));
+    } else {
+      sc.point_class[i] = kGround;
+      sc.world[i] = T_world_sensor * p;
+    }
+    const CellIndex c = grid_.IndexOf(sc.world[i].head<2>());
+    lo = lo.cwiseMin(c);
+    hi = hi.cwiseMax(c);
+  }
+  if (!grid_.rolling() && summary.valid_points > 0) {
+    if (grid_.Reserve(lo, hi)) PrepareScratch();
+  }
+
+  // --- lowest return per cell, then each return's class ---
+  sc.touched.clear();
+  const auto stamp_cell = [&](const CellIndex& c) -> Scratch::Slot& {
+    Scratch::Slot& slot = sc.slots[grid_.Slot(c)];
+    if (slot.stamp != stamp) {
+      slot = Scratch::Slot{};
+      slot.stamp = stamp;
+      sc.touched.push_back(c);
+    }
+    return slot;
+  };
+  for (int i = 0; i < n; ++i) {
+    if (sc.point_class[i] != kGround) continue;
+    const CellIndex c = grid_.IndexOf(sc.world[i].head<2>());
+    if (!grid_.Contains(c)) continue;
+    ++summary.points_in_range;
+    Scratch::Slot& slot = stamp_cell(c);
+    if (sc.world[i].z() < slot.lowest.z()) slot.lowest = sc.world[i].cast<float>();
+  }
+  // How far a point stands above the ground around it: the most, over the lowest returns q
+  // of the cells within reach, of p.z - q.z - tan(ground_max_slope) |p - q|_xy.
+  const float rise = static_cast<float>(std::tan(config_.ground_max_slope_rad));
+  const float reach2 = static_cast<float>(config_.ground_radius_m * config_.ground_radius_m);
+  // Returns that and the plain height above the lowest return within reach.
+  const auto height_above_ground = [&](const Eigen::Vector3d& p, const CellIndex& c) {
+    const Eigen::Vector3f pf = p.cast<float>();
+    float height = -kInfinity;
+    float plain = -kInfinity;
+    // Most points of a segment are its foot: a bound from the cell's lowest neighbour,
+    // computed once per cell, settles them without the walk below.
+    Scratch::Slot& slot = sc.slots[grid_.Slot(c)];
+    if (slot.around_stamp != stamp) {
+      slot.around_stamp = stamp;
+      slot.lowest_around = kInfinity;
+      for (const CellIndex& d : sc.ground_disc) {
+        const CellIndex other = c + d;
+        if (!grid_.Contains(other)) continue;
+        const Scratch::Slot& o = sc.slots[grid_.Slot(other)];
+        if (o.stamp == stamp) slot.lowest_around = std::min(slot.lowest_around, o.lowest.z());
+      }
+    }
+    if (pf.z() - slot.lowest_around < config_.obstacle_min_height_m) {
+      return std::make_pair(pf.z() - slot.lowest_around, pf.z() - slot.lowest_around);
+    }
+    for (const CellIndex& d : sc.ground_disc) {
+      const CellIndex other = c + d;
+      if (!grid_.Contains(other)) continue;
+      const Scratch::Slot& o = sc.slots[grid_.Slot(other)];
+      if (o.stamp != stamp) continue;
+      const float dxy2 = (pf.head<2>() - o.lowest.head<2>()).squaredNorm();
+      if (dxy2 > reach2) continue;
+      height = std::max(height, pf.z() - o.lowest.z() - rise * std::sqrt(dxy2));
+      plain = std::max(plain, pf.z() - o.lowest.z());
+    }
+    return std::make_pair(height, plain);
+  };
+
+  std::vector<FrameSegment> segments(segment_count + 1);
+  for (int i = 0; i < n; ++i) {
+    if (sc.point_class[i] != kGround) continue;
+    const Eigen::Vector3d& p = sc.world[i];
+    const CellIndex c = grid_.IndexOf(p.head<2>());
+    if (!grid_.Contains(c)) continue;
+    const int label = detection.labels[i];
+    Cell& cell = grid_.At(c);
+    Scratch::Slot& slot = sc.slots[grid_.Slot(c)];
+    const float z = static_cast<float>(p.z());
+    const bool kept =
+        label > 0 && classification.verdicts[label - 1].cls == od::SegmentClass::kKept;
+    const auto [height, plain_height] =
+        kept ? height_above_ground(p, c) : std::make_pair(0.0f, 0.0f);
+    if (kept && height >= config_.obstacle_min_height_m) {
+      sc.point_class[i] = kObstacle;
+      ++summary.obstacle_points;
+      ++slot.obstacle;
+      ++cell.obstacle_points;
+      cell.obstacle_top_m = std::isnan(cell.obstacle_top_m) ? z : std::max(cell.obstacle_top_m, z);
+      FrameSegment& seg = segments[label];
+      seg.label = label;
+      seg.cells.push_back(c);
+      seg.bbox_min = seg.bbox_min.cwiseMin(p);
+      seg.bbox_max = seg.bbox_max.cwiseMax(p);
+      seg.sum += p;
+      ++seg.count;
+      seg.height_m = std::max(seg.height_m, static_cast<double>(plain_height));
+    } else {
+      ++summary.ground_points;
+      ++slot.ground;
+      ++cell.ground_points;
+      if (cell.ground_points == 1) {
+        cell.elevation_mean_m = cell.elevation_min_m = cell.elevation_max_m = z;
+      } else {
+        cell.elevation_mean_m += (z - cell.elevation_mean_m) / cell.ground_points;
+        cell.elevation_min_m = std::min(cell.elevation_min_m, z);
+        cell.elevation_max_m = std::max(cell.elevation_max_m, z);
+      }
+    }
+    cell.observed = true;
+  }
+  summary.classify_s = SecondsSince(start);
+  start = std::chrono::steady_clock::now();
+
+  // --- octree: OctoMap's discretised update, one ray per endpoint voxel ---
+  TerrainOcTree& tree = *octree_;
+  const Eigen::Vector2d window_min = grid_.min_index().cast<double>() * s;
+  const Eigen::Vector2d window_max = (grid_.min_index() + grid_.extent()).cast<double>() * s;
+  const auto in_window = [&](const octomap::OcTreeKey& key) {
+    if (!grid_.rolling()) return true;
+    const octomap::point3d c = tree.keyToCoord(key);
+    return c.x() >= window_min.x() && c.x() < window_max.x() && c.y() >= window_min.y() &&
+           c.y() < window_max.y();
+  };
+  sc.endpoints.clear();
+  sc.far_ends.clear();
+  sc.free_keys.Clear();
+  for (int i = 0; i < n; ++i) {
+    const std::uint8_t cls = sc.point_class[i];
+    if (cls == kNone) continue;
+    octomap::OcTreeKey key;
+    const Eigen::Vector3d& p = sc.world[i];
+    if (!tree.coordToKeyChecked(p.x(), p.y(), p.z(), key)) continue;  // beyond the tree
+    if (cls == kFar) {
+      sc.far_ends.insert(key);
+    } else {
+      auto& counts = sc.endpoints[key];
+      (cls == kObstacle ? counts.first : counts.second) += 1;
+    }
+  }
+  const octomap::point3d sensor(static_cast<float>(origin.x()), static_cast<float>(origin.y()),
+                                static_cast<float>(origin.z()));
+  const auto cast = [&](const octomap::OcTreeKey& end) {
+    if (tree.computeRayKeys(sensor, tree.keyToCoord(end), sc.ray)) {
+      for (const octomap::OcTreeKey& key : sc.ray) sc.free_keys.Insert(key);
+    }
+  };
+  for (const auto& entry : sc.endpoints) cast(entry.first);
+  for (const octomap::OcTreeKey& key : sc.far_ends) cast(key);
+  sc.free_keys.ForEachInMortonOrder(sc.morton, sc.morton_scratch,
+                                    [&](const octomap::OcTreeKey& key) {
+                                      if (sc.endpoints.count(key) != 0 || !in_window(key))
+                                        return;  // endpoints win
+                                      const TerrainOcTree::FreeUpdate update = tree.UpdateFree(key);
+                                      if (update.changed) ++summary.voxels_free;
+                                      if (update.was_obstacle) {
+                                        // A ray went through where an obstacle was: evidence
+                                        // against the cell below it.
+                                        const octomap::point3d c = tree.keyToCoord(key);
+                                        const CellIndex cell = grid_.IndexOf({c.x(), c.y()});
+                                        if (grid_.Contains(cell))
+                                          stamp_cell(cell).seen_through = true;
+                                      }
+                                    });
+  for (const auto& [key, counts] : sc.endpoints) {
+    if (!in_window(key)) continue;
+    tree.Update(tree.TouchLeaf(key), true, counts.first > 0);
+    ++summary.voxels_occupied;
+  }
+  // Inner nodes and pruning cost a walk over the whole tree: done every few frames, and
+  // whenever the tree is looked at (octree()); the leaves are always current.
+  octree_stale_ = true;
+  if (stamp % kOctreeFlushFrames == 0) FlushOctree();
+  summary.octree_s = SecondsSince(start);
+  start = std::chrono::steady_clock::now();
+
+  // --- grid: obstacle evidence, one update per touched cell ---
+  CellIndex dirty_lo = CellIndex::Constant(std::numeric_limits<int>::max());
+  CellIndex dirty_hi = CellIndex::Constant(std::numeric_limits<int>::min());
+  for (const CellIndex& c : sc.touched) {
+    const Scratch::Slot& slot = sc.slots[grid_.Slot(c)];
+    Cell& cell = grid_.At(c);
+    if (slot.obstacle > 0) {
+      cell.obstacle_log_odds = std::min(cell.obstacle_log_odds + cell_hit_, cell_max_);
+      ++cell.hits;
+      ++summary.cells_hit;
+    } else if (slot.ground > 0 || slot.seen_through) {
+      cell.obstacle_log_odds = std::max(cell.obstacle_log_odds + cell_miss_, cell_min_);
+      ++cell.misses;
+      ++summary.cells_missed;
+    }
+    cell.lethal = cell.obstacle_log_odds > lethal_log_odds_;
+    dirty_lo = dirty_lo.cwiseMin(c);
+    dirty_hi = dirty_hi.cwiseMax(c);
+    if (cell.observed) {
+      if (!has_observed_) {
+        observed_min_ = observed_max_ = c;
+        has_observed_ = true;
+      }
+      observed_min_ = observed_min_.cwiseMin(c);
+      observed_max_ = observed_max_.cwiseMax(c);
+    }
+  }
+  if (!sc.touched.empty()) {
+    const int fit = static_cast<int>(std::floor(config_.plane_fit_radius_m / s));
+    const CellIndex terrain_lo = Grow(dirty_lo, -fit);
+    const CellIndex terrain_hi = Grow(dirty_hi, fit);
+    UpdateTerrain(terrain_lo, terrain_hi);
+    if (!summary.window_moved) {
+      UpdateCosts(Grow(terrain_lo, -sc.inflation_cells), Grow(terrain_hi, sc.inflation_cells));
+    }
+  }
+  if (summary.window_moved) {
+    // Inflation from cells that left the window is gone everywhere near its edges.
+    UpdateCosts(grid_.min_index(), grid_.min_index() + grid_.extent() - CellIndex::Ones());
+  }
+  summary.grid_s = SecondsSince(start);
+  start = std::chrono::steady_clock::now();
+
+  // --- persistent obstacles ---
+  std::vector<FrameSegment> kept;
+  for (FrameSegment& seg : segments) {
+    if (seg.count == 0) continue;
+    std::sort(seg.cells.begin(), seg.cells.end(), [](const CellIndex& a, const CellIndex& b) {
+      return a.y() != b.y() ? a.y() < b.y() : a.x() < b.x();
+    });
+    seg.cells.erase(std::unique(seg.cells.begin(), seg.cells.end()), seg.cells.end());
+    kept.push_back(std::move(seg));
+  }
+  summary.kept_segments = static_cast<int>(kept.size());
+  FuseObstacles(kept, stamp_s, frame_id, summary);
+  RetireObstacles(summary);
+  for (const Obstacle& o : obstacles_) summary.lethal_cells += static_cast<int>(o.cells.size());
+  summary.obstacles_s = SecondsSince(start);
+  return summary;
+}
+
+void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
+  const CellIndex from = lo.cwiseMax(grid_.min_index());
+  const CellIndex to = hi.cwiseMin(grid_.min_index() + grid_.extent() - CellIndex::Ones());
+  const double s = config_.cell_size_m;
+  for (int j = from.y(); j <= to.y(); ++j) {
+    for (int i = from.x(); i <= to.x(); ++i) {
+      Cell& cell = grid_.At({i, j});
+      cell.slope_rad = cell.roughness_m = kNaN;
+      cell.terrain_cost = kFreeCost;
+      if (!cell.has_elevation()) continue;
+      // Least squares z = a + b dx + c dy over the neighbours with an elevation, in metres
+      // from this cell's centre (well conditioned whatever the world coordinates).
+      Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+      int count = 0;
+      for (const CellIndex& d : scratch_->fit_disc) {
+        const Cell* other = grid_.Find(CellIndex(i, j) + d);
+        if (other == nullptr || !other->has_elevation()) continue;
+        const Eigen::Vector3d row(1.0, d.x() * s, d.y() * s);
+        normal += row * row.transpose();
+        rhs += row * other->elevation_mean_m;
+        ++count;
+      }
+      if (count < 3) continue;
+      const Eigen::LDLT<Eigen::Matrix3d> ldlt(normal);
+      // Collinear cells leave the plane undetermined: skip rather than invent a slope.
+      if (ldlt.info() != Eigen::Success || std::abs(normal.determinant()) < 1e-9 * s * s * s * s) {
+        continue;
+      }
+      const Eigen::Vector3d plane = ldlt.solve(rhs);
+      double residual2 = 0.0;
+      for (const CellIndex& d : scratch_->fit_disc) {
+        const Cell* other = grid_.Find(CellIndex(i, j) + d);
+        if (other == nullptr || !other->has_elevation()) continue;
+        const double r =
+            other->elevation_mean_m - (plane.x() + plane.y() * d.x() * s + plane.z() * d.y() * s);
+        residual2 += r * r;
+      }
+      cell.slope_rad = static_cast<float>(std::atan(std::hypot(plane.y(), plane.z())));
+      cell.roughness_m = static_cast<float>(std::sqrt(residual2 / count));
+      const double level = std::max(cell.slope_rad / config_.slope_cost_max_rad,
+                                    cell.roughness_m / config_.roughness_cost_max_m);
+      cell.terrain_cost =
+          static_cast<Cost>(std::lround(kMaxTerrainCost * std::clamp(level, 0.0, 1.0)));
+    }
+  }
+}
+
+void TerrainMap::UpdateCosts(const CellIndex& lo, const CellIndex& hi) {
+  const CellIndex grid_lo = grid_.min_index();
+  const CellIndex grid_hi = grid_.min_index() + grid_.extent() - CellIndex::Ones();
+  const CellIndex from = lo.cwiseMax(grid_lo);
+  const CellIndex to = hi.cwiseMin(grid_hi);
+  if (from.x() > to.x() || from.y() > to.y()) return;
+  for (int j = from.y(); j <= to.y(); ++j) {
+    for (int i = from.x(); i <= to.x(); ++i) {
+      Cell& cell = grid_.At({i, j});
+      cell.cost = cell.lethal ? kLethalCost : !cell.observed ? kUnknownCost : cell.terrain_cost;
+    }
+  }
+  // Inflation from every lethal cell near enough to reach the box.
+  const int r = scratch_->inflation_cells;
+  const CellIndex src_from = Grow(from, -r).cwiseMax(grid_lo);
+  const CellIndex src_to = Grow(to, r).cwiseMin(grid_hi);
+  for (int j = src_from.y(); j <= src_to.y(); ++j) {
+    for (int i = src_from.x(); i <= src_to.x(); ++i) {
+      if (!grid_.At({i, j}).lethal) continue;
+      for (const auto& [d, cost] : scratch_->inflation) {
+        const CellIndex t(i + d.x(), j + d.y());
+        if (t.x() < from.x() || t.y() < from.y() || t.x() > to.x() || t.y() > to.y()) continue;
+        Cell& target = grid_.At(t);
+        target.cost = CombineInflation(target.cost, cost);
+      }
+    }
+  }
+}
+
+void TerrainMap::FuseObstacles(std::vector<FrameSegment>& segments, double stamp_s,
+                               std::int64_t frame_id, FrameSummary& summary) {
+  const auto find = [&](int id) {
+    return std::lower_bound(obstacles_.begin(), obstacles_.end(), id,
+                            [](const Obstacle& o, int value) { return o.id < value; });
+  };
+  for (FrameSegment& seg : segments) {
+    std::vector<int> ids;
+    for (const CellIndex& c : seg.cells) {
+      for (const CellIndex& d : scratch_->merge_disc) {
+        const Cell* cell = grid_.Find(c + d);
+        if (cell != nullptr && cell->obstacle_id != 0) ids.push_back(cell->obstacle_id);
+      }
+    }
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+
+    int target_id = 0;
+    if (ids.empty()) {
+      Obstacle fresh;
+      fresh.id = next_obstacle_id_++;
+      fresh.bbox_min = seg.bbox_min;
+      fresh.bbox_max = seg.bbox_max;
+      fresh.first_seen_s = stamp_s;
+      obstacles_.push_back(std::move(fresh));  // ids only grow: the vector stays sorted
+      target_id = obstacles_.back().id;
+      ++summary.obstacles_created;
+    } else {
+      target_id = ids.front();  // the oldest
+      ++summary.obstacles_updated;
+      for (std::size_t k = 1; k < ids.size(); ++k) {
+        auto other = find(ids[k]);
+        auto target = find(target_id);
+        Obstacle& t = *target;
+        const Obstacle& o = *other;
+        const double total = static_cast<double>(t.point_count + o.point_count);
+        if (total > 0) {
+          t.centroid = (t.centroid * static_cast<double>(t.point_count) +
+                        o.centroid * static_cast<double>(o.point_count)) /
+                       total;
+        }
+        t.point_count += o.point_count;
+        t.bbox_min = t.bbox_min.cwiseMin(o.bbox_min);
+        t.bbox_max = t.bbox_max.cwiseMax(o.bbox_max);
+        t.height_m = std::max(t.height_m, o.height_m);
+        t.first_seen_s = std::min(t.first_seen_s, o.first_seen_s);
+        t.last_seen_s = std::max(t.last_seen_s, o.last_seen_s);
+        std::vector<std::int64_t> frames;
+        std::merge(t.frames.begin(), t.frames.end(), o.frames.begin(), o.frames.end(),
+                   std::back_inserter(frames));
+        frames.erase(std::unique(frames.begin(), frames.end()), frames.end());
+        t.frames = std::move(frames);
+        t.merged_ids.push_back(o.id);
+        t.merged_ids.insert(t.merged_ids.end(), o.merged_ids.begin(), o.merged_ids.end());
+        for (const CellIndex& c : o.cells) {
+          if (Cell* cell = grid_.Find(c); cell != nullptr && cell->obstacle_id == o.id) {
+            cell->obstacle_id = target_id;
+            t.cells.push_back(c);
+          }
+        }
+        obstacles_.erase(other);
+        ++summary.obstacles_merged;
+      }
+    }
+    Obstacle& t = *find(target_id);
+    const double total = static_cast<double>(t.point_count + seg.count);
+    t.centroid = (t.centroid * static_cast<double>(t.point_count) + seg.sum) / total;
+    t.point_count += seg.count;
+    t.bbox_min = t.bbox_min.cwiseMin(seg.bbox_min);
+    t.bbox_max = t.bbox_max.cwiseMax(seg.bbox_max);
+    t.height_m = std::max(t.height_m, seg.height_m);
+    t.last_seen_s = std::max(t.last_seen_s, stamp_s);
+    if (t.frames.empty() || t.frames.back() != frame_id) t.frames.push_back(frame_id);
+    for (const CellIndex& c : seg.cells) {
+      Cell& cell = grid_.At(c);
+      if (cell.obstacle_id != target_id) {
+        cell.obstacle_id = target_id;
+        t.cells.push_back(c);
+      }
+    }
+  }
+}
+
+void TerrainMap::RetireObstacles(FrameSummary& summary) {
+  const double s = config_.cell_size_m;
+  std::vector<Obstacle> live;
+  live.reserve(obstacles_.size());
+  for (Obstacle& o : obstacles_) {
+    std::vector<CellIndex> cells;
+    for (const CellIndex& c : o.cells) {
+      Cell* cell = grid_.Find(c);
+      if (cell == nullptr || cell->obstacle_id != o.id) continue;
+      if (cell->lethal) {
+        cells.push_back(c);
+      } else {
+        cell->obstacle_id = 0;  // cleared: no longer part of it
+      }
+    }
+    std::sort(cells.begin(), cells.end(), [](const CellIndex& a, const CellIndex& b) {
+      return a.y() != b.y() ? a.y() < b.y() : a.x() < b.x();
+    });
+    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+    if (cells.empty()) {
+      ++summary.obstacles_retired;
+      ++retired_total_;
+      continue;
+    }
+    o.cells = std::move(cells);
+    CellIndex lo = o.cells.front(), hi = o.cells.front();
+    for (const CellIndex& c : o.cells) {
+      lo = lo.cwiseMin(c);
+      hi = hi.cwiseMax(c);
+    }
+    o.footprint_min = lo.cast<double>() * s;
+    o.footprint_max = (hi + CellIndex::Ones()).cast<double>() * s;
+    o.footprint_area_m2 = static_cast<double>(o.cells.size()) * s * s;
+    live.push_back(std::move(o));
+  }
+  obstacles_ = std::move(live);
+}
+
+void TerrainMap::FlushOctree() const {
+  if (!octree_stale_) return;
+  octree_->updateInnerOccupancy();
+  octree_->prune();
+  octree_stale_ = false;
+}
+
+const TerrainOcTree& TerrainMap::octree() const {
+  FlushOctree();
+  return *octree_;
+}
+
+void TerrainMap::PruneOctreeToWindow() {
+  const double s = config_.cell_size_m;
+  octree_->DeleteOutsideXY(grid_.min_index().cast<double>() * s,
+                           (grid_.min_index() + grid_.extent()).cast<double>() * s);
+  pruned_at_ = grid_.min_index();
+}
+
+Cost TerrainMap::CostAt(const Eigen::Vector2d& xy) const {
+  const Cell* cell = grid_.Find(grid_.IndexOf(xy));
+  return cell != nullptr ? cell->cost : kUnknownCost;
+}
+
+const Cell* TerrainMap::CellAt(const Eigen::Vector2d& xy) const {
+  return grid_.Find(grid_.IndexOf(xy));
+}
+
+LineCost TerrainMap::CostAlongLine(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const {
+  LineCost out;
+  out.max_cost = kFreeCost;
+  const auto visit = [&](const CellIndex& c) {
+    const Cell* cell = grid_.Find(c);
+    const Cost cost = cell != nullptr ? cell->cost : kUnknownCost;
+    out.cells.push_back(c);
+    out.costs.push_back(cost);
+    out.max_cost = std::max(out.max_cost, cost);
+  };
+  // Amanatides & Woo's traversal; where the line passes exactly through a corner, both cells
+  // beside it are taken (a planner must not slip between two obstacles).
+  const double s = config_.cell_size_m;
+  CellIndex c = grid_.IndexOf(a);
+  const CellIndex end = grid_.IndexOf(b);
+  const Eigen::Vector2d d = b - a;
+  const int step_x = d.x() > 0 ? 1 : (d.x() < 0 ? -1 : 0);
+  const int step_y = d.y() > 0 ? 1 : (d.y() < 0 ? -1 : 0);
+  const double inf = std::numeric_limits<double>::infinity();
+  const auto first_crossing = [&](double p, double dp, int index, int step) {
+    if (step == 0) return inf;
+    const double boundary = (index + (step > 0 ? 1 : 0)) * s;
+    return (boundary - p) / dp;
+  };
+  double t_x = first_crossing(a.x(), d.x(), c.x(), step_x);
+  double t_y = first_crossing(a.y(), d.y(), c.y(), step_y);
+  const double dt_x = step_x != 0 ? s / std::abs(d.x()) : inf;
+  const double dt_y = step_y != 0 ? s / std::abs(d.y()) : inf;
+  const int max_steps = (end - c).cwiseAbs().sum() + 1;
+  visit(c);
+  for (int k = 0; k < max_steps && c != end; ++k) {
+    if (t_x < t_y) {
+      c.x() += step_x;
+      t_x += dt_x;
+    } else if (t_y < t_x) {
+      c.y() += step_y;
+      t_y += dt_y;
+    } else {
+      visit({c.x() + step_x, c.y()});
+      visit({c.x(), c.y() + step_y});
+      c += CellIndex(step_x, step_y);
+      t_x += dt_x;
+      t_y += dt_y;
+    }
+    visit(c);
+  }
+  return out;
+}
+
+GridPatch TerrainMap::PatchAround(const Eigen::Vector2d& centre, double half_size_m) const {
+  const double s = config_.cell_size_m;
+  const int half = static_cast<int>(std::lround(std::max(0.0, half_size_m) / s));
+  GridPatch patch;
+  patch.min_index = grid_.IndexOf(centre) - CellIndex::Constant(half);
+  patch.cell_size_m = s;
+  patch.origin = patch.min_index.cast<double>() * s;
+  const int side = 2 * half + 1;
+  patch.cost.resize(side, side);
+  patch.elevation_m.resize(side, side);
+  for (int j = 0; j < side; ++j) {
+    for (int i = 0; i < side; ++i) {
+      const Cell* cell = grid_.Find(patch.min_index + CellIndex(i, j));
+      patch.cost(i, j) = cell != nullptr ? cell->cost : kUnknownCost;
+      patch.elevation_m(i, j) =
+          cell != nullptr && cell->has_elevation() ? cell->elevation_mean_m : kNaN;
+    }
+  }
+  return patch;
+}
+
+std::optional<CellBox> TerrainMap::ObservedBounds() const {
+  if (!has_observed_) return std::nullopt;
+  CellBox box{observed_min_.cwiseMax(grid_.min_index()),
+              observed_max_.cwiseMin(grid_.min_index() + grid_.extent() - CellIndex::Ones())};
+  if (box.min.x() > box.max.x() || box.min.y() > box.max.y()) return std::nullopt;
+  return box;
+}
+
+MapMemory TerrainMap::Memory() const {
+  MapMemory m;
+  m.grid_bytes = grid_.memory_bytes() + scratch_->slots.capacity() * sizeof(Scratch::Slot);
+  FlushOctree();
+  m.octree_bytes = octree_->memoryUsage();
+  m.octree_leaves = octree_->getNumLeafNodes();
+  m.obstacles = obstacles_.size();
+  return m;
+}
+
+}  // namespace cairn::map

@@ -1,0 +1,246 @@
+#include "cairn/map/tilt_refiner.hpp"
+
+#include <ceres/ceres.h>
+#include <ceres/cubic_interpolation.h>
+
+#include <cmath>
+#include <sstream>
+
+namespace cairn::map {
+namespace {
+
+using Interpolator = ceres::BiCubicInterpolator<ceres::Grid2D<double>>;
+
+/// The patch as a row-major array the interpolator reads, with unknown cells filled from their
+/// known neighbours (so that the bicubic stencil of a point near a hole stays finite), and
+/// the mask of cells that were known.
+struct FilledPatch {
+  int rows = 0, cols = 0;
+  std::vector<double> z;
+  std::vector<std::uint8_t> known;
+
+  explicit FilledPatch(const Eigen::MatrixXd& patch)
+      : rows(static_cast<int>(patch.rows())), cols(static_cast<int>(patch.cols())) {
+    z.resize(static_cast<std::size_t>(rows) * cols);
+    known.resize(z.size());
+    for (int r = 0; r < rows; ++r) {
+      for (int c = 0; c < cols; ++c) {
+        const double v = patch(r, c);
+        z[Index(r, c)] = v;
+        known[Index(r, c)] = std::isfinite(v) ? 1 : 0;
+      }
+    }
+    // A few passes of neighbour averaging fill the holes next to known cells; what stays
+    // unknown after that is never inside the stencil of a point that is used.
+    std::vector<std::uint8_t> filled = known;
+    for (int pass = 0; pass < 3; ++pass) {
+      std::vector<std::uint8_t> next = filled;
+      for (int r = 0; r < rows; ++r) {
+        for (int c = 0; c < cols; ++c) {
+          if (filled[Index(r, c)]) continue;
+          double sum = 0.0;
+          int n = 0;
+          for (int dr = -1; dr <= 1; ++dr) {
+            for (int dc = -1; dc <= 1; ++dc) {
+              const int rr = r + dr, cc = c + dc;
+              if (rr < 0 || cc < 0 || rr >= rows || cc >= cols || !filled[Index(rr, cc)]) continue;
+              sum += z[Index(rr, cc)];
+              ++n;
+            }
+          }
+          if (n > 0) {
+            z[Index(r, c)] = sum / n;
+            next[Index(r, c)] = 1;
+          }
+        }
+      }
+      filled.swap(next);
+    }
+    for (std::size_t i = 0; i < z.size(); ++i) {
+      if (!filled[i]) z[i] = 0.0;
+    }
+  }
+
+  std::size_t Index(int r, int c) const { return static_cast<std::size_t>(r) * cols + c; }
+
+  /// True when the whole 4x4 bicubic stencil around (row, col) was known.
+  bool StencilKnown(double row, double col) const {
+    const int r0 = static_cast<int>(std::floor(row)) - 1;
+    const int c0 = static_cast<int>(std::floor(col)) - 1;
+    if (r0 < 0 || c0 < 0 || r0 + 3 >= rows || c0 + 3 >= cols) return false;
+    for (int r = r0; r < r0 + 4; ++r) {
+      for (int c = c0; c < c0 + 4; ++c) {
+        if (!known[Index(r, c)]) return false;
+      }
+    }
+    return true;
+  }
+};
+
+/// Where a world point falls in the patch, in the interpolator's (row, col) coordinates:
+/// cell centres at integers.
+template <typename T>
+void PatchCoordinates(const ElevationPatch& patch, const T& x, const T& y, T* row, T* col) {
+  *row = (y - patch.origin_m.y()) / patch.resolution_m - 0.5;
+  *col = (x - patch.origin_m.x()) / patch.resolution_m - 0.5;
+}
+
+/// Height of one ground point above the terrain after the correction (roll, pitch, dz),
+/// in units of the measurement scale.
+struct HeightResidual {
+  HeightResidual(const Eigen::Vector3d& p_rel, const Eigen::Vector3d& origin,
+                 const ElevationPatch& patch, const Interpolator& terrain, double scale_m)
+      : p_rel_(p_rel), origin_(origin), patch_(patch), terrain_(terrain), scale_m_(scale_m) {}
+
+  template <typename T>
+  bool operator()(const T* correction, T* residual) const {
+    using std::cos;
+    using std::sin;
+    const T cr = cos(correction[0]), sr = sin(correction[0]);
+    const T cp = cos(correction[1]), sp = sin(correction[1]);
+    // q = Rx(roll) p_rel, then w = Ry(pitch) q.
+    const T qx = T(p_rel_.x());
+    const T qy = cr * p_rel_.y() - sr * p_rel_.z();
+    const T qz = sr * p_rel_.y() + cr * p_rel_.z();
+    const T wx = cp * qx + sp * qz;
+    const T wy = qy;
+    const T wz = -sp * qx + cp * qz;
+    const T x = wx + origin_.x();
+    const T y = wy + origin_.y();
+    const T z = wz + origin_.z() + correction[2];
+    T row, col, ground;
+    PatchCoordinates(patch_, x, y, &row, &col);
+    terrain_.Evaluate(row, col, &ground);
+    residual[0] = (z - ground) / scale_m_;
+    return true;
+  }
+
+  Eigen::Vector3d p_rel_, origin_;
+  const ElevationPatch& patch_;
+  const Interpolator& terrain_;
+  double scale_m_;
+};
+
+/// The prior: corrections near zero, each in units of its sigma.
+struct PriorResidual {
+  double sigma_rad, sigma_z_m;
+  template <typename T>
+  bool operator()(const T* correction, T* residual) const {
+    residual[0] = correction[0] / sigma_rad;
+    residual[1] = correction[1] / sigma_rad;
+    residual[2] = correction[2] / sigma_z_m;
+    return true;
+  }
+};
+
+Eigen::Matrix3d CorrectionRotation(double roll_rad, double pitch_rad) {
+  return (Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+}  // namespace
+
+Status TiltRefinerConfig::Validate() const {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  if (!positive(prior_sigma_rad)) return Error{"prior_sigma_rad: expected > 0"};
+  if (!positive(prior_sigma_z_m)) return Error{"prior_sigma_z_m: expected > 0"};
+  if (!positive(huber_m)) return Error{"huber_m: expected > 0"};
+  if (!positive(max_range_m)) return Error{"max_range_m: expected > 0"};
+  if (max_points < 1) return Error{"max_points: expected >= 1"};
+  if (min_points < 3) return Error{"min_points: expected >= 3 (three unknowns)"};
+  if (max_iterations < 1) return Error{"max_iterations: expected >= 1"};
+  return {};
+}
+
+Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_points_sensor,
+                                  const Eigen::Isometry3d& T_world_sensor_prior,
+                                  const ElevationPatch& terrain, const TiltRefinerConfig& config) {
+  if (Status s = config.Validate(); !s) return s.error();
+  TiltEstimate estimate;
+  estimate.T_world_sensor = T_world_sensor_prior;
+  if (!(terrain.resolution_m > 0.0) || terrain.z.rows() < 4 || terrain.z.cols() < 4) {
+    estimate.report = "terrain patch too small (needs 4x4 cells and a positive resolution)";
+    return estimate;
+  }
+
+  const FilledPatch filled(terrain.z);
+  const ceres::Grid2D<double> grid(filled.z.data(), 0, filled.rows, 0, filled.cols);
+  const Interpolator interpolator(grid);
+  const Eigen::Vector3d origin = T_world_sensor_prior.translation();
+
+  // Ground points in range, evenly thinned by index, over known terrain.
+  std::vector<Eigen::Vector3d> used_rel;
+  const double max_range2 = config.max_range_m * config.max_range_m;
+  std::vector<int> in_range;
+  for (int i = 0; i < static_cast<int>(ground_points_sensor.size()); ++i) {
+    const Eigen::Vector3f& q = ground_points_sensor[i];
+    if (q.allFinite() && q.squaredNorm() > 0.0f && q.cast<double>().squaredNorm() <= max_range2) {
+      in_range.push_back(i);
+    }
+  }
+  const std::size_t step =
+      std::max<std::size_t>(1, in_range.size() / static_cast<std::size_t>(config.max_points));
+  for (std::size_t k = 0; k < in_range.size(); k += step) {
+    const Eigen::Vector3d p = T_world_sensor_prior * ground_points_sensor[in_range[k]].cast<double>();
+    double row = 0.0, col = 0.0;
+    PatchCoordinates(terrain, p.x(), p.y(), &row, &col);
+    if (filled.StencilKnown(row, col)) used_rel.push_back(p - origin);
+  }
+  estimate.points_used = static_cast<int>(used_rel.size());
+  if (estimate.points_used < config.min_points) {
+    std::ostringstream why;
+    why << "prior kept: " << estimate.points_used << " ground points over known terrain, "
+        << config.min_points << " needed";
+    estimate.report = why.str();
+    return estimate;
+  }
+
+  double correction[3] = {0.0, 0.0, 0.0};
+  ceres::Problem problem;
+  std::vector<HeightResidual*> residuals;
+  for (const Eigen::Vector3d& p_rel : used_rel) {
+    auto* functor = new HeightResidual(p_rel, origin, terrain, interpolator, config.huber_m);
+    residuals.push_back(functor);
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<HeightResidual, 1, 3>(functor),
+        new ceres::HuberLoss(1.0), correction);
+  }
+  problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
+                               new PriorResidual{config.prior_sigma_rad, config.prior_sigma_z_m}),
+                           nullptr, correction);
+
+  auto rms = [&](const double* c) {
+    double sum = 0.0;
+    for (const HeightResidual* r : residuals) {
+      double value = 0.0;
+      (*r)(c, &value);
+      sum += value * value;
+    }
+    return std::sqrt(sum / static_cast<double>(residuals.size())) * config.huber_m;
+  };
+  estimate.rms_before_m = rms(correction);
+
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.max_num_iterations = config.max_iterations;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  estimate.report = summary.BriefReport();
+  if (!summary.IsSolutionUsable()) return estimate;
+
+  estimate.usable = true;
+  estimate.roll_rad = correction[0];
+  estimate.pitch_rad = correction[1];
+  estimate.dz_m = correction[2];
+  estimate.rms_after_m = rms(correction);
+  Eigen::Isometry3d refined = T_world_sensor_prior;
+  refined.linear() = CorrectionRotation(correction[0], correction[1]) * T_world_sensor_prior.linear();
+  refined.translation() = origin + Eigen::Vector3d(0.0, 0.0, correction[2]);
+  estimate.T_world_sensor = refined;
+  return estimate;
+}
+
+}  // namespace cairn::map

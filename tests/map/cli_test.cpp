@@ -1,0 +1,353 @@
+// `cairn map` end to end: a tiny synthetic drive made by `cairn synth` is fused from its
+// rawlog (odometry + IMU) and from a folder of depth PNGs with its true poses; every file is
+// written, the cost grid loads as map_server would read it, the obstacles stand where the
+// world has them, and bad input fails with a message naming the file or field, leaving
+// nothing behind.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cairn/map/map_files.hpp"
+#include "cairn/od/io/depth_png.hpp"
+#include "cairn/od/io/intrinsics.hpp"
+#include "cairn/sources/rawlog_source.hpp"
+
+namespace cairn {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// The world of the drive: the obstacles' true positions are asserted below.
+constexpr const char* kWorld = R"(description: a short drive up a gentle slope past three obstacles
+seed: 3
+terrain:
+  slope: 5
+  uphill_heading: 0
+camera:
+  width: 160
+  height: 120
+  fx: 130
+  max_range: 25
+  noise: {depth_sigma_per_m2: 0.0005}
+views:
+  - {x: 0, y: 0, height: 1.6, heading: 0, pitch: 10, roll: 0, follow_terrain: true}
+drive:
+  waypoints: [[0, 0], [10, 0]]
+  speed: 2.0
+  frame_rate: 2
+  wheelbase: 1.5
+  track: 1.2
+  sensor_xyz: [0.5, 0.0, 1.6]
+  sensor_pitch: 10
+  odom_sigma_per_m: 0.005
+  odom_yaw_sigma_per_m: 0.05
+  imu_sigma: 0.2
+  imu_bias: 0.3
+objects:
+  - {kind: pole, name: pole, obstacle: true, x: 9.0, y: 2.5, radius: 0.15, height: 1.5}
+  - {kind: box, name: crate, obstacle: true, x: 12.0, y: -2.5, size: [1.0, 0.8, 0.8], yaw: 0}
+  - {kind: rock, name: rock, obstacle: true, x: 15.0, y: 2.0, radii: [0.5, 0.5, 0.4], height: 0.6}
+)";
+
+struct TrueObstacle {
+  const char* name;
+  double x, y;
+};
+constexpr TrueObstacle kObstacles[] = {
+    {"pole", 9.0, 2.5}, {"crate", 12.0, -2.5}, {"rock", 15.0, 2.0}};
+
+const std::vector<std::string> kMapFiles = {
+    "map.bt",    "map.ot",      "obstacles.ot",   "cost.yaml",      "cost.pgm",
+    "cost.png",  "overlay.png", "elevation.tiff", "elevation.yaml", "obstacles.json",
+    "poses.tum", "frames.csv",  "summary.json",   "summary.txt"};
+
+struct CommandRun {
+  int status = -1;
+  std::string out, err;
+};
+
+std::string ReadFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// Runs `cairn <args>`, capturing stdout and stderr.
+CommandRun Cairn(const std::string& args, const fs::path& scratch) {
+  const fs::path out = scratch / "stdout.txt", err = scratch / "stderr.txt";
+  const std::string command = std::string("'") + CAIRN_EXE + "' " + args + " >'" + out.string() +
+                              "' 2>'" + err.string() + "'";
+  const int raw = std::system(command.c_str());
+  CommandRun run;
+  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  run.out = ReadFile(out);
+  run.err = ReadFile(err);
+  return run;
+}
+
+class MapCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(fs::temp_directory_path() /
+                        ("cairn_map_cli_test_" + std::to_string(::getpid())));
+    fs::remove_all(*dir_);
+    fs::create_directories(*dir_);
+    std::ofstream(*dir_ / "world.yaml") << kWorld;
+    const CommandRun synth = Cairn("synth --world '" + (*dir_ / "world.yaml").string() +
+                                       "' --drive --out '" + (*dir_ / "seq").string() + "'",
+                                   *dir_);
+    ASSERT_EQ(synth.status, 0) << synth.err;
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*dir_);
+    delete dir_;
+    dir_ = nullptr;
+  }
+  static const fs::path& dir() { return *dir_; }
+  static fs::path rawlog() { return *dir_ / "seq" / "sequence.rawlog"; }
+  /// The rawlog fused with config/default.yaml and scored against the world (one test uses
+  /// it: each test runs in its own process under ctest).
+  static fs::path FuseTheRawlog() {
+    const fs::path out = *dir_ / "out";
+    const CommandRun map =
+        Cairn("map --rawlog '" + rawlog().string() + "' --config '" +
+                  (fs::path(CAIRN_SOURCE_DIR) / "config" / "default.yaml").string() + "' --out '" +
+                  out.string() + "' --truth '" + (*dir_ / "world.yaml").string() + "'",
+              *dir_);
+    EXPECT_EQ(map.status, 0) << map.err;
+    return out;
+  }
+
+  /// Asserts that each true obstacle has a map obstacle within 1 m (odometry drift and the
+  /// grid's cells) and that no map obstacle stands more than 1.5 m from every true one.
+  static void ExpectObstaclesNearTheTrueOnes(const fs::path& obstacles_json) {
+    const json doc = json::parse(ReadFile(obstacles_json));
+    const json& obstacles = doc.at("obstacles");
+    ASSERT_FALSE(obstacles.empty());
+    const auto distance_to = [](const json& o, double x, double y) {
+      // From the point to the obstacle's footprint box (0 inside).
+      const double dx = std::max({o.at("footprint_min")[0].get<double>() - x, 0.0,
+                                  x - o.at("footprint_max")[0].get<double>()});
+      const double dy = std::max({o.at("footprint_min")[1].get<double>() - y, 0.0,
+                                  y - o.at("footprint_max")[1].get<double>()});
+      return std::hypot(dx, dy);
+    };
+    for (const TrueObstacle& t : kObstacles) {
+      double best = 1e9;
+      for (const json& o : obstacles) best = std::min(best, distance_to(o, t.x, t.y));
+      EXPECT_LT(best, 1.0) << t.name << " at (" << t.x << ", " << t.y << ")";
+    }
+    for (const json& o : obstacles) {
+      double best = 1e9;
+      for (const TrueObstacle& t : kObstacles) best = std::min(best, distance_to(o, t.x, t.y));
+      EXPECT_LT(best, 1.5) << "map obstacle " << o.at("id") << " stands where the world has none";
+    }
+  }
+
+ private:
+  static fs::path* dir_;
+};
+fs::path* MapCli::dir_ = nullptr;
+
+TEST_F(MapCli, FusesARawlogIntoEveryFileWithTheObstaclesWhereTheWorldHasThem) {
+  const fs::path out = FuseTheRawlog();
+  for (const std::string& name : kMapFiles) {
+    EXPECT_TRUE(fs::is_regular_file(out / name)) << name;
+    EXPECT_GT(fs::file_size(out / name), 0u) << name;
+  }
+  for (const fs::directory_entry& e : fs::directory_iterator(out)) {
+    EXPECT_TRUE(e.is_regular_file()) << "left behind: " << e.path();
+  }
+  const json summary = json::parse(ReadFile(out / "summary.json"));
+  EXPECT_EQ(summary.at("frames").get<int>(), 11);  // 10 m at 2 m/s, 2 Hz: t = 0 .. 5 s
+  EXPECT_NEAR(summary.at("distance_driven_m").get<double>(), 10.0, 0.5);
+  EXPECT_EQ(summary.at("map").at("mode"), "offline");
+  for (const char* stage : {"read", "detect", "refine", "fuse", "write", "total"}) {
+    EXPECT_GE(summary.at("time_s").at(stage).get<double>(), 0.0) << stage;
+  }
+  EXPECT_EQ(summary.at("input").at("poses"), "odometry 'ODOMETRY' + IMU 'IMU'");
+  // The poses file has one line per frame.
+  std::istringstream poses(ReadFile(out / "poses.tum"));
+  int lines = 0;
+  for (std::string line; std::getline(poses, line);) {
+    lines += line.empty() || line[0] == '#' ? 0 : 1;
+  }
+  EXPECT_EQ(lines, 11);
+
+  // The cost grid loads as map_server reads it.
+  Expected<map::OccupancyGrid> grid = map::ReadMapServerMap(out / "cost.yaml");
+  ASSERT_TRUE(grid) << grid.error().message;
+  EXPECT_DOUBLE_EQ(grid->resolution_m, 0.2);
+  // The PGM's own header agrees with what map_server made of it: binary grey, 8 bits.
+  std::ifstream pgm(out / "cost.pgm", std::ios::binary);
+  std::string magic;
+  int width = 0, height = 0, max_value = 0;
+  pgm >> magic >> width >> height >> max_value;
+  EXPECT_EQ(magic, "P5");
+  EXPECT_EQ(width, grid->width);
+  EXPECT_EQ(height, grid->height);
+  EXPECT_EQ(max_value, 255);
+  pgm.get();  // the one whitespace before the pixels
+  const std::string pixels((std::istreambuf_iterator<char>(pgm)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(pixels.size(), static_cast<std::size_t>(width) * height);
+  // Lethal cells read back as 100, as many as the summary counts; unknown as -1; the
+  // observed ground as free or costed.
+  int lethal = 0, unknown = 0, free_or_costed = 0;
+  for (const std::int8_t v : grid->data) {
+    lethal += v == 100 ? 1 : 0;
+    unknown += v == -1 ? 1 : 0;
+    free_or_costed += v >= 0 && v <= 98 ? 1 : 0;
+  }
+  EXPECT_EQ(lethal, summary.at("map").at("lethal_cells").get<int>());
+  EXPECT_GT(lethal, 0);
+  EXPECT_GT(unknown, 0);
+  EXPECT_GT(free_or_costed, lethal);
+
+  // The obstacles stand where the world has them.
+  ExpectObstaclesNearTheTrueOnes(out / "obstacles.json");
+  EXPECT_EQ(summary.at("truth").at("found").get<int>(), 3);
+  EXPECT_EQ(summary.at("truth").at("false_obstacles").get<int>(), 0);
+}
+
+TEST_F(MapCli, DepthFolderWithTumPosesGivesTheSameObstacles) {
+  // The rawlog's depth frames as PNGs named by their stamps, with the true sensor poses.
+  const fs::path frames = dir() / "frames";
+  fs::create_directories(frames);
+  Expected<sources::RawlogSource> source = sources::RawlogSource::Open(rawlog());
+  ASSERT_TRUE(source) << source.error().message;
+  while (true) {
+    Expected<std::optional<sources::Frame>> frame = source->NextFrame();
+    ASSERT_TRUE(frame) << frame.error().message;
+    if (!*frame) break;
+    const sources::DepthImage* depth = (*frame)->depth();
+    ASSERT_NE(depth, nullptr);
+    od::io::Grid<float> grid;
+    grid.width = depth->model.width;
+    grid.height = depth->model.height;
+    grid.data = depth->depth_m;
+    std::ostringstream name;
+    name << std::fixed << std::setprecision(6) << (*frame)->stamp_s << ".png";
+    ASSERT_TRUE(od::io::WriteDepthPng(frames / name.str(), grid, 0.001));
+    od::io::CameraIntrinsics intrinsics;
+    intrinsics.model = depth->model;
+    intrinsics.depth_scale_m = 0.001;
+    intrinsics.up = Eigen::Vector3d(0, -1, 0);
+    ASSERT_TRUE(od::io::WriteIntrinsics(frames / "intrinsics.yaml", intrinsics, "# test"));
+  }
+  const CommandRun run = Cairn("map --frames '" + frames.string() + "' --poses '" +
+                                   (dir() / "seq" / "poses_sensor.tum").string() + "' --out '" +
+                                   (dir() / "out_frames").string() + "'",
+                               dir());
+  ASSERT_EQ(run.status, 0) << run.err;
+  ExpectObstaclesNearTheTrueOnes(dir() / "out_frames" / "obstacles.json");
+  const json summary = json::parse(ReadFile(dir() / "out_frames" / "summary.json"));
+  EXPECT_EQ(summary.at("frames").get<int>(), 11);
+  EXPECT_EQ(summary.at("input").at("kind"), "depth_frames");
+
+  // A corrupt image after the first frames: exit 1 naming it, and the output folder that
+  // this run created is gone again.
+  const fs::path broken = dir() / "frames_broken";
+  fs::copy(frames, broken);
+  std::vector<fs::path> pngs;
+  for (const fs::directory_entry& e : fs::directory_iterator(broken)) {
+    if (e.path().extension() == ".png") pngs.push_back(e.path());
+  }
+  std::sort(pngs.begin(), pngs.end());
+  std::ofstream(pngs.back(), std::ios::binary | std::ios::trunc) << "not a png";
+  const CommandRun bad = Cairn("map --frames '" + broken.string() + "' --poses '" +
+                                   (dir() / "seq" / "poses_sensor.tum").string() + "' --out '" +
+                                   (dir() / "out_broken").string() + "'",
+                               dir());
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find(pngs.back().filename().string()), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(dir() / "out_broken"));
+}
+
+TEST_F(MapCli, OnlineWindowBoundsTheGrid) {
+  const fs::path out_online = dir() / "out_online";
+  const CommandRun run = Cairn(
+      "map --rawlog '" + rawlog().string() + "' --window 12 --out '" + out_online.string() + "'",
+      dir());
+  ASSERT_EQ(run.status, 0) << run.err;
+  Expected<map::OccupancyGrid> grid = map::ReadMapServerMap(out_online / "cost.yaml");
+  ASSERT_TRUE(grid) << grid.error().message;
+  EXPECT_EQ(grid->width, 60);  // 12 m / 0.2 m: the window, wherever the robot ended
+  EXPECT_EQ(grid->height, 60);
+  const json summary = json::parse(ReadFile(out_online / "summary.json"));
+  EXPECT_EQ(summary.at("map").at("mode"), "online");
+}
+
+TEST_F(MapCli, TiltRefinementReportsItsCorrection) {
+  const fs::path config = dir() / "refine.yaml";
+  std::ofstream(config) << "tilt:\n  refine: true\n  max_range: 15\n";
+  const fs::path out_refined = dir() / "out_refined";
+  const CommandRun run = Cairn("map --rawlog '" + rawlog().string() + "' --config '" +
+                                   config.string() + "' --out '" + out_refined.string() + "'",
+                               dir());
+  ASSERT_EQ(run.status, 0) << run.err;
+  const json summary = json::parse(ReadFile(out_refined / "summary.json"));
+  EXPECT_TRUE(summary.at("tilt").at("refine").get<bool>());
+  // Frame 0 has no terrain to match yet; the others do.
+  EXPECT_GE(summary.at("tilt").at("refined_frames").get<int>(), 9);
+  EXPECT_LE(summary.at("tilt").at("mean_rms_after_m").get<double>(),
+            summary.at("tilt").at("mean_rms_before_m").get<double>());
+  EXPECT_NE(run.out.find("tilt: refined"), std::string::npos) << run.out;
+  ExpectObstaclesNearTheTrueOnes(out_refined / "obstacles.json");
+}
+
+TEST_F(MapCli, BadInputFailsNamingTheFileOrFieldAndWritesNothing) {
+  const fs::path target = dir() / "out_bad";
+  const auto expect_failure = [&](const std::string& args, const std::string& named) {
+    const CommandRun run = Cairn("map " + args + " --out '" + target.string() + "'", dir());
+    EXPECT_EQ(run.status, 1) << args << "\n" << run.err;
+    EXPECT_NE(run.err.find(named), std::string::npos) << args << "\n" << run.err;
+    EXPECT_FALSE(fs::exists(target)) << args;
+  };
+  // A missing file.
+  expect_failure("--rawlog '" + (dir() / "missing.rawlog").string() + "'", "missing.rawlog");
+  // A truncated rawlog: the pose pass reads it all before anything is written.
+  const std::string bytes = ReadFile(rawlog());
+  const fs::path truncated = dir() / "truncated.rawlog";
+  std::ofstream(truncated, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  expect_failure("--rawlog '" + truncated.string() + "'", "truncated.rawlog");
+  // Not a rawlog at all.
+  const fs::path garbage = dir() / "garbage.rawlog";
+  std::ofstream(garbage, std::ios::binary) << std::string(4096, '\x5a');
+  expect_failure("--rawlog '" + garbage.string() + "'", "garbage.rawlog");
+  // Unknown keys in each section the map command reads.
+  const fs::path bad_map = dir() / "bad_map.yaml";
+  std::ofstream(bad_map) << "map:\n  cel_size: 0.2\n";
+  expect_failure("--rawlog '" + rawlog().string() + "' --config '" + bad_map.string() + "'",
+                 "map.cel_size");
+  const fs::path bad_tilt = dir() / "bad_tilt.yaml";
+  std::ofstream(bad_tilt) << "tilt:\n  refine: true\n  prior_sigm: 2\n";
+  expect_failure("--rawlog '" + rawlog().string() + "' --config '" + bad_tilt.string() + "'",
+                 "tilt.prior_sigm");
+  const fs::path bad_detector = dir() / "bad_detector.yaml";
+  std::ofstream(bad_detector) << "detector:\n  min_hieght: 0.3\ntilt:\n  refine: false\n";
+  expect_failure("--rawlog '" + rawlog().string() + "' --config '" + bad_detector.string() + "'",
+                 "detector.min_hieght");
+  const fs::path bad_value = dir() / "bad_value.yaml";
+  std::ofstream(bad_value) << "tilt:\n  refine: maybe\n";
+  expect_failure("--rawlog '" + rawlog().string() + "' --config '" + bad_value.string() + "'",
+                 "tilt.refine");
+  // A sensor label the rawlog does not have.
+  expect_failure("--rawlog '" + rawlog().string() + "' --label LIDAR", "'CAMERA'");
+  // Depth frames without poses.
+  expect_failure("--frames '" + dir().string() + "'", "--poses");
+}
+
+}  // namespace
+}  // namespace cairn

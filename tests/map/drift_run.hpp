@@ -1,0 +1,341 @@
+// Mapping a gallery world (datasets/worlds) from the poses a robot would believe: libsim's
+// drifting 2-D odometry and biased IMU, optionally with the Ceres tilt refiner, and scoring
+// the map against the world's truth. Shared by map_drift_test (the claims) and
+// cairn_map_report (datasets/maps/REPORT.md).
+//
+// The believed pose of the body: x, y, yaw from odometry; roll and pitch from the IMU; height
+// dead-reckoned from the odometry steps and the IMU pitch (dz = -d tan(pitch), trapezoid),
+// starting at the true height (odometry starts at the true pose). The sensor renders from
+// the TRUE pose; the range image is levelled with the believed up vector and the frame is
+// fused at the believed pose, as on a real robot.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cairn/map/terrain_map.hpp"
+#include "cairn/map/tilt_refiner.hpp"
+#include "cairn/sim/render.hpp"
+#include "sim_frames.hpp"
+
+namespace cairn::test {
+
+constexpr double kDriftDeg = 3.14159265358979323846 / 180.0;
+
+/// One mapping run.
+struct DriftRunSpec {
+  std::string world;                       ///< file stem in datasets/worlds
+  std::vector<Eigen::Vector2d> waypoints;  ///< world xy [m]
+  bool true_poses = false;                 ///< fuse at the true poses (no odometry, no IMU)
+  double odom_sigma_per_m = 0.0;           ///< libsim DriveSpec::odom_sigma_per_m
+  double odom_yaw_sigma_rad_per_m = 0.0;   ///< libsim DriveSpec::odom_yaw_sigma_rad_per_m
+  double imu_bias_rad = 0.0;               ///< constant roll and pitch bias
+  bool refine_tilt = false;                ///< Ceres tilt refiner on the believed pose
+  std::uint64_t drive_seed = 1;            ///< draws the drift of the drive
+  double rate_hz = 2.0;
+  double speed_mps = 2.0;
+  int camera_width = 160;  ///< 160 x 120 range camera
+};
+
+/// One seen obstacle (30 pixels or more in some frame) against the map.
+struct ObstacleScore {
+  std::string name;
+  double first_seen_distance_m = 0.0;  ///< distance driven at the first frame seeing it well
+  double nearest_lethal_m = 1e9;       ///< from its true cells to the nearest lethal cell [m]
+};
+
+/// Believed pose against the truth, per frame.
+struct PoseError {
+  double distance_m = 0.0;  ///< driven so far
+  double position_m = 0.0;  ///< horizontal error of the believed sensor position [m]
+  double yaw_rad = 0.0;     ///< |heading error|
+  double tilt_rad = 0.0;    ///< angle between the believed and true up vectors
+  double z_m = 0.0;         ///< |height error| of the sensor [m]
+};
+
+struct DriftRunResult {
+  explicit DriftRunResult(map::TerrainMap m) : map(std::move(m)) {}
+  map::TerrainMap map;
+  int frames = 0;
+  double distance_m = 0.0;
+  int refined_frames = 0;
+  // Scores.
+  double iou = 0.0;
+  int lethal = 0, truth = 0;
+  int false_lethal = 0;  ///< lethal cells more than 0.5 m from every true obstacle cell
+  std::vector<ObstacleScore> obstacles;
+  double max_distance_m = 0.0, mean_distance_m = 0.0;  ///< over `obstacles`
+  int found_0_3 = 0;                                   ///< of which within 0.3 m
+  double elevation_rms_m = 0.0;
+  int elevation_cells = 0;
+  std::vector<PoseError> pose_errors;
+  std::set<std::pair<int, int>> truth_cells;  ///< true obstacle cells (for figures)
+  std::string error;                          ///< non-empty when the run failed
+};
+
+inline double TiltBetween(const Eigen::Matrix3d& R_a, const Eigen::Matrix3d& R_b) {
+  const Eigen::Vector3d up_a = R_a.transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d up_b = R_b.transpose() * Eigen::Vector3d::UnitZ();
+  return std::atan2(up_a.cross(up_b).norm(), up_a.dot(up_b));
+}
+
+/// p' = c + Ry(pitch) Rx(roll) (p - c) + dz e_z about the sensor origin c (as RefineTilt).
+inline Eigen::Isometry3d CorrectTilt(const Eigen::Isometry3d& T_world_sensor, double roll_rad,
+                                     double pitch_rad, double dz_m) {
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+                                .toRotationMatrix();
+  const Eigen::Vector3d c = T_world_sensor.translation();
+  Eigen::Isometry3d C = Eigen::Isometry3d::Identity();
+  C.linear() = R;
+  C.translation() = c - R * c + Eigen::Vector3d(0.0, 0.0, dz_m);
+  return C * T_world_sensor;
+}
+
+inline map::ElevationPatch ElevationAround(const map::TerrainMap& terrain,
+                                           const Eigen::Vector2d& centre, double half_size_m) {
+  const map::GridPatch grid = terrain.PatchAround(centre, half_size_m);
+  map::ElevationPatch patch;
+  patch.z = grid.elevation_m.transpose().cast<double>();  // rows along y, columns along x
+  patch.origin_m = grid.origin;
+  patch.resolution_m = grid.cell_size_m;
+  return patch;
+}
+
+namespace detail {
+
+using CellSet = std::set<std::pair<int, int>>;
+
+inline double CellDistance(const std::pair<int, int>& a, const std::pair<int, int>& b, double s) {
+  return std::hypot(a.first - b.first, a.second - b.second) * s;
+}
+
+// Per object, its cells (among the observed cells of the map) and its height above the
+// terrain there: 4 x 4 vertical rays per cell cast down through the scene.
+inline std::map<int, std::map<std::pair<int, int>, double>> ObjectCells(
+    const sim::Scene& scene, const map::TerrainGrid& grid, const map::CellBox& box) {
+  const sim::RayCaster caster(scene);
+  sim::RenderOptions options;
+  options.max_range_m = 12.0;
+  std::map<int, std::map<std::pair<int, int>, double>> cells;
+  const double s = grid.cell_size();
+  for (int j = box.min.y(); j <= box.max.y(); ++j) {
+    for (int i = box.min.x(); i <= box.max.x(); ++i) {
+      if (!grid.At({i, j}).observed) continue;
+      for (int k = 0; k < 16; ++k) {
+        const double x = (i + (k % 4 + 0.5) / 4.0) * s, y = (j + (k / 4 + 0.5) / 4.0) * s;
+        const double ground = scene.terrain().Height(x, y);
+        const sim::Ray ray{{x, y, ground + 6.0}, {0.0, 0.0, -1.0}};
+        const std::optional<sim::RayHit> hit = caster.Cast(ray, options);
+        if (!hit || hit->id <= 0) continue;
+        double& height = cells[hit->id][{i, j}];
+        height = std::max(height, ray.At(hit->t).z() - ground);
+      }
+    }
+  }
+  return cells;
+}
+
+// Scores the map of `r` against the world (same measures as terrain_map_sim_test).
+inline void Score(const sim::World& world, const std::map<int, int>& pixels_seen,
+                  const std::map<int, double>& first_seen_m, DriftRunResult& r) {
+  const map::TerrainGrid& grid = r.map.grid();
+  const double s = grid.cell_size();
+  const std::optional<map::CellBox> box = r.map.ObservedBounds();
+  if (!box) {
+    r.error = "nothing observed";
+    return;
+  }
+  const auto heights = ObjectCells(world.scene, grid, *box);
+  std::map<int, CellSet> objects;
+  CellSet lethal, near_object;
+  for (const auto& [id, cells] : heights) {
+    for (const auto& [c, height] : cells) {
+      for (int dj = -3; dj <= 3; ++dj) {
+        for (int di = -3; di <= 3; ++di) near_object.insert({c.first + di, c.second + dj});
+      }
+      if (height < 0.15 || !world.scene.Find(id)->is_obstacle) continue;
+      objects[id].insert(c);
+      r.truth_cells.insert(c);
+    }
+  }
+  for (int j = box->min.y(); j <= box->max.y(); ++j) {
+    for (int i = box->min.x(); i <= box->max.x(); ++i) {
+      if (grid.At({i, j}).lethal) lethal.insert({i, j});
+    }
+  }
+  int both = 0;
+  for (const auto& c : lethal) both += static_cast<int>(r.truth_cells.count(c));
+  r.lethal = static_cast<int>(lethal.size());
+  r.truth = static_cast<int>(r.truth_cells.size());
+  const int union_cells = r.lethal + r.truth - both;
+  r.iou = union_cells > 0 ? both / static_cast<double>(union_cells) : 0.0;
+  for (const auto& c : lethal) {
+    double nearest = 1e9;
+    for (const auto& t : r.truth_cells) nearest = std::min(nearest, CellDistance(c, t, s));
+    r.false_lethal += nearest > 0.5;
+  }
+  double sum = 0.0;
+  for (const auto& [id, cells] : objects) {
+    const sim::Object* object = world.scene.Find(id);
+    const auto seen = pixels_seen.find(id);
+    if (seen == pixels_seen.end() || seen->second < 30) continue;
+    ObstacleScore o;
+    o.name = object->name;
+    o.first_seen_distance_m = first_seen_m.at(id);
+    for (const auto& c : cells) {
+      for (const auto& l : lethal)
+        o.nearest_lethal_m = std::min(o.nearest_lethal_m, CellDistance(c, l, s));
+    }
+    r.max_distance_m = std::max(r.max_distance_m, o.nearest_lethal_m);
+    sum += o.nearest_lethal_m;
+    r.found_0_3 += o.nearest_lethal_m <= 0.3;
+    r.obstacles.push_back(o);
+  }
+  r.mean_distance_m = r.obstacles.empty() ? 0.0 : sum / r.obstacles.size();
+  // Elevation against the terrain, away from every object.
+  double sum2 = 0.0;
+  for (int j = box->min.y(); j <= box->max.y(); ++j) {
+    for (int i = box->min.x(); i <= box->max.x(); ++i) {
+      const map::Cell& cell = grid.At({i, j});
+      if (!cell.has_elevation() || near_object.count({i, j}) != 0) continue;
+      const Eigen::Vector2d c = grid.CentreOf({i, j});
+      const double e = cell.elevation_mean_m - world.scene.terrain().Height(c.x(), c.y());
+      sum2 += e * e;
+      ++r.elevation_cells;
+    }
+  }
+  r.elevation_rms_m = std::sqrt(sum2 / std::max(1, r.elevation_cells));
+}
+
+}  // namespace detail
+
+inline Expected<sim::World> LoadGalleryWorld(const std::string& name) {
+  return sim::LoadWorld((SourceDir() / "datasets" / "worlds" / (name + ".yaml")).string());
+}
+
+/// Drives, maps and scores one run. Fails on a world that does not load or a frame that
+/// does not render or fuse.
+inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
+  Expected<sim::World> world = LoadGalleryWorld(spec.world);
+  if (!world) return world.error();
+  const Expected<od::io::DetectSettings> settings = DefaultDetectSettings();
+  if (!settings) return settings.error();
+  Expected<map::TerrainMap> created = map::TerrainMap::Create(map::MapConfig{});
+  if (!created) return created.error();
+  DriftRunResult r(std::move(*created));
+
+  sim::DriveSpec drive_spec;
+  drive_spec.waypoints = spec.waypoints;
+  drive_spec.speed_mps = spec.speed_mps;
+  drive_spec.frame_rate_hz = spec.rate_hz;
+  drive_spec.sensor_pitch_rad = 8.0 * kDriftDeg;
+  drive_spec.odom_sigma_per_m = spec.odom_sigma_per_m;
+  drive_spec.odom_yaw_sigma_rad_per_m = spec.odom_yaw_sigma_rad_per_m;
+  drive_spec.imu_sigma_rad = 0.0;
+  drive_spec.imu_bias_rad = spec.imu_bias_rad;
+  const Expected<sim::Drive> drive = sim::SimulateDrive(
+      world->scene.terrain(), drive_spec, sim::SensorFrame::kCameraOptical, spec.drive_seed);
+  if (!drive) return drive.error();
+  const sim::RangeCameraSpec camera_spec = SmallCamera(world->camera, spec.camera_width);
+  const map::TiltRefinerConfig refiner;
+
+  std::map<int, int> pixels_seen;
+  std::map<int, double> first_seen_m;
+  double z_body = 0.0, roll = 0.0, pitch = 0.0, dz = 0.0;  // dead reckoning; refiner carry
+  const sim::DriveSample* previous = nullptr;
+  for (const sim::DriveSample& s : drive->samples) {
+    // The believed pose.
+    Eigen::Isometry3d T_world_sensor = s.T_world_sensor;
+    if (!spec.true_poses) {
+      if (previous == nullptr) {
+        z_body = s.T_world_body.translation().z();
+      } else {
+        const double d = std::hypot(s.odometry.x_m - previous->odometry.x_m,
+                                    s.odometry.y_m - previous->odometry.y_m);
+        z_body -= d * std::tan(0.5 * (s.imu.pitch_rad + previous->imu.pitch_rad));
+      }
+      Eigen::Isometry3d T_world_body = Eigen::Isometry3d::Identity();
+      T_world_body.linear() =
+          sim::RotationFromAttitude({s.imu.roll_rad, s.imu.pitch_rad, s.odometry.yaw_rad});
+      T_world_body.translation() = Eigen::Vector3d(s.odometry.x_m, s.odometry.y_m, z_body);
+      T_world_sensor = T_world_body * drive->T_body_sensor;
+      if (spec.refine_tilt) T_world_sensor = CorrectTilt(T_world_sensor, roll, pitch, dz);
+    }
+    previous = &s;
+    // Render from the true pose; level with the believed up vector.
+    sim::Camera camera;
+    camera.model = camera_spec.model;
+    camera.T_world_camera = s.T_world_sensor;
+    const std::uint64_t seed = sim::MixSeed(world->seed, static_cast<std::uint64_t>(s.index));
+    Expected<sim::DepthFrame> rendered =
+        sim::RenderRangeCamera(world->scene, camera_spec, camera, seed);
+    if (!rendered) return rendered.error();
+    const Eigen::Vector3d up = T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
+    Expected<od::RangeImage> image =
+        od::RangeImage::FromDepth(rendered->depth_m, rendered->model, up);
+    if (!image) return image.error();
+    Expected<SimFrame> frame = Detected(std::move(*image), rendered->object_id, T_world_sensor,
+                                        s.stamp_s, s.index, *settings);
+    if (!frame) return frame.error();
+    if (spec.refine_tilt && !spec.true_poses) {
+      std::vector<Eigen::Vector3f> ground;
+      ground.reserve(frame->image.size());
+      for (int i = 0; i < frame->image.size(); ++i) {
+        if (!frame->image.valid(i)) continue;
+        const int label = frame->detection.labels[i];
+        if (label > 0 && frame->classification.verdicts[label - 1].cls == od::SegmentClass::kKept) {
+          continue;
+        }
+        ground.push_back(frame->image.point(i).cast<float>());
+      }
+      const map::ElevationPatch patch =
+          ElevationAround(r.map, T_world_sensor.translation().head<2>(), refiner.max_range_m);
+      Expected<map::TiltEstimate> estimate =
+          map::RefineTilt(ground, T_world_sensor, patch, refiner);
+      if (!estimate) return estimate.error();
+      if (estimate->usable && estimate->rms_after_m <= estimate->rms_before_m) {
+        roll += estimate->roll_rad;
+        pitch += estimate->pitch_rad;
+        dz += estimate->dz_m;
+        frame->T_world_sensor = estimate->T_world_sensor;
+        ++r.refined_frames;
+      }
+    }
+    Expected<map::FrameSummary> fused = frame->IntegrateInto(r.map);
+    if (!fused) return fused.error();
+    std::map<int, int> pixels;
+    for (const std::int32_t object : frame->object_id) {
+      if (object > 0) ++pixels[object];
+    }
+    for (const auto& [object, n] : pixels) {
+      pixels_seen[object] = std::max(pixels_seen[object], n);
+      if (n >= 30 && first_seen_m.count(object) == 0) first_seen_m[object] = s.distance_m;
+    }
+    PoseError e;
+    e.distance_m = s.distance_m;
+    e.position_m =
+        (frame->T_world_sensor.translation() - s.T_world_sensor.translation()).head<2>().norm();
+    const Eigen::Vector3d fwd_true = s.T_world_body.linear().col(0);
+    const double yaw_true = std::atan2(fwd_true.y(), fwd_true.x());
+    e.yaw_rad =
+        spec.true_poses ? 0.0 : std::abs(std::remainder(s.odometry.yaw_rad - yaw_true, 2.0 * M_PI));
+    e.tilt_rad = TiltBetween(frame->T_world_sensor.linear(), s.T_world_sensor.linear());
+    e.z_m = std::abs(frame->T_world_sensor.translation().z() - s.T_world_sensor.translation().z());
+    r.pose_errors.push_back(e);
+    r.distance_m = s.distance_m;
+    ++r.frames;
+  }
+  detail::Score(*world, pixels_seen, first_seen_m, r);
+  if (!r.error.empty()) return Error{spec.world + ": " + r.error};
+  return r;
+}
+
+}  // namespace cairn::test

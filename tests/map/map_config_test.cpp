@@ -1,0 +1,141 @@
+// MapConfig's validation and the strict `map:` section loader.
+#include "cairn/map/map_config.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "cairn/map/map_config_file.hpp"
+#include "cairn/od/io/detect_config.hpp"
+
+namespace cairn::map {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+TEST(MapConfig, DefaultsValidate) { EXPECT_TRUE(MapConfig{}.Validate().ok()); }
+
+TEST(MapConfig, ValidateNamesTheBadField) {
+  struct Case {
+    std::function<void(MapConfig&)> spoil;
+    const char* key;
+  };
+  const std::vector<Case> cases = {
+      {[](MapConfig& c) { c.voxel_size_m = 0.0; }, "voxel_size"},
+      {[](MapConfig& c) { c.voxel_size_m = 1e-4; }, "voxel_size"},
+      {[](MapConfig& c) { c.max_range_m = -1.0; }, "max_range"},
+      {[](MapConfig& c) { c.voxel_hit_probability = 0.4; }, "voxel_hit"},
+      {[](MapConfig& c) { c.voxel_miss_probability = 0.6; }, "voxel_miss"},
+      {[](MapConfig& c) { c.voxel_min_probability = 0.0; }, "voxel_min"},
+      {[](MapConfig& c) { c.voxel_max_probability = 1.0; }, "voxel_max"},
+      {[](MapConfig& c) { c.cell_size_m = std::nan(""); }, "cell_size"},
+      {[](MapConfig& c) { c.window_size_m = 0.5; }, "window_size"},
+      {[](MapConfig& c) { c.window_size_m = -3.0; }, "window_size"},
+      {[](MapConfig& c) { c.cell_hit_probability = 0.5; }, "cell_hit"},
+      {[](MapConfig& c) { c.cell_miss_probability = 0.5; }, "cell_miss"},
+      {[](MapConfig& c) { c.cell_min_probability = 0.7; }, "cell_min"},
+      {[](MapConfig& c) { c.cell_max_probability = 0.2; }, "cell_max"},
+      {[](MapConfig& c) { c.obstacle_probability = 0.99; }, "obstacle_probability"},
+      {[](MapConfig& c) { c.obstacle_min_height_m = -0.1; }, "obstacle_min_height"},
+      {[](MapConfig& c) { c.ground_radius_m = -1.0; }, "ground_radius"},
+      {[](MapConfig& c) { c.ground_max_slope_rad = 90.0 * kDeg; }, "ground_max_slope"},
+      {[](MapConfig& c) { c.merge_distance_m = INFINITY; }, "merge_distance"},
+      {[](MapConfig& c) { c.plane_fit_radius_m = 0.0; }, "plane_fit_radius"},
+      {[](MapConfig& c) { c.slope_cost_max_rad = 95.0 * kDeg; }, "slope_cost_max"},
+      {[](MapConfig& c) { c.roughness_cost_max_m = 0.0; }, "roughness_cost_max"},
+      {[](MapConfig& c) { c.robot_radius_m = -0.5; }, "robot_radius"},
+      {[](MapConfig& c) { c.inflation_radius_m = 0.3; }, "inflation_radius"},
+      {[](MapConfig& c) { c.cost_scaling_factor = -1.0; }, "cost_scaling_factor"},
+  };
+  for (const Case& c : cases) {
+    MapConfig config;
+    c.spoil(config);
+    const Status s = config.Validate();
+    ASSERT_FALSE(s.ok()) << c.key;
+    EXPECT_NE(s.message().find(std::string("'") + c.key + "'"), std::string::npos)
+        << c.key << ": " << s.message();
+  }
+}
+
+TEST(MapConfigFile, ReadsTheMapSectionInFileUnits) {
+  const Expected<MapConfig> c = ParseMapConfig(
+      "detector: {min_height: 0.3}\n"
+      "map:\n"
+      "  voxel_size: 0.05\n"
+      "  cell_size: 0.25\n"
+      "  window_size: 30\n"
+      "  slope_cost_max: 20\n"
+      "  robot_radius: 0.7\n"
+      "  inflation_radius: 2\n",
+      "test.yaml");
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  EXPECT_DOUBLE_EQ(c->voxel_size_m, 0.05);
+  EXPECT_DOUBLE_EQ(c->cell_size_m, 0.25);
+  EXPECT_DOUBLE_EQ(c->window_size_m, 30.0);
+  EXPECT_NEAR(c->slope_cost_max_rad, 20.0 * kDeg, 1e-15);
+  EXPECT_DOUBLE_EQ(c->robot_radius_m, 0.7);
+  EXPECT_DOUBLE_EQ(c->inflation_radius_m, 2.0);
+  EXPECT_DOUBLE_EQ(c->max_range_m, MapConfig{}.max_range_m);  // absent: default
+}
+
+TEST(MapConfigFile, NoMapSectionGivesTheDefaults) {
+  const Expected<MapConfig> c = ParseMapConfig("rules: {min_points: 3}\n", "test.yaml");
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  EXPECT_DOUBLE_EQ(c->cell_size_m, MapConfig{}.cell_size_m);
+  EXPECT_TRUE(ParseMapConfig("", "empty.yaml").ok());
+  EXPECT_TRUE(ParseMapConfig("map:\n", "null.yaml").ok());
+}
+
+TEST(MapConfigFile, ErrorsNameTheFileAndTheField) {
+  const struct {
+    const char* yaml;
+    const char* expected;
+  } cases[] = {
+      {"map: {cell_sise: 0.2}\n", "test.yaml: map.cell_sise: unknown key in map"},
+      {"map: {cell_size: abc}\n", "test.yaml: map.cell_size: expected a number"},
+      {"map: {cell_size: [1, 2]}\n", "test.yaml: map.cell_size: expected a number"},
+      {"map: {cell_size: .nan}\n", "test.yaml: map.cell_size: expected a finite number"},
+      {"map: {cell_size: 0.2, cell_size: 0.3}\n", "test.yaml: map.cell_size: given twice"},
+      {"map: {cell_size: -0.2}\n", "test.yaml: map.cell_size: map config: 'cell_size'"},
+      {"map: {inflation_radius: 0.2}\n", "test.yaml: map.inflation_radius:"},
+      {"map: {slope_cost_max: 90}\n", "test.yaml: map.slope_cost_max:"},
+      {"map: 3\n", "test.yaml: map: expected a mapping"},
+      {"- 1\n- 2\n", "test.yaml: expected a mapping"},
+      {"map: {cell_size: 0.2\n", "test.yaml:"},
+  };
+  for (const auto& c : cases) {
+    const Expected<MapConfig> r = ParseMapConfig(c.yaml, "test.yaml");
+    ASSERT_FALSE(r.ok()) << c.yaml;
+    EXPECT_EQ(r.error().message.rfind(c.expected, 0), 0u)
+        << c.yaml << " gave: " << r.error().message;
+  }
+}
+
+TEST(MapConfigFile, DefaultYamlHasAMapSectionThatBothLoadersAccept) {
+  const std::filesystem::path file =
+      std::filesystem::path(CAIRN_SOURCE_DIR) / "config" / "default.yaml";
+  const Expected<MapConfig> map = LoadMapConfig(file);
+  ASSERT_TRUE(map.ok()) << map.error().message;
+  // The file documents the built-in defaults.
+  const MapConfig defaults;
+  EXPECT_DOUBLE_EQ(map->voxel_size_m, defaults.voxel_size_m);
+  EXPECT_DOUBLE_EQ(map->cell_size_m, defaults.cell_size_m);
+  EXPECT_DOUBLE_EQ(map->max_range_m, defaults.max_range_m);
+  EXPECT_DOUBLE_EQ(map->window_size_m, defaults.window_size_m);
+  EXPECT_NEAR(map->slope_cost_max_rad, defaults.slope_cost_max_rad, 1e-12);
+  EXPECT_DOUBLE_EQ(map->robot_radius_m, defaults.robot_radius_m);
+  EXPECT_DOUBLE_EQ(map->inflation_radius_m, defaults.inflation_radius_m);
+  EXPECT_DOUBLE_EQ(map->cost_scaling_factor, defaults.cost_scaling_factor);
+  EXPECT_DOUBLE_EQ(map->obstacle_min_height_m, defaults.obstacle_min_height_m);
+  EXPECT_NEAR(map->ground_max_slope_rad, defaults.ground_max_slope_rad, 1e-12);
+  EXPECT_TRUE(od::io::LoadDetectSettings(file).ok());
+  const Expected<MapConfig> missing = LoadMapConfig("/nonexistent/cairn.yaml");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("/nonexistent/cairn.yaml"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace cairn::map

@@ -1,0 +1,289 @@
+// TerrainMap on the gallery's worlds (datasets/worlds), driven with true poses: the lethal
+// cells against the true obstacles (IoU over the observed cells, distance from each seen
+// obstacle to the nearest lethal cell, lethal cells far from any obstacle), the elevation
+// against the true terrain, and one persistent obstacle per object over a drive that passes
+// the same objects twice. The figures are printed per world (the report quotes them).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "cairn/map/terrain_map.hpp"
+#include "cairn/sim/render.hpp"
+#include "sim_frames.hpp"
+
+namespace cairn::map {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+using test::SimFrame;
+
+Expected<sim::World> LoadWorld(const std::string& name) {
+  return sim::LoadWorld((test::SourceDir() / "datasets" / "worlds" / (name + ".yaml")).string());
+}
+
+struct DriveRun {
+  TerrainMap map;
+  std::map<int, int> pixels_seen;  // object id -> most pixels of it in one frame
+  int frames = 0;
+};
+
+// Drives through the world with true poses, camera (or LiDAR) on the body: one pass per
+// waypoint list, one after the other (frame ids and stamps run on across passes).
+DriveRun Drive(const sim::World& world, const std::vector<std::vector<Eigen::Vector2d>>& passes,
+               double rate_hz, bool lidar, const MapConfig& config = {}) {
+  Expected<TerrainMap> map = TerrainMap::Create(config);
+  EXPECT_TRUE(map.ok());
+  DriveRun run{std::move(*map), {}, 0};
+  const Expected<od::io::DetectSettings> settings = test::DefaultDetectSettings();
+  EXPECT_TRUE(settings.ok());
+  if (!settings) return run;
+  const sim::RangeCameraSpec camera = test::SmallCamera(world.camera, 160);
+  for (const std::vector<Eigen::Vector2d>& waypoints : passes) {
+    const Expected<sim::Drive> drive =
+        test::TrueDrive(world.scene.terrain(), waypoints, 2.0, rate_hz, 8.0 * kDeg,
+                        lidar ? sim::SensorFrame::kLidar : sim::SensorFrame::kCameraOptical);
+    EXPECT_TRUE(drive.ok()) << (drive ? "" : drive.error().message);
+    if (!drive) return run;
+    for (const sim::DriveSample& s : drive->samples) {
+      const int id = run.frames;
+      const double stamp_s = id / rate_hz;
+      const std::uint64_t seed = sim::MixSeed(world.seed, id);
+      const Expected<SimFrame> frame =
+          lidar ? test::LidarFrame(world.scene, *world.lidar, s.T_world_sensor, stamp_s, id,
+                                   *settings, seed)
+                : test::CameraFrame(world.scene, camera, s.T_world_sensor, stamp_s, id, *settings,
+                                    seed);
+      EXPECT_TRUE(frame.ok()) << (frame ? "" : frame.error().message);
+      if (!frame) return run;
+      const Expected<FrameSummary> summary = frame->IntegrateInto(run.map);
+      EXPECT_TRUE(summary.ok()) << (summary ? "" : summary.error().message);
+      std::map<int, int> pixels;
+      for (const std::int32_t object : frame->object_id) {
+        if (object > 0) ++pixels[object];
+      }
+      for (const auto& [object, n] : pixels) {
+        run.pixels_seen[object] = std::max(run.pixels_seen[object], n);
+      }
+      ++run.frames;
+    }
+  }
+  return run;
+}
+
+using CellSet = std::set<std::pair<int, int>>;
+
+// For every object, its cells and how high it rises there above the terrain, seen from
+// above: 4 x 4 vertical rays per observed cell, cast down through the scene with libsim's ray
+// caster (objects stand less than 6 m tall).
+std::map<int, std::map<std::pair<int, int>, double>> ObjectCells(const sim::Scene& scene,
+                                                                 const TerrainGrid& grid,
+                                                                 const CellBox& box) {
+  const sim::RayCaster caster(scene);
+  sim::RenderOptions options;
+  options.max_range_m = 12.0;
+  std::map<int, std::map<std::pair<int, int>, double>> cells;
+  const double s = grid.cell_size();
+  for (int j = box.min.y(); j <= box.max.y(); ++j) {
+    for (int i = box.min.x(); i <= box.max.x(); ++i) {
+      if (!grid.At({i, j}).observed) continue;
+      for (int k = 0; k < 16; ++k) {
+        const double x = (i + (k % 4 + 0.5) / 4.0) * s, y = (j + (k / 4 + 0.5) / 4.0) * s;
+        const double ground = scene.terrain().Height(x, y);
+        const sim::Ray ray{{x, y, ground + 6.0}, {0.0, 0.0, -1.0}};
+        const std::optional<sim::RayHit> hit = caster.Cast(ray, options);
+        if (!hit || hit->id <= 0) continue;
+        double& height = cells[hit->id][{i, j}];
+        height = std::max(height, ray.At(hit->t).z() - ground);
+      }
+    }
+  }
+  return cells;
+}
+
+double Distance(const std::pair<int, int>& a, const std::pair<int, int>& b, double s) {
+  return std::hypot(a.first - b.first, a.second - b.second) * s;
+}
+
+struct Scores {
+  double iou = 0.0;
+  int lethal = 0, truth = 0;
+  int far_lethal = 0;           // lethal cells more than 0.5 m from every obstacle cell
+  double worst_distance = 0.0;  // over the seen obstacles: to the nearest lethal cell [m]
+  int seen = 0, found = 0;      // seen obstacles; of which within 0.3 m of a lethal cell
+  double elevation_rms = 0.0;
+  int elevation_cells = 0;
+  // Persistent obstacles against the objects: for each seen obstacle, how many persistent
+  // obstacles have a cell within one cell of it (the most over the objects, and the least);
+  // persistent obstacles with no object within one cell.
+  int most_per_object = 0, least_per_object = 0, unmatched = 0;
+  std::map<int, std::vector<int>> persistent_of;  // object id -> persistent obstacle ids
+};
+
+Scores Score(const sim::World& world, const DriveRun& run, const std::string& label) {
+  const TerrainMap& map = run.map;
+  const TerrainGrid& grid = map.grid();
+  const double s = grid.cell_size();
+  Scores out;
+  const std::optional<CellBox> box = map.ObservedBounds();
+  EXPECT_TRUE(box.has_value());
+  if (!box) return out;
+  // True obstacle cells: where an obstacle rises 0.15 m (obstacle_min_height) or more.
+  const auto heights = ObjectCells(world.scene, grid, *box);
+  std::map<int, CellSet> objects;
+  CellSet truth, all_obstacle, lethal, near_object;
+  for (const auto& [id, cells] : heights) {
+    for (const auto& [c, height] : cells) {
+      for (int dj = -3; dj <= 3; ++dj) {
+        for (int di = -3; di <= 3; ++di) near_object.insert({c.first + di, c.second + dj});
+      }
+      if (height < 0.15 || !world.scene.Find(id)->is_obstacle) continue;
+      objects[id].insert(c);
+      all_obstacle.insert(c);
+      truth.insert(c);  // observed: only observed cells were sampled
+    }
+  }
+  for (int j = box->min.y(); j <= box->max.y(); ++j) {
+    for (int i = box->min.x(); i <= box->max.x(); ++i) {
+      if (grid.At({i, j}).lethal) lethal.insert({i, j});
+    }
+  }
+  int both = 0;
+  for (const auto& c : lethal) both += truth.count(c);
+  out.lethal = static_cast<int>(lethal.size());
+  out.truth = static_cast<int>(truth.size());
+  out.iou = both / static_cast<double>(lethal.size() + truth.size() - both);
+  for (const auto& c : lethal) {
+    double nearest = 1e9;
+    for (const auto& t : all_obstacle) nearest = std::min(nearest, Distance(c, t, s));
+    out.far_lethal += nearest > 0.5;
+  }
+  // Each obstacle seen well (30 pixels in a frame at least): its distance to a lethal cell.
+  std::printf("%s: per obstacle (pixels, distance to nearest lethal cell [m]):", label.c_str());
+  for (const auto& [id, cells] : objects) {
+    const sim::Object* object = world.scene.Find(id);
+    const auto seen = run.pixels_seen.find(id);
+    if (!object->is_obstacle || seen == run.pixels_seen.end() || seen->second < 30) continue;
+    double nearest = 1e9;
+    for (const auto& c : cells) {
+      for (const auto& l : lethal) nearest = std::min(nearest, Distance(c, l, s));
+    }
+    std::printf(" %s %d %.2f;", object->name.c_str(), seen->second, nearest);
+    std::vector<int>& ids = out.persistent_of[id];
+    for (const Obstacle& o : map.obstacles()) {
+      bool touches = false;
+      for (const CellIndex& oc : o.cells) {
+        for (const auto& c : cells) touches = touches || Distance({oc.x(), oc.y()}, c, s) < 0.3;
+      }
+      if (touches) ids.push_back(o.id);
+    }
+    const int n = static_cast<int>(ids.size());
+    out.most_per_object = out.seen == 0 ? n : std::max(out.most_per_object, n);
+    out.least_per_object = out.seen == 0 ? n : std::min(out.least_per_object, n);
+    ++out.seen;
+    out.found += nearest <= 0.3;
+    out.worst_distance = std::max(out.worst_distance, nearest);
+  }
+  std::printf("\n");
+  for (const Obstacle& o : map.obstacles()) {
+    bool matched = false;
+    for (const CellIndex& oc : o.cells) {
+      for (const auto& t : all_obstacle)
+        matched = matched || Distance({oc.x(), oc.y()}, t, s) < 0.3;
+    }
+    out.unmatched += !matched;
+  }
+  // Elevation against the terrain, away from every object (a cell and its neighbours).
+  double sum2 = 0.0;
+  for (int j = box->min.y(); j <= box->max.y(); ++j) {
+    for (int i = box->min.x(); i <= box->max.x(); ++i) {
+      const Cell& cell = grid.At({i, j});
+      if (!cell.has_elevation()) continue;
+      if (near_object.count({i, j}) != 0) continue;
+      const Eigen::Vector2d c = grid.CentreOf({i, j});
+      const double e = cell.elevation_mean_m - world.scene.terrain().Height(c.x(), c.y());
+      sum2 += e * e;
+      ++out.elevation_cells;
+    }
+  }
+  out.elevation_rms = std::sqrt(sum2 / std::max(1, out.elevation_cells));
+  std::printf(
+      "%s: %d frames, IoU %.3f (lethal %d, true %d), lethal cells > 0.5 m from any obstacle "
+      "%d, obstacles found %d/%d, worst distance %.2f m, elevation RMS %.3f m over %d cells, "
+      "%zu persistent obstacles\n",
+      label.c_str(), run.frames, out.iou, out.lethal, out.truth, out.far_lethal, out.found,
+      out.seen, out.worst_distance, out.elevation_rms, out.elevation_cells, map.obstacles().size());
+  return out;
+}
+
+// What every drive must show: each obstacle seen well is mapped (a lethal cell on it) as one
+// persistent obstacle, no lethal cell lies away from the obstacles, the lethal cells cover
+// the obstacles' footprints (IoU), and the elevation is the terrain's within 3 cm RMS.
+void ExpectGoodMap(const Scores& s, double min_iou) {
+  EXPECT_GE(s.seen, 7);
+  EXPECT_EQ(s.found, s.seen);
+  EXPECT_LE(s.worst_distance, 0.2);
+  EXPECT_EQ(s.far_lethal, 0);
+  EXPECT_GE(s.iou, min_iou);
+  EXPECT_EQ(s.most_per_object, 1);
+  EXPECT_EQ(s.least_per_object, 1);
+  EXPECT_EQ(s.unmatched, 0);
+  EXPECT_LT(s.elevation_rms, 0.03);
+  EXPECT_GT(s.elevation_cells, 5000);
+}
+
+TEST(TerrainMapWorlds, PolesAndRocksCameraDrive) {
+  const Expected<sim::World> loaded = LoadWorld("poles_and_rocks");
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  const sim::World& world = *loaded;
+  const DriveRun run = Drive(world, {{{0.0, 0.0}, {16.0, 0.0}}}, 2.5, false);
+  const Scores s = Score(world, run, "poles_and_rocks (camera)");
+  ExpectGoodMap(s, 0.6);
+}
+
+TEST(TerrainMapWorlds, UphillTiltedCameraDrive) {
+  const Expected<sim::World> loaded = LoadWorld("uphill_tilted");
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  const sim::World& world = *loaded;
+  const DriveRun run = Drive(world, {{{0.0, 0.0}, {20.0, 1.0}, {30.0, -0.5}}}, 2.0, false);
+  const Scores s = Score(world, run, "uphill_tilted (camera)");
+  ExpectGoodMap(s, 0.65);
+}
+
+TEST(TerrainMapWorlds, UphillTiltedLidarDrive) {
+  const Expected<sim::World> loaded = LoadWorld("uphill_tilted");
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  const sim::World& world = *loaded;
+  ASSERT_TRUE(world.lidar.has_value());
+  const DriveRun run = Drive(world, {{{0.0, 0.0}, {20.0, 1.0}, {30.0, -0.5}}}, 1.0, true);
+  const Scores s = Score(world, run, "uphill_tilted (VLP-16)");
+  ExpectGoodMap(s, 0.5);
+}
+
+// The same stretch driven twice, the second time 1 m to the side (other viewpoints, other
+// noise): every object is seen in both passes and stays one persistent obstacle.
+TEST(TerrainMapWorlds, DrivingOverTheSamePlaceTwiceDoesNotDoubleObstacles) {
+  const Expected<sim::World> loaded = LoadWorld("poles_and_rocks");
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  const sim::World& world = *loaded;
+  const DriveRun run =
+      Drive(world, {{{0.0, 0.0}, {16.0, 0.0}}, {{0.0, 1.0}, {16.0, 1.0}}}, 2.0, false);
+  const Scores s = Score(world, run, "poles_and_rocks, two passes (camera)");
+  ExpectGoodMap(s, 0.6);
+  EXPECT_EQ(static_cast<int>(run.map.obstacles().size()), s.seen);
+  const std::int64_t second_pass = run.frames / 2;
+  int both_passes = 0;
+  for (const Obstacle& o : run.map.obstacles()) {
+    both_passes += o.frames.front() < second_pass && o.frames.back() >= second_pass;
+  }
+  EXPECT_EQ(both_passes, s.seen);
+}
+
+}  // namespace
+}  // namespace cairn::map

@@ -1,0 +1,425 @@
+// TerrainMap on small analytic scenes: the cost of every cell against a brute-force
+// inflation of the lethal cells, exact nav2 values at known distances, clearing of a false
+// obstacle, one persistent obstacle per object over repeated passes, the rolling window
+// against the unbounded map, queries, and input checks.
+#include "cairn/map/terrain_map.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <vector>
+
+#include "cairn/sim/scene.hpp"
+#include "sim_frames.hpp"
+
+namespace cairn::map {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+using test::SimFrame;
+
+Eigen::Isometry3d CameraPose(const Eigen::Vector3d& position, double heading_deg,
+                             double pitch_deg) {
+  return sim::Camera::FromAttitude(od::PinholeModel{}, position, heading_deg * kDeg,
+                                   pitch_deg * kDeg, 0.0)
+      .T_world_camera;
+}
+
+sim::RangeCameraSpec Camera(int width = 160) {
+  return test::SmallCamera(sim::RangeCameraSpec::Default(), width);
+}
+
+od::io::DetectSettings Settings() {
+  Expected<od::io::DetectSettings> s = test::DefaultDetectSettings();
+  EXPECT_TRUE(s.ok()) << (s ? "" : s.error().message);
+  return s ? *s : od::io::DetectSettings{};
+}
+
+TerrainMap NewMap(const MapConfig& config = {}) {
+  Expected<TerrainMap> map = TerrainMap::Create(config);
+  EXPECT_TRUE(map.ok()) << (map ? "" : map.error().message);
+  return std::move(map).value();
+}
+
+void Integrate(TerrainMap& map, const SimFrame& frame) {
+  const Expected<FrameSummary> summary = frame.IntegrateInto(map);
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+}
+
+// Every cell of the extent.
+template <typename F>
+void ForEachCell(const TerrainGrid& grid, F&& f) {
+  for (int j = 0; j < grid.extent().y(); ++j) {
+    for (int i = 0; i < grid.extent().x(); ++i) {
+      const CellIndex index = grid.min_index() + CellIndex(i, j);
+      f(index, grid.At(index));
+    }
+  }
+}
+
+// A 1 m x 1 m x 0.8 m box on flat ground at (4, 0): its footprint is cells x 17..22
+// ([3.4, 4.6)), y -3..2 ([-0.6, 0.6)) of 0.2 m, seen from two noiseless cameras.
+struct BoxScene {
+  sim::Scene scene;
+  std::vector<SimFrame> frames;
+  BoxScene() {
+    scene.AddBox(4.0, 0.0, {1.0, 1.0, 0.8}, 0.0, true, "box");
+    const od::io::DetectSettings settings = Settings();
+    const Eigen::Isometry3d poses[] = {CameraPose({1.0, 0.0, 2.0}, 0.0, 25.0),
+                                       CameraPose({1.5, 2.5, 2.0}, -40.0, 25.0)};
+    int id = 0;
+    for (const Eigen::Isometry3d& T : poses) {
+      Expected<SimFrame> f = test::CameraFrame(scene, Camera(), T, 0.1 * id, id, settings);
+      EXPECT_TRUE(f.ok()) << (f ? "" : f.error().message);
+      if (f) frames.push_back(std::move(*f));
+      ++id;
+    }
+  }
+};
+
+TEST(TerrainMap, LethalCellsAreTheBoxFootprint) {
+  const BoxScene box;
+  TerrainMap map = NewMap();
+  for (const SimFrame& f : box.frames) Integrate(map, f);
+  std::set<std::pair<int, int>> lethal;
+  ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
+    if (cell.cost == kLethalCost) lethal.insert({c.x(), c.y()});
+    EXPECT_EQ(cell.lethal, cell.cost == kLethalCost);
+  });
+  int inside = 0;
+  for (const auto& [i, j] : lethal) {
+    EXPECT_TRUE(i >= 17 && i <= 22 && j >= -3 && j <= 2) << "lethal cell " << i << "," << j;
+    ++inside;
+  }
+  // The face towards the first camera (x = 3.5, cells x = 17) is lethal along its width.
+  for (int j = -3; j <= 2; ++j) EXPECT_EQ(lethal.count({17, j}), 1u) << "face cell 17," << j;
+  EXPECT_GE(inside, 30) << "of the 36 footprint cells";
+  ASSERT_EQ(map.obstacles().size(), 1u);
+  const Obstacle& o = map.obstacles().front();
+  EXPECT_EQ(o.cells.size(), lethal.size());
+  EXPECT_NEAR(o.bbox_max.z(), 0.8, 0.02);
+  EXPECT_NEAR(o.height_m, 0.8, 0.05);
+  EXPECT_EQ(o.frames, (std::vector<std::int64_t>{0, 1}));
+  EXPECT_NEAR(o.footprint_min.x(), 3.4, 1e-9);
+  EXPECT_NEAR(o.footprint_max.x(), 4.6, 1e-9);
+}
+
+TEST(TerrainMap, EveryCostIsTheBruteForceInflationOfTheLethalCells) {
+  const BoxScene box;
+  MapConfig config;
+  TerrainMap map = NewMap(config);
+  for (const SimFrame& f : box.frames) Integrate(map, f);
+  const double s = config.cell_size_m;
+  std::vector<CellIndex> lethal;
+  ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
+    if (cell.lethal) lethal.push_back(c);
+  });
+  ASSERT_FALSE(lethal.empty());
+  int checked = 0;
+  ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
+    // nav2: distance to the nearest lethal cell, centre to centre, then the inflation rule.
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const CellIndex& l : lethal)
+      nearest = std::min(nearest, (c - l).cast<double>().norm() * s);
+    Cost expected = cell.lethal ? kLethalCost : !cell.observed ? kUnknownCost : cell.terrain_cost;
+    if (nearest > 0.0 && nearest <= config.inflation_radius_m + 1e-9) {
+      const double factor =
+          std::exp(-config.cost_scaling_factor * (nearest - config.robot_radius_m));
+      const Cost inflated =
+          nearest <= config.robot_radius_m ? kInscribedCost : static_cast<Cost>(252 * factor);
+      if (expected == kUnknownCost) {
+        if (inflated >= kInscribedCost) expected = inflated;
+      } else {
+        expected = std::max(expected, inflated);
+      }
+    }
+    ASSERT_EQ(cell.cost, expected) << "cell " << c.transpose() << " at " << nearest << " m";
+    // Flat, noiseless ground away from the box costs nothing by itself.
+    if (nearest > 1.0 && cell.observed) {
+      EXPECT_EQ(cell.terrain_cost, 0) << c.transpose();
+    }
+    ++checked;
+  });
+  EXPECT_GT(checked, 1000);
+  // nav2's numbers in front of the face (cell x = 17 lethal), along y = 0 (cell y = 0).
+  EXPECT_EQ(map.CostAt({3.5, 0.1}), kLethalCost);
+  EXPECT_EQ(map.CostAt({3.1, 0.1}), kInscribedCost);  // 0.4 m <= robot radius 0.5 m
+  EXPECT_EQ(map.CostAt({2.9, 0.1}), 186);             // 0.6 m: 252 exp(-3 * 0.1) = 186.7
+  EXPECT_EQ(map.CostAt({2.5, 0.1}), 56);              // 1.0 m: 252 exp(-3 * 0.5) = 56.2
+  EXPECT_EQ(map.CostAt({2.1, 0.1}), 16);              // 1.4 m: 252 exp(-3 * 0.9) = 16.9
+}
+
+// A pole seen in one frame only (a false obstacle, or an object that went away) is cleared
+// by the frames that follow: its cells by ground seen where it stood, its voxels by the rays
+// that now pass through them.
+TEST(TerrainMap, FalseObstacleSeenOnceIsClearedByLaterFrames) {
+  sim::Scene with_pole;
+  with_pole.AddPole(7.0, 0.0, 0.12, 1.0, true, "ghost");
+  const sim::Scene without_pole;
+  const od::io::DetectSettings settings = Settings();
+  TerrainMap map = NewMap();
+  const Eigen::Vector2d ghost(7.0, 0.0);
+  const auto lethal_near_ghost = [&] {
+    int count = 0;
+    ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
+      if (cell.lethal && (map.grid().CentreOf(c) - ghost).norm() < 0.6) ++count;
+    });
+    return count;
+  };
+  const octomap::point3d face(6.9f, 0.0f, 0.5f);  // on the pole's side facing the camera
+  int cleared_after = -1;
+  for (int k = 0; k < 9; ++k) {
+    const Eigen::Isometry3d T = CameraPose({0.5 * k, 0.0, 1.6}, 0.0, 12.0);
+    const sim::Scene& scene = k == 0 ? with_pole : without_pole;
+    const Expected<SimFrame> frame = test::CameraFrame(scene, Camera(), T, 0.2 * k, k, settings);
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    const Expected<FrameSummary> summary = frame->IntegrateInto(map);
+    ASSERT_TRUE(summary.ok()) << summary.error().message;
+    if (k == 0) {
+      EXPECT_GT(lethal_near_ghost(), 0);
+      EXPECT_EQ(map.CostAt({6.9, 0.05}), kLethalCost);  // the face towards the camera
+      ASSERT_EQ(map.obstacles().size(), 1u);
+      EXPECT_LT((map.obstacles()[0].centroid.head<2>() - ghost).norm(), 0.3);
+      const TerrainOcTreeNode* voxel = map.octree().search(face);
+      ASSERT_NE(voxel, nullptr);
+      EXPECT_TRUE(map.octree().IsObstacle(*voxel));
+    } else if (cleared_after < 0 && lethal_near_ghost() == 0) {
+      cleared_after = k;
+      EXPECT_EQ(summary->obstacles_retired, 1);
+    }
+  }
+  EXPECT_GE(cleared_after, 1);
+  EXPECT_LE(cleared_after, 4) << "frames until the false obstacle's cells were cleared";
+  EXPECT_TRUE(map.obstacles().empty());
+  EXPECT_EQ(map.obstacles_retired(), 1);
+  EXPECT_LT(map.CostAt({6.9, 0.05}), kInscribedCost);
+  // The voxels of the pole's lit face below the camera are free now.
+  int occupied = 0, known = 0;
+  for (float z = 0.25f; z <= 0.95f; z += 0.1f) {
+    for (float y = -0.08f; y <= 0.081f; y += 0.04f) {
+      const TerrainOcTreeNode* voxel = map.octree().search(6.9, y, z);
+      if (voxel == nullptr) continue;
+      ++known;
+      if (map.octree().isNodeOccupied(voxel)) ++occupied;
+    }
+  }
+  EXPECT_GT(known, 20);
+  EXPECT_EQ(occupied, 0);
+}
+
+// Hills with poles and boxes along a straight drive, mapped twice: in a rolling window whose
+// half side exceeds the range kept (so that everything a frame sees lies in the window), and
+// unbounded. Inside the window (less a margin where cells outside it still matter) the two
+// maps agree exactly; the rolling one stays bounded while the unbounded one grows.
+TEST(TerrainMap, RollingWindowMatchesTheUnboundedMapAndStaysBounded) {
+  sim::Scene scene(sim::Terrain::Hills(0.0, {sim::SineWave{0.2, 12.0, 0.3, 0.0}}));
+  const double poles[][2] = {{6, 2}, {12, -2}, {18, 1.5}, {24, -1}, {30, 2}};
+  for (const auto& p : poles) scene.AddPole(p[0], p[1], 0.1, 1.2, true);
+  scene.AddBox(15.0, 2.5, {0.8, 0.8, 0.6}, 0.3, true);
+  scene.AddBox(27.0, -2.0, {0.8, 1.2, 0.7}, -0.2, true);
+  const od::io::DetectSettings settings = Settings();
+  const Expected<sim::Drive> drive =
+      test::TrueDrive(scene.terrain(), {{0.0, 0.0}, {34.0, 0.0}}, 2.0, 2.5, 10.0 * kDeg);
+  ASSERT_TRUE(drive.ok()) << drive.error().message;
+
+  MapConfig unbounded_config;
+  unbounded_config.max_range_m = 8.0;
+  MapConfig rolling_config = unbounded_config;
+  rolling_config.window_size_m = 20.0;  // half side 10 m >= 8 m range + ground radius
+  TerrainMap rolling = NewMap(rolling_config);
+  TerrainMap unbounded = NewMap(unbounded_config);
+  std::vector<std::size_t> leaves;
+  std::size_t grid_bytes = 0;
+  for (const sim::DriveSample& sample : drive->samples) {
+    const Expected<SimFrame> frame = test::CameraFrame(scene, Camera(), sample.T_world_sensor,
+                                                       sample.stamp_s, sample.index, settings);
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    ASSERT_TRUE(frame->IntegrateInto(rolling).ok());
+    ASSERT_TRUE(frame->IntegrateInto(unbounded).ok());
+    const MapMemory memory = rolling.Memory();
+    leaves.push_back(memory.octree_leaves);
+    if (grid_bytes == 0) grid_bytes = memory.grid_bytes;
+    EXPECT_EQ(memory.grid_bytes, grid_bytes) << "the rolling grid never reallocates";
+  }
+  ASSERT_GT(leaves.size(), 30u);
+
+  // Cells: every field equal inside the window less the margin.
+  const TerrainGrid& grid = rolling.grid();
+  const int margin = 2 + 7 + 2;  // plane fit + inflation + slack [cells]
+  const CellIndex lo = grid.min_index() + CellIndex::Constant(margin);
+  const CellIndex hi = grid.min_index() + grid.extent() - CellIndex::Constant(margin + 1);
+  int compared = 0, lethal = 0;
+  const auto same = [](float a, float b) { return a == b || (std::isnan(a) && std::isnan(b)); };
+  for (int j = lo.y(); j <= hi.y(); ++j) {
+    for (int i = lo.x(); i <= hi.x(); ++i) {
+      const Cell& a = grid.At({i, j});
+      const Cell blank;  // what the unbounded grid holds where nothing was ever seen
+      const Cell* b = unbounded.grid().Find({i, j});
+      if (b == nullptr) b = &blank;
+      const std::string where = "cell " + std::to_string(i) + "," + std::to_string(j);
+      ASSERT_TRUE(same(a.elevation_mean_m, b->elevation_mean_m)) << where;
+      ASSERT_TRUE(same(a.elevation_min_m, b->elevation_min_m)) << where;
+      ASSERT_TRUE(same(a.elevation_max_m, b->elevation_max_m)) << where;
+      ASSERT_TRUE(same(a.slope_rad, b->slope_rad)) << where;
+      ASSERT_TRUE(same(a.roughness_m, b->roughness_m)) << where;
+      ASSERT_EQ(a.ground_points, b->ground_points) << where;
+      ASSERT_EQ(a.obstacle_points, b->obstacle_points) << where;
+      ASSERT_EQ(a.obstacle_log_odds, b->obstacle_log_odds) << where;
+      ASSERT_EQ(a.hits, b->hits) << where;
+      ASSERT_EQ(a.misses, b->misses) << where;
+      ASSERT_EQ(a.observed, b->observed) << where;
+      ASSERT_EQ(a.lethal, b->lethal) << where;
+      ASSERT_EQ(a.terrain_cost, b->terrain_cost) << where;
+      ASSERT_EQ(a.cost, b->cost) << where;
+      ++compared;
+      lethal += a.lethal;
+    }
+  }
+  EXPECT_GT(compared, 3000);
+  EXPECT_GT(lethal, 5) << "the window holds obstacles";
+
+  // Voxels: every leaf of the rolling tree inside the same box is a leaf of the unbounded
+  // tree with the same values.
+  const double s = rolling_config.cell_size_m;
+  const Eigen::Vector2d box_lo = lo.cast<double>() * s;
+  const Eigen::Vector2d box_hi = (hi + CellIndex::Ones()).cast<double>() * s;
+  int voxels = 0;
+  const TerrainOcTree& a = rolling.octree();
+  const TerrainOcTree& b = unbounded.octree();
+  for (auto it = a.begin_leafs(), end = a.end_leafs(); it != end; ++it) {
+    const double half = it.getSize() / 2.0;
+    if (it.getX() - half < box_lo.x() || it.getX() + half > box_hi.x() ||
+        it.getY() - half < box_lo.y() || it.getY() + half > box_hi.y()) {
+      continue;
+    }
+    const TerrainOcTreeNode* other = b.search(it.getKey(), it.getDepth());
+    ASSERT_NE(other, nullptr);
+    ASSERT_FALSE(b.nodeHasChildren(other));
+    ASSERT_EQ(other->getLogOdds(), it->getLogOdds());
+    ASSERT_EQ(other->obstacle_log_odds(), it->obstacle_log_odds());
+    ++voxels;
+  }
+  EXPECT_GT(voxels, 10000);
+
+  // Bounded: the rolling tree stops growing once the window is full; its leaves lie within
+  // the window (plus the slack the pruning leaves); the unbounded tree keeps growing.
+  const std::size_t third = leaves.size() / 3;
+  const std::size_t middle_max =
+      *std::max_element(leaves.begin() + third, leaves.begin() + 2 * third);
+  const std::size_t last_max = *std::max_element(leaves.begin() + 2 * third, leaves.end());
+  EXPECT_LT(last_max, middle_max * 5 / 4);
+  const double slack = (grid.extent().x() / 16 + 1) * s;
+  const Eigen::Vector2d window_lo = grid.min_index().cast<double>() * s;
+  const Eigen::Vector2d window_hi = (grid.min_index() + grid.extent()).cast<double>() * s;
+  for (auto it = a.begin_leafs(), end = a.end_leafs(); it != end; ++it) {
+    ASSERT_GT(it.getX(), window_lo.x() - slack);
+    ASSERT_LT(it.getX(), window_hi.x() + slack);
+    ASSERT_GT(it.getY(), window_lo.y() - slack);
+    ASSERT_LT(it.getY(), window_hi.y() + slack);
+  }
+  EXPECT_GT(unbounded.Memory().octree_leaves, leaves.back() * 3 / 2);
+  std::printf("rolling window: %zu octree leaves (unbounded %zu), grid %zu bytes\n", leaves.back(),
+              unbounded.Memory().octree_leaves, grid_bytes);
+}
+
+TEST(TerrainMap, CostAlongLineVisitsEveryCellTheLineCrosses) {
+  const BoxScene box;
+  TerrainMap map = NewMap();
+  for (const SimFrame& f : box.frames) Integrate(map, f);
+  const Eigen::Vector2d a(1.03, 0.11), b(7.01, 0.63);  // through no cell corner
+  const LineCost line = map.CostAlongLine(a, b);
+  ASSERT_EQ(line.cells.size(), line.costs.size());
+  // Through the box, and on into the unknown it hides.
+  EXPECT_NE(std::find(line.costs.begin(), line.costs.end(), kLethalCost), line.costs.end());
+  EXPECT_EQ(line.max_cost, *std::max_element(line.costs.begin(), line.costs.end()));
+  EXPECT_EQ(line.max_cost, kUnknownCost);
+  // Dense sampling: the distinct cells met, in order, appear in the traversal in order.
+  std::vector<CellIndex> sampled;
+  for (int k = 0; k <= 100000; ++k) {
+    const CellIndex c = map.grid().IndexOf(a + (b - a) * (k / 100000.0));
+    if (sampled.empty() || sampled.back() != c) sampled.push_back(c);
+  }
+  std::size_t next = 0;
+  for (const CellIndex& c : line.cells) {
+    if (next < sampled.size() && c == sampled[next]) ++next;
+  }
+  EXPECT_EQ(next, sampled.size());
+  EXPECT_EQ(line.cells.size(), sampled.size()) << "no cell the line does not cross";
+
+  for (std::size_t k = 0; k < line.cells.size(); ++k) {
+    EXPECT_EQ(line.costs[k], map.CostAt(map.grid().CentreOf(line.cells[k])));
+  }
+  // Exactly through cell corners: both cells beside each corner are taken.
+  const LineCost diagonal = map.CostAlongLine({0.1, 0.1}, {0.5, 0.5});
+  EXPECT_EQ(diagonal.cells.size(), 7u);  // (0,0) (1,0) (0,1) (1,1) (2,1) (1,2) (2,2)
+}
+
+TEST(TerrainMap, PatchAroundIsTheGridAroundThePoint) {
+  const BoxScene box;
+  TerrainMap map = NewMap();
+  for (const SimFrame& f : box.frames) Integrate(map, f);
+  const GridPatch patch = map.PatchAround({4.05, 0.05}, 1.0);
+  ASSERT_EQ(patch.cost.rows(), 11);
+  ASSERT_EQ(patch.cost.cols(), 11);
+  EXPECT_EQ(patch.min_index, CellIndex(15, -5));
+  EXPECT_NEAR(patch.origin.x(), 3.0, 1e-12);
+  int lethal = 0;
+  for (int j = 0; j < 11; ++j) {
+    for (int i = 0; i < 11; ++i) {
+      const CellIndex c = patch.min_index + CellIndex(i, j);
+      const Cell* cell = map.grid().Find(c);
+      ASSERT_NE(cell, nullptr);
+      EXPECT_EQ(patch.cost(i, j), cell->cost);
+      if (cell->has_elevation()) {
+        EXPECT_EQ(patch.elevation_m(i, j), cell->elevation_mean_m);
+      } else {
+        EXPECT_TRUE(std::isnan(patch.elevation_m(i, j)));
+      }
+      lethal += patch.cost(i, j) == kLethalCost;
+    }
+  }
+  EXPECT_GE(lethal, 30);
+  // Far outside the grid: unknown.
+  const GridPatch far = map.PatchAround({500.0, 500.0}, 0.2);
+  EXPECT_TRUE((far.cost.array() == kUnknownCost).all());
+}
+
+TEST(TerrainMap, RejectsAFrameThatDoesNotMatchItsDetection) {
+  const BoxScene box;
+  TerrainMap map = NewMap();
+  const SimFrame& f = box.frames.front();
+  od::Detection wrong_size = f.detection;
+  wrong_size.labels.pop_back();
+  Expected<FrameSummary> r =
+      map.Integrate(f.image, wrong_size, f.classification, f.T_world_sensor, 0.0, 7);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("frame 7"), std::string::npos) << r.error().message;
+  od::Classification missing = f.classification;
+  missing.verdicts.clear();
+  r = map.Integrate(f.image, f.detection, missing, f.T_world_sensor, 0.0, 7);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("verdicts"), std::string::npos) << r.error().message;
+  od::Detection bad_label = f.detection;
+  bad_label.labels[0] = static_cast<std::int32_t>(bad_label.segments.size()) + 1;
+  r = map.Integrate(f.image, bad_label, f.classification, f.T_world_sensor, 0.0, 7);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("label"), std::string::npos) << r.error().message;
+  Eigen::Isometry3d nan_pose = f.T_world_sensor;
+  nan_pose.translation().x() = std::nan("");
+  r = map.Integrate(f.image, f.detection, f.classification, nan_pose, 0.0, 7);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("pose"), std::string::npos) << r.error().message;
+  EXPECT_EQ(map.frames_integrated(), 0);
+  EXPECT_FALSE(map.ObservedBounds().has_value());
+  MapConfig bad;
+  bad.cell_size_m = -0.2;
+  const Expected<TerrainMap> invalid = TerrainMap::Create(bad);
+  ASSERT_FALSE(invalid.ok());
+  EXPECT_NE(invalid.error().message.find("'cell_size'"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace cairn::map

@@ -1,0 +1,155 @@
+// RefineTilt: a frame's ground points matched to known terrain recover the attitude error of
+// the prior, about the world axes, on sloped and undulating ground, with obstacles present.
+#include "cairn/map/tilt_refiner.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace cairn::map {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+/// Sloped (about 8.5 deg up along x) and undulating terrain, z up [m].
+double Terrain(double x, double y) {
+  return 0.15 * x + 0.3 * std::sin(0.5 * y) + 0.2 * std::cos(0.7 * x);
+}
+
+ElevationPatch TerrainPatch(double resolution_m = 0.2) {
+  ElevationPatch patch;
+  patch.resolution_m = resolution_m;
+  patch.origin_m = Eigen::Vector2d(-5.0, -20.0);
+  const int rows = static_cast<int>(40.0 / resolution_m), cols = static_cast<int>(40.0 / resolution_m);
+  patch.z.resize(rows, cols);
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < cols; ++c) {
+      patch.z(r, c) = Terrain(patch.origin_m.x() + (c + 0.5) * resolution_m,
+                              patch.origin_m.y() + (r + 0.5) * resolution_m);
+    }
+  }
+  return patch;
+}
+
+/// The true pose of a LiDAR-frame sensor (x forward, z up) 1.5 m above the terrain at the
+/// origin, yawed, pitched up the slope and rolled a little.
+Eigen::Isometry3d TruePose() {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(-8.0 * kDeg, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(3.0 * kDeg, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  T.translation() = Eigen::Vector3d(0.0, 0.0, Terrain(0.0, 0.0) + 1.5);
+  return T;
+}
+
+/// Ground points 3..20 m ahead, in the sensor frame of `T_world_sensor`; a fraction of them
+/// lifted 0.4..1.0 m (obstacles the detector missed, or map errors).
+std::vector<Eigen::Vector3f> GroundPoints(const Eigen::Isometry3d& T_world_sensor,
+                                          double outlier_fraction = 0.0) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> lift(0.4, 1.0), unit(0.0, 1.0);
+  std::vector<Eigen::Vector3f> points;
+  for (double x = 3.0; x <= 20.0; x += 0.25) {
+    for (double y = -8.0; y <= 8.0; y += 0.25) {
+      double z = Terrain(x, y);
+      if (unit(rng) < outlier_fraction) z += lift(rng);
+      points.push_back((T_world_sensor.inverse() * Eigen::Vector3d(x, y, z)).cast<float>());
+    }
+  }
+  return points;
+}
+
+/// The prior: the true attitude turned about the world axes through the sensor origin.
+Eigen::Isometry3d Perturbed(const Eigen::Isometry3d& T, double roll_rad, double pitch_rad,
+                            double dz_m) {
+  Eigen::Isometry3d P = T;
+  P.linear() = (Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix() *
+               T.linear();
+  P.translation().z() += dz_m;
+  return P;
+}
+
+/// The angle between the up vectors (gravity) the two attitudes give in the sensor frame: the
+/// tilt error. (Yaw is not observable from heights and is left out.)
+double TiltBetween(const Eigen::Matrix3d& R_world_a, const Eigen::Matrix3d& R_world_b) {
+  const Eigen::Vector3d up_a = R_world_a.transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d up_b = R_world_b.transpose() * Eigen::Vector3d::UnitZ();
+  return std::atan2(up_a.cross(up_b).norm(), up_a.dot(up_b));
+}
+
+TEST(TiltRefiner, RecoversTheAttitudeErrorOnSlopedUndulatingGround) {
+  const Eigen::Isometry3d truth = TruePose();
+  const Eigen::Isometry3d prior = Perturbed(truth, 1.5 * kDeg, -2.0 * kDeg, 0.10);
+  ASSERT_GT(TiltBetween(prior.linear(), truth.linear()), 2.4 * kDeg);  // the error to undo
+  Expected<TiltEstimate> estimate =
+      RefineTilt(GroundPoints(truth), prior, TerrainPatch(), TiltRefinerConfig{});
+  ASSERT_TRUE(estimate) << estimate.error().message;
+  ASSERT_TRUE(estimate->usable) << estimate->report;
+  EXPECT_LT(TiltBetween(estimate->T_world_sensor.linear(), truth.linear()), 0.05 * kDeg);
+  EXPECT_NEAR(estimate->T_world_sensor.translation().z(), truth.translation().z(), 0.01);
+  EXPECT_NEAR(estimate->roll_rad, -1.5 * kDeg, 0.1 * kDeg);
+  EXPECT_NEAR(estimate->pitch_rad, 2.0 * kDeg, 0.1 * kDeg);
+  EXPECT_GT(estimate->rms_before_m, 0.2);
+  EXPECT_LT(estimate->rms_after_m, 0.01);
+  // Yaw and the horizontal position are not touched.
+  EXPECT_DOUBLE_EQ(estimate->T_world_sensor.translation().x(), prior.translation().x());
+  EXPECT_DOUBLE_EQ(estimate->T_world_sensor.translation().y(), prior.translation().y());
+}
+
+TEST(TiltRefiner, ObstaclePointsAmongTheGroundDoNotPullTheEstimate) {
+  const Eigen::Isometry3d truth = TruePose();
+  const Eigen::Isometry3d prior = Perturbed(truth, -1.0 * kDeg, 1.5 * kDeg, 0.0);
+  Expected<TiltEstimate> estimate =
+      RefineTilt(GroundPoints(truth, 0.15), prior, TerrainPatch(), TiltRefinerConfig{});
+  ASSERT_TRUE(estimate);
+  ASSERT_TRUE(estimate->usable) << estimate->report;
+  EXPECT_LT(TiltBetween(estimate->T_world_sensor.linear(), truth.linear()), 0.1 * kDeg);
+}
+
+TEST(TiltRefiner, WithoutKnownTerrainThePriorIsKept) {
+  const Eigen::Isometry3d truth = TruePose();
+  const Eigen::Isometry3d prior = Perturbed(truth, 1.0 * kDeg, 1.0 * kDeg, 0.0);
+  ElevationPatch unknown = TerrainPatch();
+  unknown.z.setConstant(std::nan(""));
+  Expected<TiltEstimate> estimate =
+      RefineTilt(GroundPoints(truth), prior, unknown, TiltRefinerConfig{});
+  ASSERT_TRUE(estimate);
+  EXPECT_FALSE(estimate->usable);
+  EXPECT_EQ(estimate->points_used, 0);
+  EXPECT_TRUE(estimate->T_world_sensor.isApprox(prior));
+  EXPECT_NE(estimate->report.find("prior kept"), std::string::npos) << estimate->report;
+}
+
+TEST(TiltRefiner, HolesInTheTerrainAreNotInterpolatedThrough) {
+  // Known terrain only where x < 10: points beyond are not used, and the estimate from the
+  // rest is still right.
+  const Eigen::Isometry3d truth = TruePose();
+  const Eigen::Isometry3d prior = Perturbed(truth, 1.0 * kDeg, -1.0 * kDeg, 0.05);
+  ElevationPatch patch = TerrainPatch();
+  for (int c = 0; c < patch.z.cols(); ++c) {
+    if (patch.origin_m.x() + (c + 0.5) * patch.resolution_m >= 10.0) patch.z.col(c).setConstant(NAN);
+  }
+  const std::vector<Eigen::Vector3f> points = GroundPoints(truth);
+  Expected<TiltEstimate> estimate = RefineTilt(points, prior, patch, TiltRefinerConfig{});
+  ASSERT_TRUE(estimate);
+  ASSERT_TRUE(estimate->usable) << estimate->report;
+  EXPECT_LT(TiltBetween(estimate->T_world_sensor.linear(), truth.linear()), 0.05 * kDeg);
+  Expected<TiltEstimate> all = RefineTilt(points, prior, TerrainPatch(), TiltRefinerConfig{});
+  ASSERT_TRUE(all);
+  EXPECT_LT(estimate->points_used, all->points_used);
+}
+
+TEST(TiltRefiner, AnInvalidConfigNamesTheField) {
+  TiltRefinerConfig config;
+  config.huber_m = 0.0;
+  Expected<TiltEstimate> estimate = RefineTilt({}, Eigen::Isometry3d::Identity(), TerrainPatch(), config);
+  ASSERT_FALSE(estimate);
+  EXPECT_NE(estimate.error().message.find("huber_m"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace cairn::map
