@@ -36,6 +36,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/map/checkpoint.hpp"
 #include "cairn/map/map_config_file.hpp"
 #include "cairn/map/map_files.hpp"
 #include "cairn/map/terrain_map.hpp"
@@ -105,6 +106,10 @@ struct MapOptions {
   int max_frames = 0;
   int progress_every = 10;
   std::string truth;  ///< world YAML to score against
+  // Crash safety.
+  int checkpoint_every = 20;  ///< frames between checkpoints in DIR/map.checkpoint; 0: none
+  bool resume = false;        ///< continue from DIR/map.checkpoint
+  int interrupt_after = 0;    ///< tests: raise SIGINT after this many frames (0: never)
 };
 
 // ---------------------------------------------------------------------------------------
@@ -249,6 +254,8 @@ class FrameSource {
   virtual ~FrameSource() = default;
   /// The next frame, or nullopt at the end.
   virtual Expected<std::optional<InputFrame>> Next() = 0;
+  /// Passes over the next `n` frames without making their range images (a resumed run).
+  virtual Status Skip(int n) = 0;
   /// Frames the source will give (for the progress bar).
   virtual int total() const = 0;
   virtual json Describe() const = 0;
@@ -357,6 +364,15 @@ class RawlogFrames : public FrameSource {
     return std::optional<InputFrame>(std::move(out));
   }
 
+  Status Skip(int n) override {
+    for (int k = 0; k < n; ++k) {
+      Expected<std::optional<sources::Frame>> frame = source_->NextFrame();
+      if (!frame) return frame.error();
+      if (!*frame) return Error{path_ + ": holds fewer frames than the checkpoint fused"};
+    }
+    return {};
+  }
+
   int total() const override { return total_; }
   json Describe() const override {
     return {{"kind", "rawlog"},
@@ -432,6 +448,14 @@ class KittiFrames : public FrameSource {
     if (!image) return Error{out.name + ": " + image.error().message};
     out.image = std::move(*image);
     return std::optional<InputFrame>(std::move(out));
+  }
+
+  Status Skip(int n) override {
+    if (next_ + n > selected_.size()) {
+      return Error{sequence_.folder.string() + ": holds fewer scans than the checkpoint fused"};
+    }
+    next_ += n;
+    return {};
   }
 
   int total() const override { return static_cast<int>(selected_.size()); }
@@ -522,6 +546,14 @@ class DepthFolderFrames : public FrameSource {
     return std::optional<InputFrame>(std::move(out));
   }
 
+  Status Skip(int n) override {
+    if (next_ + n > files_.size()) {
+      return Error{dir_ + ": holds fewer images than the checkpoint fused"};
+    }
+    next_ += n;
+    return {};
+  }
+
   int total() const override { return static_cast<int>(files_.size()); }
   json Describe() const override {
     return {{"kind", "depth_frames"}, {"path", dir_}, {"frames", total()}, {"poses", poses_}};
@@ -541,13 +573,15 @@ class DepthFolderFrames : public FrameSource {
 
 class Progress {
  public:
-  Progress(int total, int every) : total_(std::max(total, 1)), every_(std::max(every, 1)) {
+  /// `first`: frames already done when the run starts (a resumed run), not in the rate.
+  Progress(int total, int every, int first = 0)
+      : total_(std::max(total, 1)), every_(std::max(every, 1)), first_(first) {
     tty_ = isatty(fileno(stderr)) != 0;
     start_ = Clock::now();
   }
   void Update(int done) {
     const double elapsed = SecondsSince(start_);
-    const double rate = elapsed > 0.0 ? done / elapsed : 0.0;
+    const double rate = elapsed > 0.0 ? (done - first_) / elapsed : 0.0;
     const double left = rate > 0.0 ? (total_ - done) / rate : 0.0;
     if (tty_) {
       constexpr int kWidth = 30;
@@ -571,7 +605,7 @@ class Progress {
     out << s / 60 << ":" << std::setw(2) << std::setfill('0') << s % 60;
     return out.str();
   }
-  int total_, every_;
+  int total_, every_, first_;
   bool tty_ = false;
   std::chrono::steady_clock::time_point start_;
 };
@@ -600,8 +634,129 @@ struct FrameRecord {
 
 struct StageTimes {
   double read_s = 0.0, detect_s = 0.0, refine_s = 0.0, fuse_s = 0.0, write_s = 0.0;
+  double checkpoint_s = 0.0;
   double total() const { return read_s + detect_s + refine_s + fuse_s + write_s; }
 };
+
+// --- resume state: what the run keeps beside the map, stored in its checkpoint ---
+
+/// Everything of the run besides the TerrainMap that a resumed run needs to end as the
+/// uninterrupted one would: the frames' records, the tilt correction carried from frame to
+/// frame, the stage times; and what identifies the run (its input and its settings file),
+/// so that a checkpoint is never resumed on other data or other settings.
+struct RunState {
+  json input;               ///< FrameSource::Describe()
+  std::string config_text;  ///< the --config file's bytes ("" for the defaults)
+  std::vector<FrameRecord> records;
+  double carry_roll = 0.0, carry_pitch = 0.0, carry_dz = 0.0;
+  int refined_frames = 0;
+  StageTimes times;
+};
+
+json IsometryJson(const Eigen::Isometry3d& T) {
+  json m = json::array();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) m.push_back(T.matrix()(r, c));
+  }
+  return m;
+}
+
+Eigen::Isometry3d IsometryFromJson(const json& m) {
+  if (!m.is_array() || m.size() != 12) throw std::runtime_error("a pose is not 12 numbers");
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) T.matrix()(r, c) = m.at(4 * r + c).get<double>();
+  }
+  return T;
+}
+
+// The fields of FrameRecord and FrameSummary that the outputs use, by name. json keeps
+// doubles exactly (shortest round-trip form), so a resumed run writes the same figures.
+#define CAIRN_RECORD_FIELDS(X)                                                              \
+  X(index) X(stamp_s) X(valid_points) X(segments) X(kept) X(tilt_from_imu) X(refined)       \
+  X(d_roll_rad) X(d_pitch_rad) X(dz_m) X(rms_before_m) X(rms_after_m) X(refine_points)      \
+  X(read_s) X(detect_s) X(refine_s) X(fuse_s)
+#define CAIRN_SUMMARY_FIELDS(X)                                                             \
+  X(frame_id) X(stamp_s) X(valid_points) X(points_in_range) X(obstacle_points)              \
+  X(ground_points) X(kept_segments) X(obstacles_created) X(obstacles_updated)               \
+  X(obstacles_merged) X(obstacles_retired) X(voxels_occupied) X(voxels_free) X(cells_hit)   \
+  X(cells_missed) X(lethal_cells) X(window_moved) X(classify_s) X(octree_s) X(grid_s)       \
+  X(obstacles_s)
+#define CAIRN_TIME_FIELDS(X) X(read_s) X(detect_s) X(refine_s) X(fuse_s) X(write_s) X(checkpoint_s)
+
+std::string ResumeStateJson(const RunState& state) {
+  json records = json::array();
+  for (const FrameRecord& r : state.records) {
+    json j, fused;
+#define CAIRN_PUT(f) j[#f] = r.f;
+    CAIRN_RECORD_FIELDS(CAIRN_PUT)
+#undef CAIRN_PUT
+#define CAIRN_PUT(f) fused[#f] = r.fused.f;
+    CAIRN_SUMMARY_FIELDS(CAIRN_PUT)
+#undef CAIRN_PUT
+    j["fused"] = fused;
+    j["T_world_body"] = IsometryJson(r.T_world_body);
+    j["T_world_sensor"] = IsometryJson(r.T_world_sensor);
+    records.push_back(std::move(j));
+  }
+  json times;
+#define CAIRN_PUT(f) times[#f] = state.times.f;
+  CAIRN_TIME_FIELDS(CAIRN_PUT)
+#undef CAIRN_PUT
+  const json j = {{"format", "cairn map resume state 1"},
+                  {"input", state.input},
+                  {"config_text", state.config_text},
+                  {"carry", {state.carry_roll, state.carry_pitch, state.carry_dz}},
+                  {"refined_frames", state.refined_frames},
+                  {"times", times},
+                  {"records", records}};
+  return j.dump();
+}
+
+Expected<RunState> ResumeStateFromJson(const std::string& text, const std::string& path) {
+  try {
+    const json j = json::parse(text);
+    if (j.at("format") != "cairn map resume state 1") {
+      return Error{path + ": not a cairn map checkpoint (its resume state is of another format)"};
+    }
+    RunState state;
+    state.input = j.at("input");
+    state.config_text = j.at("config_text").get<std::string>();
+    state.carry_roll = j.at("carry").at(0).get<double>();
+    state.carry_pitch = j.at("carry").at(1).get<double>();
+    state.carry_dz = j.at("carry").at(2).get<double>();
+    state.refined_frames = j.at("refined_frames").get<int>();
+    const json& times = j.at("times");
+#define CAIRN_GET(f) times.at(#f).get_to(state.times.f);
+    CAIRN_TIME_FIELDS(CAIRN_GET)
+#undef CAIRN_GET
+    for (const json& rj : j.at("records")) {
+      FrameRecord r;
+#define CAIRN_GET(f) rj.at(#f).get_to(r.f);
+      CAIRN_RECORD_FIELDS(CAIRN_GET)
+#undef CAIRN_GET
+      const json& fused = rj.at("fused");
+#define CAIRN_GET(f) fused.at(#f).get_to(r.fused.f);
+      CAIRN_SUMMARY_FIELDS(CAIRN_GET)
+#undef CAIRN_GET
+      r.T_world_body = IsometryFromJson(rj.at("T_world_body"));
+      r.T_world_sensor = IsometryFromJson(rj.at("T_world_sensor"));
+      state.records.push_back(r);
+    }
+    return state;
+  } catch (const std::exception& e) {
+    return Error{path + ": the run's resume state is unreadable (" + e.what() + ")"};
+  }
+}
+#undef CAIRN_RECORD_FIELDS
+#undef CAIRN_SUMMARY_FIELDS
+#undef CAIRN_TIME_FIELDS
+
+Expected<std::string> ReadWholeFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Error{path + ": cannot read"};
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
 
 /// p' = c + R (p - c) + dz e_z about the sensor origin c, applied on the left of a pose.
 Eigen::Isometry3d Correct(const Eigen::Isometry3d& T_world_sensor, double roll, double pitch,
@@ -957,23 +1112,80 @@ int RunMap(const MapOptions& options) {
   fs::create_directories(cleanup.staging, ec);
   if (ec) return Fail(cleanup.staging.string() + ": cannot create: " + ec.message());
 
+  // Checkpoints: the map and the run's state, every --checkpoint-every frames and when
+  // interrupted, in DIR/map.checkpoint (atomically); removed once the map files are written.
+  Expected<std::string> config_text =
+      options.config.empty() ? Expected<std::string>(std::string()) : ReadWholeFile(options.config);
+  if (!config_text) return Fail(config_text.error().message);
+  const fs::path checkpoint = fs::path(options.out) / map::kCheckpointFileName;
+  std::vector<FrameRecord> records;
+  // The last usable tilt correction carries to the next frame's prior: IMU biases and the
+  // height integrated from them persist from frame to frame.
+  double carry_roll = 0.0, carry_pitch = 0.0, carry_dz = 0.0;
+  int refined_frames = 0;
+  if (options.resume) {
+    if (!fs::exists(checkpoint)) {
+      return Fail(checkpoint.string() +
+                  ": no checkpoint to resume from (--resume continues a run interrupted with "
+                  "the same --out)");
+    }
+    std::string user_data;
+    Expected<map::TerrainMap> loaded = map::LoadCheckpoint(checkpoint, settings->map, &user_data);
+    if (!loaded) return Fail(loaded.error().message + " (--resume)");
+    Expected<RunState> state = ResumeStateFromJson(user_data, checkpoint.string());
+    if (!state) return Fail(state.error().message);
+    if (state->input != source->Describe()) {
+      return Fail(checkpoint.string() + ": made from another input (" + state->input.dump() +
+                  "), not " + source->Describe().dump() + " (--resume needs the same input)");
+    }
+    if (state->config_text != *config_text) {
+      return Fail(checkpoint.string() + ": made with other settings than " +
+                  (options.config.empty() ? std::string("the defaults") : options.config) +
+                  " (--resume needs the same --config)");
+    }
+    const Clock::time_point skip_start = Clock::now();
+    if (Status s = source->Skip(static_cast<int>(state->records.size())); !s) {
+      return Fail(s.message());
+    }
+    const double open_s = times.read_s + SecondsSince(skip_start);
+    terrain = std::move(*loaded);
+    records = std::move(state->records);
+    carry_roll = state->carry_roll;
+    carry_pitch = state->carry_pitch;
+    carry_dz = state->carry_dz;
+    refined_frames = state->refined_frames;
+    times = state->times;
+    times.read_s += open_s;
+    std::cerr << "cairn map: resuming from " << checkpoint.string() << " after "
+              << records.size() << " frames\n";
+  }
+  auto save_checkpoint = [&]() -> Status {
+    const Clock::time_point t0 = Clock::now();
+    const RunState state{source->Describe(), *config_text, records,        carry_roll,
+                         carry_pitch,        carry_dz,     refined_frames, times};
+    Status saved = map::SaveCheckpoint(terrain, checkpoint, ResumeStateJson(state));
+    times.checkpoint_s += SecondsSince(t0);
+    return saved;
+  };
+
   g_interrupted = 0;
   std::signal(SIGINT, OnInterrupt);
   std::signal(SIGTERM, OnInterrupt);
 
   const int total =
       options.max_frames > 0 ? std::min(options.max_frames, source->total()) : source->total();
-  Progress progress(total, options.progress_every);
-  std::vector<FrameRecord> records;
-  // The last usable tilt correction carries to the next frame's prior: IMU biases and the
-  // height integrated from them persist from frame to frame.
-  double carry_roll = 0.0, carry_pitch = 0.0, carry_dz = 0.0;
-  int refined_frames = 0;
+  Progress progress(total, options.progress_every, static_cast<int>(records.size()));
   while (options.max_frames <= 0 || static_cast<int>(records.size()) < options.max_frames) {
     if (g_interrupted) {
       progress.Finish();
-      std::cerr << "cairn map: interrupted after " << records.size()
-                << " frames; nothing written\n";
+      if (records.empty()) {
+        std::cerr << "cairn map: interrupted before the first frame was fused; nothing written\n";
+        return 130;
+      }
+      if (Status s = save_checkpoint(); !s) return Fail("interrupted, and " + s.message());
+      std::cerr << "cairn map: interrupted after " << records.size() << " frames; the map so far "
+                << "is in " << checkpoint.string()
+                << ": run the same command with --resume to continue\n";
       return 130;
     }
     FrameRecord r;
@@ -1052,6 +1264,11 @@ int RunMap(const MapOptions& options) {
     times.fuse_s += r.fuse_s;
     records.push_back(r);
     progress.Update(static_cast<int>(records.size()));
+    const int done = static_cast<int>(records.size());
+    if (options.checkpoint_every > 0 && done % options.checkpoint_every == 0 && done < total) {
+      if (Status s = save_checkpoint(); !s) return Fail(s.message());
+    }
+    if (options.interrupt_after > 0 && done == options.interrupt_after) std::raise(SIGINT);
   }
   progress.Finish();
   if (records.empty()) return Fail("no frames to fuse");
@@ -1169,7 +1386,8 @@ int RunMap(const MapOptions& options) {
   }
   summary["time_s"] = {{"read", times.read_s},     {"detect", times.detect_s},
                        {"refine", times.refine_s}, {"fuse", times.fuse_s},
-                       {"write", times.write_s},   {"total", wall_s}};
+                       {"write", times.write_s},   {"checkpoint", times.checkpoint_s},
+                       {"total", wall_s}};
   summary["frames_per_s"] = wall_s > 0 ? n / wall_s : 0.0;
   if (truth) {
     json objects = json::array();
@@ -1249,6 +1467,7 @@ int RunMap(const MapOptions& options) {
     if (ec) return Fail((fs::path(options.out) / p.filename()).string() + ": " + ec.message());
   }
   fs::remove(staging, ec);
+  fs::remove(checkpoint, ec);  // the map files hold it all now
   cleanup.armed = false;
   std::cout << text.str() << "  files in " << options.out << ":";
   for (const fs::path& p : written) std::cout << " " << p.filename().string();
@@ -1309,6 +1528,16 @@ Subcommand AddMapCommand(CLI::App& parent) {
   app->add_option("--max-frames", options->max_frames, "stop after N frames")
       ->check(CLI::PositiveNumber)
       ->type_name("N");
+  app->add_option("--checkpoint-every", options->checkpoint_every,
+                  "save the map and the run's state to DIR/map.checkpoint every N frames (and "
+                  "when interrupted), for --resume; 0: only when interrupted")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app->add_flag("--resume", options->resume,
+                "continue an interrupted run from DIR/map.checkpoint (same input, same --config)");
+  app->add_option("--interrupt-after", options->interrupt_after,
+                  "testing: interrupt the run (SIGINT) after N frames")
+      ->group("");  // hidden
   app->add_option("--progress-every", options->progress_every,
                   "when stderr is not a terminal: a progress line every N frames")
       ->check(CLI::PositiveNumber)
@@ -1322,7 +1551,8 @@ Subcommand AddMapCommand(CLI::App& parent) {
       "Writes into DIR: map.bt, map.ot, obstacles.ot (OctoMap), cost.yaml + cost.pgm "
       "(map_server), cost.png, overlay.png, elevation.tiff + elevation.yaml, obstacles.json, "
       "poses.tum, frames.csv, summary.json, summary.txt. Exit 1 on bad input (nothing "
-      "written), 130 when interrupted (nothing written).");
+      "written), 130 when interrupted (the map so far kept in DIR/map.checkpoint: run again "
+      "with --resume).");
   return {app, [options] { return RunMap(*options); }};
 }
 

@@ -349,5 +349,68 @@ TEST_F(MapCli, BadInputFailsNamingTheFileOrFieldAndWritesNothing) {
   expect_failure("--frames '" + dir().string() + "'", "--poses");
 }
 
+TEST_F(MapCli, AnInterruptedRunResumesFromItsCheckpointToTheSameMap) {
+  const std::string common = "map --rawlog '" + rawlog().string() + "' --config '" +
+                             (fs::path(CAIRN_SOURCE_DIR) / "config" / "default.yaml").string() +
+                             "' --refine-tilt --out '";
+  const fs::path whole = dir() / "whole", parts = dir() / "parts";
+  const CommandRun once = Cairn(common + whole.string() + "'", dir());
+  ASSERT_EQ(once.status, 0) << once.err;
+  EXPECT_FALSE(fs::exists(whole / "map.checkpoint"));  // removed once the map is written
+
+  // Interrupted (SIGINT through the handler) after 6 of 11 frames, checkpoints every 4.
+  const CommandRun cut =
+      Cairn(common + parts.string() + "' --checkpoint-every 4 --interrupt-after 6", dir());
+  EXPECT_EQ(cut.status, 130) << cut.err;
+  EXPECT_NE(cut.err.find("--resume"), std::string::npos) << cut.err;
+  std::vector<std::string> left;
+  for (const fs::directory_entry& e : fs::directory_iterator(parts)) {
+    left.push_back(e.path().filename().string());
+  }
+  EXPECT_EQ(left, std::vector<std::string>{"map.checkpoint"});  // and no half-written map
+
+  // Resumed with other settings, or on another input: refused, naming the checkpoint.
+  const fs::path other_config = dir() / "other.yaml";
+  std::ofstream(other_config) << "map:\n  cell_size: 0.25\n";
+  const CommandRun wrong_config = Cairn("map --rawlog '" + rawlog().string() + "' --config '" +
+                                            other_config.string() + "' --out '" +
+                                            parts.string() + "' --resume",
+                                        dir());
+  EXPECT_EQ(wrong_config.status, 1);
+  EXPECT_NE(wrong_config.err.find("map.checkpoint"), std::string::npos) << wrong_config.err;
+  const CommandRun no_checkpoint = Cairn(common + (dir() / "none").string() + "' --resume", dir());
+  EXPECT_EQ(no_checkpoint.status, 1);
+  EXPECT_NE(no_checkpoint.err.find("no checkpoint"), std::string::npos) << no_checkpoint.err;
+
+  const CommandRun resumed = Cairn(common + parts.string() + "' --resume", dir());
+  ASSERT_EQ(resumed.status, 0) << resumed.err;
+  EXPECT_NE(resumed.err.find("after 6 frames"), std::string::npos) << resumed.err;
+  EXPECT_FALSE(fs::exists(parts / "map.checkpoint"));
+  // The same map, byte for byte, as the run that was never interrupted.
+  for (const char* name : {"map.bt", "map.ot", "obstacles.ot", "cost.pgm", "cost.yaml",
+                           "elevation.tiff", "obstacles.json", "poses.tum"}) {
+    EXPECT_TRUE(ReadFile(whole / name) == ReadFile(parts / name)) << name << " differs";
+  }
+  const json a = json::parse(ReadFile(whole / "summary.json"));
+  const json b = json::parse(ReadFile(parts / "summary.json"));
+  EXPECT_EQ(b.at("frames"), 11);
+  EXPECT_EQ(a.at("obstacles"), b.at("obstacles"));
+  EXPECT_EQ(a.at("tilt").at("refined_frames"), b.at("tilt").at("refined_frames"));
+  EXPECT_EQ(a.at("distance_driven_m"), b.at("distance_driven_m"));
+}
+
+TEST_F(MapCli, ACorruptCheckpointIsRefusedNamingIt) {
+  const fs::path out = dir() / "corrupt";
+  fs::create_directories(out);
+  std::ofstream(out / "map.checkpoint", std::ios::binary) << "CAIRNMCK not really";
+  const CommandRun run = Cairn("map --rawlog '" + rawlog().string() + "' --out '" +
+                                   out.string() + "' --resume",
+                               dir());
+  EXPECT_EQ(run.status, 1);
+  EXPECT_NE(run.err.find((out / "map.checkpoint").string()), std::string::npos) << run.err;
+  EXPECT_TRUE(fs::exists(out / "map.checkpoint"));  // left as it was
+  EXPECT_FALSE(fs::exists(out / "map.bt"));
+}
+
 }  // namespace
 }  // namespace cairn

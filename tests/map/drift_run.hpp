@@ -44,6 +44,13 @@ struct DriftRunSpec {
   int camera_width = 160;  ///< 160 x 120 range camera
 };
 
+/// Odometry that drifts by `fraction` of the distance (sigma of the scale error) and, in
+/// proportion, 0.5 deg of heading per 10 m at 1 %.
+inline void SetOdometryDrift(DriftRunSpec& spec, double fraction) {
+  spec.odom_sigma_per_m = fraction;
+  spec.odom_yaw_sigma_rad_per_m = fraction * 0.5 * kDriftDeg / 0.1;
+}
+
 /// One seen obstacle (30 pixels or more in some frame) against the map.
 struct ObstacleScore {
   std::string name;

@@ -27,8 +27,7 @@ DriftRunSpec PolesAndRocks(double drift) {
   DriftRunSpec spec;
   spec.world = "poles_and_rocks";
   spec.waypoints = {{0.0, 0.0}, {16.0, 0.0}};
-  spec.odom_sigma_per_m = drift;
-  spec.odom_yaw_sigma_rad_per_m = drift * 0.5 * kDriftDeg / 0.1;  // 1 %: 0.5 deg / 10 m
+  SetOdometryDrift(spec, drift);
   return spec;
 }
 

@@ -60,8 +60,7 @@ std::vector<Condition> Conditions(bool sloped) {
   out.push_back(truth);
   for (const double drift : {0.0, 0.01, 0.03}) {
     Condition c{"odometry " + Fmt("%.0f", drift * 100.0) + "%", {}, drift > 0.0 ? 3 : 1};
-    c.spec.odom_sigma_per_m = drift;
-    c.spec.odom_yaw_sigma_rad_per_m = drift * 0.5 * kDriftDeg / 0.1;
+    SetOdometryDrift(c.spec, drift);
     out.push_back(c);
   }
   if (sloped) {
@@ -73,13 +72,11 @@ std::vector<Condition> Conditions(bool sloped) {
     refined.spec.refine_tilt = true;
     out.push_back(refined);
     Condition drift_bias{"odometry 1% + IMU bias 2 deg", {}, 3};
-    drift_bias.spec.odom_sigma_per_m = 0.01;
-    drift_bias.spec.odom_yaw_sigma_rad_per_m = 0.5 * kDriftDeg / 0.1;
+    SetOdometryDrift(drift_bias.spec, 0.01);
     drift_bias.spec.imu_bias_rad = 2.0 * kDriftDeg;
     out.push_back(drift_bias);
     Condition both{"odometry 1% + IMU bias 2 deg + tilt refiner", {}, 3};
-    both.spec.odom_sigma_per_m = 0.01;
-    both.spec.odom_yaw_sigma_rad_per_m = 0.5 * kDriftDeg / 0.1;
+    SetOdometryDrift(both.spec, 0.01);
     both.spec.imu_bias_rad = 2.0 * kDriftDeg;
     both.spec.refine_tilt = true;
     out.push_back(both);
