@@ -296,9 +296,8 @@ class Evaluation {
        << "frames with the same settings.\n\n"
        << ev::SettingsMarkdown(settings_, options_.config) << "\n";
     if (RulesDisabled(settings_.rules)) {
-      md << "**Every rule is disabled** (the built-in defaults; pass `--config "
-            "config/default.yaml` for the documented rules): the methods \"+ rules\" equal "
-            "their \"no rules\" twins here.\n\n";
+      md << "**Every rule is disabled** (the config sets every threshold to 0): the methods "
+            "\"+ rules\" equal their \"no rules\" twins here.\n\n";
     }
     md << "## Claims\n\n";
     if (specific == 0) {
@@ -644,8 +643,8 @@ int RunEval(const EvalOptions& o) {
   }
 
   if (RulesDisabled(settings.rules)) {
-    std::cerr << "cairn eval: warning: every rule is disabled (no --config, or a config that "
-                 "sets them all to 0): \"+ rules\" methods equal their \"no rules\" twins\n";
+    std::cerr << "cairn eval: warning: every rule is disabled (the config sets them all to "
+                 "0): \"+ rules\" methods equal their \"no rules\" twins\n";
   }
   Evaluation evaluation(o, settings, methods, sweep);
   if (Status s = evaluation.Validate(); !s) {

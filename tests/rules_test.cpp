@@ -107,7 +107,7 @@ std::vector<RuleCase> Cases() {
 
 TEST(Rules, EachRuleRejectsWithAReasonNamingItsMeasure) {
   for (const RuleCase& rc : Cases()) {
-    RuleConfig rules;
+    RuleConfig rules = RuleConfig::None();
     rc.set_threshold(rules);
     ASSERT_TRUE(rules.Validate().ok()) << rc.name;
     SegmentFeatures failing = Big(0);
@@ -129,7 +129,7 @@ TEST(Rules, EachRuleRejectsWithAReasonNamingItsMeasure) {
 }
 
 TEST(Rules, ReasonGivesTheValueAndTheThreshold) {
-  RuleConfig rules;
+  RuleConfig rules = RuleConfig::None();
   rules.min_volume_m3 = 0.01;
   SegmentFeatures small = Big(0);
   small.bbox_volume_m3 = 0.004;
@@ -140,7 +140,7 @@ TEST(Rules, ReasonGivesTheValueAndTheThreshold) {
 }
 
 TEST(Rules, ReasonNamesEveryRuleFailed) {
-  RuleConfig rules;
+  RuleConfig rules = RuleConfig::None();
   rules.min_volume_m3 = 0.01;
   rules.min_perimeter_m = 1.5;
   rules.min_points = 20;
@@ -157,7 +157,7 @@ TEST(Rules, ReasonNamesEveryRuleFailed) {
 TEST(Rules, ValueEqualToTheThresholdPasses) {
   // Thresholds are least values: a measure equal to one passes.
   for (const RuleCase& rc : Cases()) {
-    RuleConfig rules;
+    RuleConfig rules = RuleConfig::None();
     rc.set_threshold(rules);
     SegmentFeatures f = Big(0);
     f.point_count = rules.min_points > 0 ? rules.min_points : f.point_count;
@@ -178,7 +178,7 @@ TEST(Rules, ZeroThresholdsKeepEverySegment) {
   SegmentFeatures tiny;
   tiny.point_count = 1;
   const Detection d = TwoSegments(tiny, Big(0));
-  const Classification c = MustClassify(d, RuleConfig());
+  const Classification c = MustClassify(d, RuleConfig::None());
   ASSERT_EQ(c.verdicts.size(), 2u);
   for (const SegmentVerdict& v : c.verdicts) {
     EXPECT_EQ(v.cls, SegmentClass::kKept);
@@ -201,7 +201,7 @@ TEST(Rules, EmptyDetectionHasNoVerdicts) {
   d.width = 2;
   d.height = 2;
   d.labels.assign(4, 0);
-  RuleConfig rules;
+  RuleConfig rules = RuleConfig::None();
   rules.min_points = 10;
   const Classification c = MustClassify(d, rules);
   EXPECT_TRUE(c.verdicts.empty());
@@ -210,7 +210,7 @@ TEST(Rules, EmptyDetectionHasNoVerdicts) {
 }
 
 TEST(Rules, ClassImageFollowsTheLabels) {
-  RuleConfig rules;
+  RuleConfig rules = RuleConfig::None();
   rules.min_points = 100;
   SegmentFeatures small = Big(0);
   small.point_count = 2;
@@ -232,6 +232,7 @@ TEST(Rules, ClassImageFollowsTheLabels) {
 
 TEST(RuleConfig, ValidationNamesTheBadThreshold) {
   EXPECT_TRUE(RuleConfig().Validate().ok());
+  EXPECT_TRUE(RuleConfig::None().Validate().ok());
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::vector<std::pair<std::string, std::function<void(RuleConfig&)>>> bad = {
       {"min_points", [](RuleConfig& r) { r.min_points = -1; }},
@@ -244,7 +245,7 @@ TEST(RuleConfig, ValidationNamesTheBadThreshold) {
       {"min_pairs", [](RuleConfig& r) { r.min_pairs = -5; }},
   };
   for (const auto& [field, spoil] : bad) {
-    RuleConfig rules;
+    RuleConfig rules = RuleConfig::None();
     spoil(rules);
     const Status s = rules.Validate();
     ASSERT_FALSE(s.ok()) << field;

@@ -166,5 +166,27 @@ TEST(DetectSettings, DefaultPresetParses) {
   EXPECT_DOUBLE_EQ(s->rules.min_height_max_m, 0.3);
 }
 
+TEST(DetectSettings, DefaultPresetStatesTheBuiltInDefaults) {
+  // config/default.yaml documents the defaults: loading it changes nothing, so a run without
+  // --config behaves as one with it.
+  Expected<DetectSettings> s =
+      LoadDetectSettings(std::filesystem::path(CAIRN_SOURCE_DIR) / "config" / "default.yaml");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  const RuleConfig r;
+  EXPECT_EQ(s->rules.min_points, r.min_points);
+  EXPECT_EQ(s->rules.min_volume_m3, r.min_volume_m3);
+  EXPECT_EQ(s->rules.min_perimeter_m, r.min_perimeter_m);
+  EXPECT_EQ(s->rules.min_slope_mean_rad, r.min_slope_mean_rad);
+  EXPECT_EQ(s->rules.min_slope_max_rad, r.min_slope_max_rad);
+  EXPECT_EQ(s->rules.min_height_mean_m, r.min_height_mean_m);
+  EXPECT_EQ(s->rules.min_height_max_m, r.min_height_max_m);
+  EXPECT_EQ(s->rules.min_pairs, r.min_pairs);
+  const DetectorConfig d;
+  EXPECT_EQ(s->detector.min_height_m, d.min_height_m);
+  EXPECT_EQ(s->detector.max_height_m, d.max_height_m);
+  EXPECT_NEAR(s->detector.min_slope_rad, d.min_slope_rad, 1e-15);
+  EXPECT_EQ(s->detector.search, d.search);
+}
+
 }  // namespace
 }  // namespace cairn::od::io

@@ -4,9 +4,13 @@
 // Why: the detector measures heights along the up vector. On a slope, 2-D odometry gives no
 // attitude and an IMU drifts or is biased; a tilt error of delta makes ground at range d
 // appear d * delta too high or too low, and at 10 m one degree is 17 cm -- half an obstacle.
-// The fused elevation of earlier frames is gravity-aligned (it was built from refined poses),
-// so matching the new frame's ground to it observes the tilt. Yaw and the horizontal
-// position are not observable from heights and stay as the prior gives them.
+// Matching the new frame's ground to the elevation fused from earlier frames observes its
+// tilt and height *relative to the map*: frames stay consistent with one another, and the
+// map is gravity-aligned as far as its first frames were (a bias present from the start is
+// a rotation of the whole map that heights cannot reveal; a level or static start, or an
+// IMU without bias, anchors it). Yaw and the horizontal position are not observable from
+// heights and stay as the prior gives them; on a slope a large yaw error is absorbed as a
+// false tilt. The prior bounds each frame's correction, not the sum carried across frames.
 //
 // The correction is a rotation about the world x and y axes through the sensor's origin and
 // a vertical offset:  p' = c + Ry(pitch) Rx(roll) (p - c) + dz e_z,  p = T_world_sensor_prior q,

@@ -13,15 +13,26 @@
 
 namespace cairn::od {
 
+/// The defaults are those of config/default.yaml (`rules:`): they reject the specks of
+/// range noise and the obstacles lower than the detector's HT. None() disables every rule.
 struct RuleConfig {
-  int min_points = 0;                 ///< least point_count
-  double min_volume_m3 = 0.0;         ///< least bbox_volume_m3 [m^3]
+  int min_points = 10;                ///< least point_count
+  double min_volume_m3 = 0.005;       ///< least bbox_volume_m3 [m^3]
   double min_perimeter_m = 0.0;       ///< least bbox_perimeter_m [m]
   double min_slope_mean_rad = 0.0;    ///< least slope_mean_rad [rad]
   double min_slope_max_rad = 0.0;     ///< least slope_max_rad [rad]
   double min_height_mean_m = 0.0;     ///< least height_mean_m [m]
-  double min_height_max_m = 0.0;      ///< least height_max_m [m]
+  double min_height_max_m = 0.3;      ///< least height_max_m [m]
   std::int64_t min_pairs = 0;         ///< least pair_count
+
+  /// Every threshold 0: every segment is kept.
+  static RuleConfig None() {
+    RuleConfig r;
+    r.min_points = 0;
+    r.min_volume_m3 = 0.0;
+    r.min_height_max_m = 0.0;
+    return r;
+  }
 
   /// Names the first negative or non-finite threshold.
   Status Validate() const;
