@@ -227,6 +227,9 @@ Expected<FrameResult> RawlogRun::DetectFrame(const sources::Frame& frame,
     }
     r["stereo_ms"] = prepared->stereo_ms;
     r["stereo_holes"] = prepared->stereo->hole_fraction();
+    // Large: the scene is nearer than the search range allows (StereoDisparity).
+    r["stereo_range_end_fraction"] = prepared->stereo->disparity.range_end_fraction;
+    r["stereo_range_too_short"] = prepared->stereo->disparity.range_too_short();
     r["baseline_m"] = frame.stereo()->baseline_m;
     r["rectified_here"] = frame.stereo()->rectified_here;
   }

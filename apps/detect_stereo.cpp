@@ -142,6 +142,18 @@ int RunDetectStereo(const DetectOptions& options) {
     }
   }
   const double total_ms = MillisecondsSince(start);
+  if (stereo->disparity.range_too_short()) {
+    std::cerr << "cairn detect: warning: " << std::fixed << std::setprecision(0)
+              << 100.0 * stereo->disparity.range_end_fraction
+              << "% of the matched pixels lie at the end of the disparity search (0.."
+              << stereo->disparity.num_disparities - 1 << " px, depth from "
+              << std::setprecision(2)
+              << pair->calibration.fx_baseline() / stereo->disparity.num_disparities
+              << " m): the scene is likely nearer than the range allows, and those depths "
+                 "wrong; lower stereo.min_depth (or raise stereo.num_disparities) in "
+              << (options.config.empty() ? std::string("a --config file") : options.config)
+              << "\n";
+  }
 
   const std::size_t n = stereo->depth_m.data.size();
   const io::StereoHoleCounts& holes = stereo->disparity.holes;
@@ -161,6 +173,8 @@ int RunDetectStereo(const DetectOptions& options) {
             << std::setprecision(1) << "  holes: " << holes.total() << " ("
             << Percent(holes.total(), n) << "%): " << holes.no_match << " no match, "
             << holes.low_texture << " low texture, " << holes.out_of_range << " out of range\n"
+            << "  at the end of the search range: " << std::setprecision(1)
+            << 100.0 * stereo->disparity.range_end_fraction << "% of the matched pixels\n"
             << "  up: "
             << (up_given ? "from the calibration" : "not in the calibration, camera assumed level")
             << "\n"

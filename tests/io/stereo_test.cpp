@@ -468,6 +468,7 @@ TEST(StereoDepth, ARenderedPairMatchesItsTrueDepthWithinTheExpectedError) {
   // 3 sigma, 0.4..0.6% holes on textured surfaces right of the search band.
   EXPECT_LE(sigma_d_measured, config.disparity_sigma_px);
   EXPECT_GE(fraction_3_sigma, 0.95);
+  EXPECT_FALSE(stereo->disparity.range_too_short()) << stereo->disparity.range_end_fraction;
   // Holes where there is texture stay few (occlusions at depth edges).
   EXPECT_LE(textured_hole_fraction, 0.02);
 
@@ -679,6 +680,7 @@ TEST(Middlebury, AloeBadPixelRatesAgainstTheTrueDisparity) {
   StereoConfig config;  // the defaults, with the search range the truth needs
   Expected<StereoDisparity> d = ComputeDisparity(*left, *right, config, 224);
   ASSERT_TRUE(d.ok()) << d.error().message;
+  EXPECT_FALSE(d->range_too_short()) << d->range_end_fraction;  // 224 px covers the scene
   long known = 0, matched = 0, bad1 = 0, bad2 = 0, bad4 = 0;
   for (std::size_t i = 0; i < truth->data.size(); ++i) {
     const int t = truth->data[i];
@@ -719,10 +721,16 @@ TEST(FoundationStereoDesk, RunsEndToEndWithItsKTxt) {
   ASSERT_TRUE(pair.ok()) << pair.error().message;
   EXPECT_EQ(pair->calibration.model.width, 960);
   EXPECT_EQ(pair->calibration.model.height, 540);
+  // With the default range (depth from 1 m) the desk, about 0.5 m away, is too near: the
+  // matches pile up at the end of the range (measured: 42% of them), and that is said.
+  Expected<StereoDepth> too_short = ComputeStereoDepth(*pair, StereoConfig());
+  ASSERT_TRUE(too_short.ok()) << too_short.error().message;
+  EXPECT_TRUE(too_short->disparity.range_too_short()) << too_short->disparity.range_end_fraction;
   StereoConfig config;
   config.min_depth_m = 0.35;  // the nearest desk edge is about 0.37 m away
   Expected<StereoDepth> stereo = ComputeStereoDepth(*pair, config);
   ASSERT_TRUE(stereo.ok()) << stereo.error().message;
+  EXPECT_FALSE(stereo->disparity.range_too_short()) << stereo->disparity.range_end_fraction;
   std::vector<float> z;
   for (float v : stereo->depth_m.data) {
     if (v > 0.0f) z.push_back(v);
@@ -849,6 +857,16 @@ TEST(DetectStereoCli, TheDeskPairGivesDepthAndObstacles) {
         "segments.png", "classes.png", "segments.json", "overlay.png", "segments_color.png"}) {
     EXPECT_TRUE(std::filesystem::exists(dir / "out" / name)) << name;
   }
+  EXPECT_FALSE(Contains(run.output, "warning")) << run.output;
+
+  // With the built-in range (depth from 1 m) the desk is too near, and the run says so.
+  const RunResult too_short =
+      RunCairn("detect --left '" + (data / "left.png").string() + "' --right '" +
+               (data / "right.png").string() + "' --stereo-calib '" + (data / "K.txt").string() +
+               "' --out '" + (dir / "out2").string() + "' --method column");
+  ASSERT_EQ(too_short.exit_code, 0) << too_short.output;
+  EXPECT_TRUE(Contains(too_short.output, "warning: ")) << too_short.output;
+  EXPECT_TRUE(Contains(too_short.output, "lower stereo.min_depth")) << too_short.output;
 }
 
 TEST(DetectStereoCli, AMissingCalibrationFieldIsAClearError) {

@@ -483,6 +483,7 @@ TEST(DetectRawlogCommand, StereoPairsAreMatchedThenDetected) {
   EXPECT_EQ(frame["kind"], "stereo");
   EXPECT_EQ(frame["baseline_m"], 0.12);
   EXPECT_EQ(frame["rectified_here"], false);
+  EXPECT_EQ(frame["stereo_range_too_short"], false);  // 4 px, well inside the range
   Expected<od::io::Grid<float>> depth = od::io::ReadDepthTiff(
       dir / "out" / "000000_BUMBLEBEE" / "depth.tiff", kWidth, kHeight, 1.0);
   ASSERT_TRUE(depth.ok()) << depth.error().message;

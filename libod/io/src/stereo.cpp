@@ -757,6 +757,15 @@ Expected<StereoDisparity> ComputeDisparity(const GreyImage& left, const GreyImag
       out.hole.at(r, c) = static_cast<std::uint8_t>(reason);
     }
   }
+  const float range_end = 0.875f * static_cast<float>(num_disparities);
+  std::size_t matched = 0, at_end = 0;
+  for (std::size_t i = 0; i < out.disparity_px.data.size(); ++i) {
+    const float d = out.disparity_px.data[i];
+    if (out.hole.data[i] != static_cast<std::uint8_t>(StereoHole::kNone)) continue;
+    ++matched;
+    at_end += d >= range_end ? 1 : 0;
+  }
+  out.range_end_fraction = matched > 0 ? static_cast<double>(at_end) / matched : 0.0;
   return out;
 }
 

@@ -187,6 +187,14 @@ struct StereoDisparity {
   Grid<std::uint8_t> hole;  ///< StereoHole per pixel
   StereoHoleCounts holes;
   int num_disparities = 0;  ///< search range used [px]
+  /// Share of the matched pixels whose disparity lies in the last eighth of the search
+  /// range. Surfaces nearer than the range allows pile up there (the matcher's cost keeps
+  /// falling towards the true disparity beyond the range): a large share says the range is
+  /// too short for the scene (lower min_depth), not that the scene is that near.
+  double range_end_fraction = 0.0;
+  /// range_end_fraction above which the range is likely too short for the scene.
+  static constexpr double kRangeEndWarning = 0.15;
+  bool range_too_short() const { return range_end_fraction > kRangeEndWarning; }
 };
 
 /// Semi-global matching of a rectified pair (same size, grey), searching disparities
