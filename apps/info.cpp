@@ -1,5 +1,6 @@
 // cairn info FILE: what a recording holds. MRPT rawlogs (either format): objects per class,
 // the sensors with their counts, rates and data sizes, the time span, the odometry.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -101,8 +102,14 @@ int RunInfo(const std::string& file) {
     std::cout << "    " << std::left << std::setw(34) << cls << std::right << std::setw(8) << count
               << "\n";
   }
+  // The label column fits the longest label, with two spaces before the class.
+  std::size_t label_width = 18;
+  for (const sources::SensorSummary& sensor : s.sensors) {
+    label_width = std::max(label_width, sensor.label.size());
+  }
+  const int lw = static_cast<int>(label_width) + 2;
   std::cout << "  sensors:\n"
-            << "    " << std::left << std::setw(20) << "label" << std::setw(32) << "class"
+            << "    " << std::left << std::setw(lw) << "label" << std::setw(32) << "class"
             << std::right << std::setw(7) << "count" << std::setw(11) << "rate [Hz]"
             << "  data\n";
   for (const sources::SensorSummary& sensor : s.sensors) {
@@ -112,7 +119,7 @@ int RunInfo(const std::string& file) {
     } else {
       rate << "-";
     }
-    std::cout << "    " << std::left << std::setw(20)
+    std::cout << "    " << std::left << std::setw(lw)
               << (sensor.label.empty() ? std::string("(no label)") : sensor.label) << std::setw(32)
               << sensor.mrpt_class << std::right << std::setw(7) << sensor.count << std::setw(11)
               << rate.str() << "  " << Size(sensor) << "\n";
