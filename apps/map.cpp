@@ -1197,6 +1197,11 @@ int RunMap(const MapOptions& options) {
     }
     if (!*next) break;
     InputFrame& frame = **next;
+    // Returns of the vehicle itself are no returns for the map either, not only for the
+    // detector (detector.min_range).
+    if (settings->detect.detector.min_range_m > 0.0) {
+      frame.image.DropReturnsNearerThan(settings->detect.detector.min_range_m);
+    }
     r.read_s = SecondsSince(t);
     r.index = static_cast<int>(records.size());
     r.stamp_s = frame.stamp_s;

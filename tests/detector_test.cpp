@@ -422,6 +422,44 @@ TEST(Detector, PolesFartherApartThanTwiceTheReachAreTwoSegments) {
   }
 }
 
+TEST(Detector, ReturnsNearerThanMinRangeAreNeitherObstaclesNorPartners) {
+  // A pole 3 m ahead (as the vehicle's own body would be) and one 8 m ahead: with
+  // min_range 5 m only the far one is found, exactly as if the near returns were holes, and
+  // the exact search still equals the brute force.
+  sim::Scene scene;
+  const int near = scene.AddPole(3.0, -0.3, 0.1, 1.2, true);
+  const int far = scene.AddPole(8.0, 0.6, 0.1, 1.2, true);
+  const View v = Look(scene, Eye(scene.terrain(), 8.0, 0.0));
+  od::DetectorConfig config = Config(0.3, 1.0, 45.0);
+  const od::Detection all = RunCone(v.image, config);
+  EXPECT_EQ(FoundObjects(all, v.frame, 1.0), (std::set<int>{near, far}));
+
+  config.min_range_m = 5.0;
+  const od::Detection masked = RunCone(v.image, config);
+  EXPECT_EQ(FoundObjects(masked, v.frame, 1.0), (std::set<int>{far}));
+  od::RangeImage holes = v.image;
+  const int dropped = holes.DropReturnsNearerThan(5.0);
+  EXPECT_GT(dropped, 0);
+  for (int i = 0; i < holes.size(); ++i) {
+    if (v.image.valid(i)) {
+      EXPECT_EQ(holes.valid(i), v.image.range(i) >= 5.0) << "pixel " << i;
+    }
+    if (!holes.valid(i)) {
+      EXPECT_EQ(masked.labels[i], 0) << "pixel " << i;
+    }
+  }
+  od::DetectorConfig plain = config;
+  plain.min_range_m = 0.0;
+  ExpectSameDetection(masked, RunCone(holes, plain), "min_range vs holes");
+  ExpectSameDetection(masked, RunBruteForce(v.image, config), "min_range, brute force");
+  const od::Detection columns = RunColumns(v.image, config);
+  for (int i = 0; i < holes.size(); ++i) {
+    if (!holes.valid(i)) {
+      EXPECT_EQ(columns.labels[i], 0) << "column baseline, pixel " << i;
+    }
+  }
+}
+
 TEST(Detector, ObjectsApartIn3dButTouchingInTheImageAreSeparateSegments) {
   // A bush 6 m in front of a trunk covers the trunk's foot in the image.
   sim::Scene scene;
@@ -749,6 +787,9 @@ TEST(DetectorConfig, ValidationNamesTheBadField) {
   c = Config(0.3, 1.0, 45.0);
   c.region_slabs = 0;
   EXPECT_TRUE(Mentions(Complaint(c), "region_slabs")) << Complaint(c);
+  c = Config(0.3, 1.0, 45.0);
+  c.min_range_m = -1.0;
+  EXPECT_TRUE(Mentions(Complaint(c), "min_range")) << Complaint(c);
 
   // Detect and the brute force refuse a bad config with the same message.
   const View v =

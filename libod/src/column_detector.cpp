@@ -12,6 +12,7 @@ ColumnConfig ColumnConfig::From(const DetectorConfig& config) {
   c.min_height_m = config.min_height_m;
   c.max_height_m = config.max_height_m;
   c.min_slope_rad = config.min_slope_rad;
+  c.min_range_m = config.min_range_m;
   return c;
 }
 
@@ -22,6 +23,7 @@ DetectorConfig PairParameters(const ColumnConfig& config) {
   d.min_height_m = config.min_height_m;
   d.max_height_m = config.max_height_m;
   d.min_slope_rad = config.min_slope_rad;
+  d.min_range_m = config.min_range_m;
   return d;
 }
 
@@ -40,6 +42,9 @@ Status ColumnConfig::Validate() const {
 
 Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& config) {
   if (Status s = config.Validate(); !s) return s.error();
+  if (std::optional<RangeImage> masked = internal::WithoutNearReturns(image, config.min_range_m)) {
+    return DetectColumns(*masked, config);
+  }
   const DetectorConfig pair_config = PairParameters(config);
   const int n = image.size(), width = image.width(), height = image.height();
   const internal::LevelPoints level(image);

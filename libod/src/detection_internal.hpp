@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "cairn/od/detector.hpp"
@@ -93,5 +94,14 @@ struct PairAccumulator {
 Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
                          const std::vector<std::int32_t>& component, const PairAccumulator& pairs,
                          const DetectionStats& stats);
+
+/// With min_range_m > 0 and returns nearer than it: a copy of `image` without them; else
+/// nullopt (the image is used as it is). DetectorConfig::min_range_m.
+inline std::optional<RangeImage> WithoutNearReturns(const RangeImage& image, double min_range_m) {
+  if (!(min_range_m > 0.0)) return std::nullopt;
+  RangeImage masked = image;
+  if (masked.DropReturnsNearerThan(min_range_m) == 0) return std::nullopt;
+  return masked;
+}
 
 }  // namespace cairn::od::internal

@@ -81,6 +81,9 @@ Status DetectorConfig::Validate() const {
   if (region_slabs < 1 || region_slabs > 64) {
     return BadField("region_slabs", "an integer in 1..64", region_slabs);
   }
+  if (!std::isfinite(min_range_m) || min_range_m < 0.0) {
+    return BadField("min_range", "a finite range >= 0 [m] (0: every return)", min_range_m);
+  }
   return Status::Ok();
 }
 
@@ -92,6 +95,9 @@ PairTest::PairTest(const DetectorConfig& config)
 
 Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config) {
   if (Status s = config.Validate(); !s) return s.error();
+  if (std::optional<RangeImage> masked = internal::WithoutNearReturns(image, config.min_range_m)) {
+    return Detect(*masked, config);
+  }
   const int n = image.size(), width = image.width(), height = image.height();
   const internal::LevelPoints level(image);
   const PairTest test(config);
@@ -146,6 +152,9 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
 
 Expected<Detection> DetectBruteForce(const RangeImage& image, const DetectorConfig& config) {
   if (Status s = config.Validate(); !s) return s.error();
+  if (std::optional<RangeImage> masked = internal::WithoutNearReturns(image, config.min_range_m)) {
+    return DetectBruteForce(*masked, config);
+  }
   const int n = image.size();
   const internal::LevelPoints level(image);
   const PairTest test(config);

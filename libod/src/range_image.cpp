@@ -81,6 +81,22 @@ Expected<RangeImage> RangeImage::FromPoints(const std::vector<Eigen::Vector3f>& 
   return image;
 }
 
+int RangeImage::DropReturnsNearerThan(double range_m) {
+  constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+  const double range2 = range_m * range_m;
+  int dropped = 0;
+  for (std::size_t i = 0; i < valid_.size(); ++i) {
+    if (valid_[i] == 0) continue;
+    const double r2 = static_cast<double>(x_[i]) * x_[i] + static_cast<double>(y_[i]) * y_[i] +
+                      static_cast<double>(z_[i]) * z_[i];
+    if (!(r2 < range2)) continue;
+    x_[i] = y_[i] = z_[i] = kNaN;
+    valid_[i] = 0;
+    ++dropped;
+  }
+  return dropped;
+}
+
 void RangeImage::Allocate(int width, int height) {
   constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
   const std::size_t n = static_cast<std::size_t>(width) * height;

@@ -186,6 +186,7 @@ TEST(DetectSettings, DefaultPresetStatesTheBuiltInDefaults) {
   EXPECT_EQ(s->detector.max_height_m, d.max_height_m);
   EXPECT_NEAR(s->detector.min_slope_rad, d.min_slope_rad, 1e-15);
   EXPECT_EQ(s->detector.search, d.search);
+  EXPECT_EQ(s->detector.min_range_m, d.min_range_m);
 }
 
 }  // namespace

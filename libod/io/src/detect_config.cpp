@@ -34,7 +34,8 @@ std::vector<Field> DetectorFields(DetectorConfig& c) {
           {"search", Kind::kSearchMode, "search", &c.search},
           {"window_scale", Kind::kNumber, "window_scale", &c.window_scale},
           {"region_slabs", Kind::kInt, "region_slabs", &c.region_slabs},
-          {"threads", Kind::kInt, "threads", &c.threads}};
+          {"threads", Kind::kInt, "threads", &c.threads},
+          {"min_range", Kind::kNumber, "min_range_m", &c.min_range_m}};
 }
 
 std::vector<Field> RuleFields(RuleConfig& c) {

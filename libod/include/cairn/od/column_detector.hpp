@@ -17,6 +17,7 @@ struct ColumnConfig {
   double max_height_m = 1.0;                  ///< Hmax [m]
   double min_slope_rad = 0.7853981633974483;  ///< theta [rad]
   int min_blob_pixels = 0;  ///< blobs with fewer pixels are rejected (0: keep all)
+  double min_range_m = 0.0;  ///< DetectorConfig::min_range_m [m]
 
   /// The same pair parameters as a cone detector config, blob rejection off.
   static ColumnConfig From(const DetectorConfig& config);

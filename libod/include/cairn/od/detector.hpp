@@ -43,6 +43,9 @@ struct DetectorConfig {
   int region_slabs = 4;
   /// Worker threads; 0 uses every hardware thread. The result does not depend on it.
   int threads = 0;
+  /// Returns nearer than this to the sensor [m] are no returns (the vehicle's own body, the
+  /// sensor's blind zone): neither obstacle points nor partners. 0 keeps every return.
+  double min_range_m = 0.0;
 
   /// Names the first bad field by its config-file key (min_height, max_height, min_slope in
   /// degrees, window_scale, region_slabs): 0 < HT < Hmax, 0 < theta < 90 deg, window_scale > 0,

@@ -66,6 +66,11 @@ class RangeImage {
   const std::vector<std::uint8_t>& valid_mask() const { return valid_; }
   int valid_count() const;
 
+  /// Turns every return nearer than `range_m` to the sensor origin into no return (the
+  /// vehicle's own body, the sensor's blind zone); returns how many were dropped. Cells of
+  /// cell_of_point() stay: their points then have no result.
+  int DropReturnsNearerThan(double range_m);
+
  private:
   int width_ = 0;
   int height_ = 0;

@@ -14,6 +14,7 @@
 //     window_scale: 4.5      # paper_window only [x object size]
 //     region_slabs: 4        # exact only
 //     threads: 0             # worker threads, 0 = every core
+//     min_range: 0           # nearer returns are ignored (the vehicle itself) [m]
 //   rules:                   # 0 disables a rule
 //     min_points: 10         min_volume: 0.005 [m^3]   min_perimeter [m]
 //     min_slope_mean [deg]   min_slope_max [deg]       min_height_mean [m]
