@@ -51,6 +51,7 @@ Expected<DetectResult> DetectAndClassify(const od::RangeImage& image,
     detection = od::Detect(image, settings.detector);
   }
   if (!detection) return detection.error();
+  if (options.no_feet) detection = od::WithoutFeet(std::move(*detection));
   DetectResult result;
   result.detect_ms = MillisecondsSince(detect_start);
   Expected<od::Classification> classification =
@@ -321,6 +322,10 @@ Subcommand AddDetectCommand(CLI::App& parent) {
       ->check(CLI::IsMember({"cone", "column"}))
       ->capture_default_str();
   app->add_flag("--no-rules", options->no_rules, "keep every segment (no rule-based rejection)");
+  app->add_flag("--no-feet", options->no_feet,
+                "count each obstacle's foot as ground: points that are only ever the lower point "
+                "of their pairs (the terrain at its base and its lowest HT), which the paper's "
+                "definition joins to it; the overlay shows them light blue otherwise");
   app->add_option("--out", options->out, "output directory (created when missing)")
       ->required()
       ->type_name("DIR");

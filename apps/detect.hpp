@@ -42,6 +42,7 @@ struct DetectOptions {
   std::string config;  ///< empty: built-in defaults
   std::string method = "cone";
   bool no_rules = false;
+  bool no_feet = false;  ///< obstacle points that are not raised count as ground (WithoutFeet)
   std::string out;
 };
 

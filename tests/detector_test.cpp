@@ -120,6 +120,7 @@ void ExpectSameDetection(const od::Detection& exact, const od::Detection& refere
                           << first / exact.width << ", col " << first % exact.width
                           << "): exact label " << (first >= 0 ? exact.labels[first] : 0)
                           << ", brute force " << (first >= 0 ? reference.labels[first] : 0);
+  EXPECT_TRUE(exact.foot == reference.foot) << what << ": feet differ";
   EXPECT_EQ(exact.stats.pairs_compatible, reference.stats.pairs_compatible) << what;
   EXPECT_EQ(exact.stats.obstacle_points, reference.stats.obstacle_points) << what;
   ASSERT_EQ(exact.segments.size(), reference.segments.size()) << what;
@@ -129,6 +130,7 @@ void ExpectSameDetection(const od::Detection& exact, const od::Detection& refere
     const std::string seg = what + ", segment " + std::to_string(s + 1);
     EXPECT_EQ(a.id, b.id) << seg;
     EXPECT_EQ(a.point_count, b.point_count) << seg;
+    EXPECT_EQ(a.foot_count, b.foot_count) << seg;
     EXPECT_EQ(a.pair_count, b.pair_count) << seg;
     // The same pairs summed in another order: equal to rounding.
     constexpr double kTol = 1e-6;
@@ -363,6 +365,64 @@ TEST(Detector, PoleTallerThanHtIsOneSegmentAroundThePole) {
   EXPECT_GT(pole_pixels, 50);
   EXPECT_EQ(d.segments[0].point_count, pole_pixels + ground_in_segment);
   ExpectSameDetection(d, RunBruteForce(v.image, config), "pole");
+}
+
+TEST(Detector, TheFootIsTheGroundAtThePoleAndItsLowestHt) {
+  // Flat ground (height 0) and a 1.5 m pole. A pole point higher than HT is the upper point
+  // of a pair with the ground at its foot: never foot. The segment's ground points and the
+  // pole's points lower than HT are the upper point of no pair (nothing lies HT below them)
+  // and lie less than HT above the segment's ground: its foot.
+  sim::Scene scene;
+  const int pole = scene.AddPole(6.0, 0.5, 0.1, 1.5, true);
+  const View v = Look(scene, Eye(scene.terrain(), 8.0, 0.0));
+  const od::DetectorConfig config = Config(0.3, 1.0, 45.0);
+  const od::Detection d = RunCone(v.image, config);
+  ASSERT_EQ(d.segments.size(), 1u);
+  ASSERT_EQ(d.foot.size(), d.labels.size());
+  int pole_up = 0, pole_foot = 0, ground_foot = 0;
+  for (int i = 0; i < v.image.size(); ++i) {
+    if (d.labels[i] == 0) {
+      EXPECT_FALSE(d.is_foot(i)) << "pixel " << i << " is a foot but no obstacle point";
+      continue;
+    }
+    const Eigen::Vector3d p =
+        v.camera.UnprojectWorld(i % kModel.width, i / kModel.width, v.frame.depth_m[i]);
+    if (v.frame.object_id[i] == pole) {
+      // 1 cm either side of HT for the depth image's float rounding.
+      if (p.z() > config.min_height_m + 0.01) {
+        EXPECT_FALSE(d.is_foot(i)) << "z " << p.z();
+      } else if (p.z() < config.min_height_m - 0.01) {
+        EXPECT_TRUE(d.is_foot(i)) << "z " << p.z();
+      }
+      (d.is_foot(i) ? pole_foot : pole_up) += 1;
+    } else {
+      EXPECT_TRUE(d.is_foot(i)) << "ground pixel " << i << " is not a foot";
+      ++ground_foot;
+    }
+  }
+  EXPECT_GT(pole_up, 40);
+  EXPECT_GT(pole_foot, 0);
+  EXPECT_GT(ground_foot, pole_up / 4);  // the foot band is no small part of the segment
+  EXPECT_EQ(d.segments[0].foot_count, pole_foot + ground_foot);
+
+  // Without its feet the detection keeps the pole above HT, and the segment as it was.
+  const od::Detection no_feet = od::WithoutFeet(d);
+  EXPECT_EQ(no_feet.stats.obstacle_points, pole_up);
+  for (int i = 0; i < v.image.size(); ++i) {
+    EXPECT_EQ(no_feet.labels[i], d.is_foot(i) ? 0 : d.labels[i]);
+  }
+  EXPECT_EQ(no_feet.segments[0].point_count, d.segments[0].point_count);
+  // The column baseline's feet by the same definition: its pole above HT is no foot.
+  const od::Detection columns = RunColumns(v.image, config);
+  ASSERT_EQ(columns.foot.size(), columns.labels.size());
+  for (int i = 0; i < v.image.size(); ++i) {
+    if (v.frame.object_id[i] != pole || !columns.is_obstacle(i)) continue;
+    const Eigen::Vector3d p =
+        v.camera.UnprojectWorld(i % kModel.width, i / kModel.width, v.frame.depth_m[i]);
+    if (p.z() > config.min_height_m + 0.01) {
+      EXPECT_FALSE(columns.is_foot(i)) << "column baseline, z " << p.z();
+    }
+  }
 }
 
 // The set of object ids of which at least `fraction` of the pixels are obstacle points, and

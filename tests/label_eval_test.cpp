@@ -548,7 +548,8 @@ TEST(LabelFigures, PanelsPerMethodInTheOutcomeColours) {
 // The RELLIS-3D frame.
 
 const fs::path kRellis = fs::path(CAIRN_SHARED_DATASETS) / "rellis3d-000104";
-const char* kReportMethods = "cone_exact_rules,column_rules,cone_exact,column";
+const char* kReportMethods =
+    "cone_exact_rules,column_rules,cone_exact,column,cone_exact_rules_nofeet";
 
 /// Brute force, independent of ScoreLabels: RELLIS ids written out, no return = (0, 0, 0).
 PointCounts RellisCounts(const std::vector<std::uint32_t>& truth,
@@ -675,6 +676,15 @@ TEST(RellisFrame, ReportNumbersAreReproducedAndConeBeatsColumn) {
   EXPECT_GT(share(17), 0.9);   // person
   EXPECT_LT(share(3), 0.25);   // grass
   EXPECT_LT(share(23), 0.05);  // concrete
+
+  // With the feet counted as ground the grass at the tree line is no longer marked
+  // (measured: 18% -> 5%) at a small cost in recall, and F1 rises (0.889 -> 0.908).
+  ASSERT_EQ(run->methods[4].key, "cone_exact_rules_nofeet");
+  const LabelScore& nofeet = run->results[4].scored.score;
+  EXPECT_GT(nofeet.counts.F1(), cone.F1());
+  EXPECT_GT(nofeet.counts.Precision(), cone.Precision() + 0.05);
+  const ClassTally* grass = nofeet.Find(3);
+  EXPECT_LT(double(grass->detected) / double(grass->returns), 0.5 * share(3));
 }
 
 #ifdef CAIRN_EXE

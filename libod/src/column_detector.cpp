@@ -50,7 +50,7 @@ Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& c
   const internal::LevelPoints level(image);
   const PairTest test(pair_config);
   internal::PairAccumulator pairs(n);
-  std::vector<std::uint8_t> obstacle(n, 0);
+  std::vector<std::uint8_t> obstacle(n, 0), raised(n, 0);
   DetectionStats stats;
 
   // 1. Column profiles: partners of each pixel among the pixels of its own column, limited
@@ -72,6 +72,7 @@ Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& c
         ++stats.pairs_compatible;
         pairs.Add(p, dx, dy, dz);
         obstacle[p] = obstacle[q] = 1;
+        raised[q] = 1;
       }
     }
   }
@@ -100,7 +101,7 @@ Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& c
   for (int i = 0; i < n; ++i) {
     if (component[i] >= 0 && area[component[i]] < config.min_blob_pixels) component[i] = -1;
   }
-  return internal::BuildDetection(image, level, component, pairs, stats);
+  return internal::BuildDetection(image, level, component, pairs, raised, test.min_height, stats);
 }
 
 }  // namespace cairn::od

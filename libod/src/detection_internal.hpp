@@ -91,8 +91,11 @@ struct PairAccumulator {
 /// Builds the Detection: `component[i]` is a representative pixel of i's segment (equal for
 /// pixels of one segment) or -1 when i is in none. Ids follow the row-major order of each
 /// segment's first pixel; features follow the definitions in detector.hpp.
+/// `raised[i]` is 1 where i is the upper point of some compatible pair; with `min_height`
+/// (HT) it decides the feet (Detection::foot).
 Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
                          const std::vector<std::int32_t>& component, const PairAccumulator& pairs,
+                         const std::vector<std::uint8_t>& raised, float min_height,
                          const DetectionStats& stats);
 
 /// With min_range_m > 0 and returns nearer than it: a copy of `image` without them; else

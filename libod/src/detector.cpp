@@ -24,7 +24,7 @@ Error BadField(const char* field, const std::string& expected, double value) {
 void ScanSpans(int p, const internal::RowSpans& spans, int width,
                const internal::LevelPoints& level, const internal::RowTiles& tiles,
                const PairTest& test, internal::UnionFind& sets, internal::PairAccumulator& pairs,
-               DetectionStats& stats) {
+               std::uint8_t* raised, DetectionStats& stats) {
   constexpr int kTile = internal::RowTiles::kTileWidth;
   const float px = level.x[p], py = level.y[p], pz = level.z[p];
   for (int r = spans.row_begin; r < spans.row_end; ++r) {
@@ -45,6 +45,7 @@ void ScanSpans(int p, const internal::RowSpans& spans, int width,
             ++stats.pairs_compatible;
             pairs.Add(p, dx, dy, dz);
             sets.Union(p, q);
+            raised[q] = 1;
           }
         }
         c = stop;
@@ -55,8 +56,10 @@ void ScanSpans(int p, const internal::RowSpans& spans, int width,
 
 Detection Finish(const RangeImage& image, const internal::LevelPoints& level,
                  internal::UnionFind& sets, const internal::PairAccumulator& pairs,
+                 const std::vector<std::uint8_t>& raised, const PairTest& test,
                  const DetectionStats& stats) {
-  return internal::BuildDetection(image, level, sets.Components(), pairs, stats);
+  return internal::BuildDetection(image, level, sets.Components(), pairs, raised,
+                                  test.min_height, stats);
 }
 
 }  // namespace
@@ -103,15 +106,17 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   const PairTest test(config);
   internal::PairAccumulator pairs(n);
   internal::UnionFind sets(n);
+  std::vector<std::uint8_t> raised(n, 0);
   DetectionStats stats;
-  if (image.valid_count() == 0) return Finish(image, level, sets, pairs, stats);
+  if (image.valid_count() == 0) return Finish(image, level, sets, pairs, raised, test, stats);
 
   const internal::ConeRegion region(image, config);
   const internal::RowTiles tiles(level, width, height);
 
   // Workers take blocks of rows of lower points in turn. Each lower point's pairs are found
-  // by one worker, which writes only that point's accumulator entries; unions go into the
-  // worker's own union-find, merged afterwards. The result does not depend on the split.
+  // by one worker, which writes only that point's accumulator entries; unions and raised
+  // upper points go into the worker's own union-find and flags, merged afterwards. The
+  // result does not depend on the split.
   constexpr int kBlockRows = 4;
   const int blocks = (height + kBlockRows - 1) / kBlockRows;
   int threads = config.threads > 0 ? config.threads
@@ -120,34 +125,43 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   struct Worker {
     internal::UnionFind sets;
     internal::RowSpans spans;
+    std::vector<std::uint8_t> raised;
     DetectionStats stats;
   };
   std::vector<Worker> workers;
   workers.reserve(threads);
-  for (int t = 0; t < threads; ++t) workers.push_back({internal::UnionFind(t == 0 ? 0 : n),
-                                                       internal::RowSpans(height), {}});
+  for (int t = 0; t < threads; ++t) {
+    workers.push_back({internal::UnionFind(t == 0 ? 0 : n), internal::RowSpans(height),
+                       std::vector<std::uint8_t>(t == 0 ? 0 : n, 0), {}});
+  }
   std::atomic<int> next_block{0};
-  const auto work = [&](Worker& w, internal::UnionFind& worker_sets) {
+  const auto work = [&](Worker& w, internal::UnionFind& worker_sets, std::uint8_t* worker_raised) {
     for (int b = next_block++; b < blocks; b = next_block++) {
       const int p_end = std::min(height, (b + 1) * kBlockRows) * width;
       for (int p = b * kBlockRows * width; p < p_end; ++p) {
         if (!image.valid(p)) continue;
         region.Compute(p, w.spans);
-        ScanSpans(p, w.spans, width, level, tiles, test, worker_sets, pairs, w.stats);
+        ScanSpans(p, w.spans, width, level, tiles, test, worker_sets, pairs, worker_raised,
+                  w.stats);
       }
     }
   };
   std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(work, std::ref(workers[t]),
-                                                      std::ref(workers[t].sets));
-  work(workers[0], sets);  // the calling thread works too, straight into the final sets
+  for (int t = 1; t < threads; ++t) {
+    pool.emplace_back(work, std::ref(workers[t]), std::ref(workers[t].sets),
+                      workers[t].raised.data());
+  }
+  work(workers[0], sets, raised.data());  // the calling thread works too, into the final sets
   for (std::thread& thread : pool) thread.join();
   for (const Worker& w : workers) {
     stats.pairs_tested += w.stats.pairs_tested;
     stats.pairs_compatible += w.stats.pairs_compatible;
   }
-  for (int t = 1; t < threads; ++t) sets.Merge(workers[t].sets);
-  return Finish(image, level, sets, pairs, stats);
+  for (int t = 1; t < threads; ++t) {
+    sets.Merge(workers[t].sets);
+    for (int i = 0; i < n; ++i) raised[i] |= workers[t].raised[i];
+  }
+  return Finish(image, level, sets, pairs, raised, test, stats);
 }
 
 Expected<Detection> DetectBruteForce(const RangeImage& image, const DetectorConfig& config) {
@@ -160,6 +174,7 @@ Expected<Detection> DetectBruteForce(const RangeImage& image, const DetectorConf
   const PairTest test(config);
   internal::UnionFind sets(n);
   internal::PairAccumulator pairs(n);
+  std::vector<std::uint8_t> raised(n, 0);
   DetectionStats stats;
   for (int i = 0; i < n; ++i) {
     if (!image.valid(i)) continue;
@@ -175,9 +190,20 @@ Expected<Detection> DetectBruteForce(const RangeImage& image, const DetectorConf
       ++stats.pairs_compatible;
       pairs.Add(lo, dx, dy, dz);
       sets.Union(lo, up);
+      raised[up] = 1;
     }
   }
-  return Finish(image, level, sets, pairs, stats);
+  return Finish(image, level, sets, pairs, raised, test, stats);
+}
+
+Detection WithoutFeet(Detection detection) {
+  if (detection.foot.size() != detection.labels.size()) return detection;  // made by hand
+  detection.stats.obstacle_points = 0;
+  for (std::size_t i = 0; i < detection.labels.size(); ++i) {
+    if (detection.foot[i] != 0) detection.labels[i] = 0;
+    detection.stats.obstacle_points += detection.labels[i] != 0 ? 1 : 0;
+  }
+  return detection;
 }
 
 }  // namespace cairn::od

@@ -91,6 +91,7 @@ struct SegmentSums {
 
 Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
                          const std::vector<std::int32_t>& component, const PairAccumulator& pairs,
+                         const std::vector<std::uint8_t>& raised, float min_height,
                          const DetectionStats& stats) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const int n = image.size(), width = image.width();
@@ -98,6 +99,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
   det.width = width;
   det.height = image.height();
   det.labels.assign(n, 0);
+  det.foot.assign(n, 0);
   det.stats = stats;
   det.stats.obstacle_points = 0;
 
@@ -160,6 +162,16 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     f.height_mean_m = f.centroid.z() - s.z_min;
     f.height_max_m = f.bbox_max.z() - s.z_min;
     f.range_mean_m = s.s_range / np;
+  }
+  // Feet: not raised, and lower than HT above the segment's ground.
+  for (int i = 0; i < n; ++i) {
+    const int id = det.labels[i];
+    if (id == 0 || raised[i] != 0) continue;
+    SegmentFeatures& f = det.segments[id - 1];
+    if (level.z[i] - f.ground_height_m < min_height) {
+      det.foot[i] = 1;
+      ++f.foot_count;
+    }
   }
   return det;
 }

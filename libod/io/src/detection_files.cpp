@@ -91,6 +91,7 @@ Json SegmentJson(const SegmentFeatures& f, const SegmentVerdict& v) {
           {"class", ClassName(v.cls)},
           {"rejection_reason", v.reason},
           {"point_count", f.point_count},
+          {"foot_count", f.foot_count},
           {"pair_count", f.pair_count},
           {"bbox_min_m", Vec3(f.bbox_min)},
           {"bbox_max_m", Vec3(f.bbox_max)},
@@ -281,8 +282,13 @@ Expected<RgbImage> RenderOverlay(const Grid<float>& depth_m, const Detection& de
   if (Status s = CheckDepth("overlay", depth_m, detection); !s) return s.error();
   const std::vector<std::uint8_t> classes = ClassImage(detection, classification);
   RgbImage image = GreyRgb(depth_m);
+  const bool feet_known = detection.foot.size() == detection.labels.size();
   for (std::size_t i = 0; i < image.data.size(); ++i) {
     const auto cls = static_cast<SegmentClass>(classes[i]);
+    if (cls == SegmentClass::kKept && feet_known && detection.foot[i] != 0) {
+      image.data[i] = Tint(image.data[i], {120, 220, 255});  // light blue: a kept one's foot
+      continue;
+    }
     if (cls == SegmentClass::kKept) image.data[i] = Tint(image.data[i], {0, 40, 255});     // blue
     if (cls == SegmentClass::kRejected) image.data[i] = Tint(image.data[i], {255, 0, 0});  // red
   }

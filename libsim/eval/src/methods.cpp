@@ -32,8 +32,18 @@ std::vector<Method> StandardMethods() {
   };
 }
 
+std::vector<Method> KnownMethods() {
+  std::vector<Method> all = StandardMethods();
+  Method no_feet = all.front();
+  no_feet.key = "cone_exact_rules_nofeet";
+  no_feet.label = "cone exact + rules, feet as ground";
+  no_feet.feet = false;
+  all.push_back(no_feet);
+  return all;
+}
+
 Expected<std::vector<Method>> SelectMethods(const std::string& keys) {
-  const std::vector<Method> all = StandardMethods();
+  const std::vector<Method> all = KnownMethods();
   std::string known;
   for (const Method& m : all) known += (known.empty() ? "" : ", ") + m.key;
   std::vector<Method> chosen;
@@ -84,7 +94,7 @@ Expected<std::vector<MethodRun>> RunMethods(const od::RangeImage& image,
       it = detections.emplace(key, std::make_pair(std::move(detection).value(), ms)).first;
     }
     MethodRun run;
-    run.detection = it->second.first;
+    run.detection = method.feet ? it->second.first : od::WithoutFeet(it->second.first);
     run.detect_ms = it->second.second;
     if (method.rules) {
       Expected<od::Classification> c = od::Classify(run.detection, settings.rules);

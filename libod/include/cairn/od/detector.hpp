@@ -58,6 +58,7 @@ struct DetectorConfig {
 struct SegmentFeatures {
   int id = 0;                 ///< segment id, 1..n (0 is "no segment")
   int point_count = 0;        ///< obstacle points (pixels) in the segment
+  int foot_count = 0;         ///< of which its foot (Detection::foot)
   std::int64_t pair_count = 0;  ///< compatible pairs joining its points
   Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero();  ///< axis-aligned box, level frame [m]
   Eigen::Vector3d bbox_max = Eigen::Vector3d::Zero();
@@ -100,9 +101,23 @@ struct Detection {
   /// segments[id - 1] describes segment `id`.
   std::vector<SegmentFeatures> segments;
   DetectionStats stats;
+  /// Per pixel, row-major: 1 where an obstacle point is its segment's *foot*: it is the
+  /// upper point of no compatible pair (nothing lies HT..Hmax below it in its cone) and it
+  /// lies less than HT above the segment's ground (ground_height_m, its lowest point). That
+  /// is the terrain at an obstacle's base, within min(height, Hmax) / tan(theta) of it, and
+  /// the obstacle's own lowest HT: points the paper's definition joins to the obstacle,
+  /// compatible with it, that a vehicle could drive over. 0 elsewhere.
+  std::vector<std::uint8_t> foot;
 
   bool is_obstacle(int index) const { return labels[index] != 0; }
+  bool is_foot(int index) const { return foot[index] != 0; }
 };
+
+/// `detection` with its feet taken out: labels are 0 at foot points, so that the foot
+/// counts as ground (what a cost map wants). Segments, their ids and features stay those of
+/// the whole segment; stats.obstacle_points counts the points left. A Detection whose foot
+/// is empty (made by hand) comes back as it is.
+Detection WithoutFeet(Detection detection);
 
 /// OD-2 + OS-2 on one range image. Fails only when the config does not validate.
 Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config);

@@ -24,13 +24,18 @@ struct Method {
   DetectorKind detector = DetectorKind::kCone;
   od::SearchMode search = od::SearchMode::kExact;  ///< cone only; overrides the settings'
   bool rules = true;                               ///< false: every segment kept
+  bool feet = true;  ///< false: the foot counts as ground (od::WithoutFeet)
 };
 
 /// cone exact + rules, cone exact (no rules), cone paper window + rules, column + rules,
 /// column (no rules). The first is the method the claims are about.
 std::vector<Method> StandardMethods();
 
-/// Methods by key from StandardMethods(), comma-separated ("cone_exact_rules,column_rules"),
+/// StandardMethods() and, besides them, "cone_exact_rules_nofeet" (cone exact + rules with
+/// each obstacle's foot counted as ground), selectable by key.
+std::vector<Method> KnownMethods();
+
+/// Methods by key from KnownMethods(), comma-separated ("cone_exact_rules,column_rules"),
 /// in the order given. Fails on an unknown or repeated key, naming it and the known ones.
 Expected<std::vector<Method>> SelectMethods(const std::string& keys);
 
