@@ -46,9 +46,9 @@ run() {
     return 1
   fi
   mv "$out/$name.txt" "$dir/run.txt"
-  local segments
-  segments=$(grep -m1 -E '^\s+segments: ' "$dir/run.txt" | sed 's/^ *//' || true)
-  [[ -z "$segments" ]] && segments=$(grep -m1 -E 'frames?' "$dir/run.txt" | sed 's/^ *//' || true)
+  local segments  # the run's own summary line: one frame, a rawlog, or a sequence
+  segments=$(grep -m1 -E '^\s+(segments|total): ' "$dir/run.txt" | sed 's/^ *//' || true)
+  [[ -z "$segments" ]] && segments=$(grep -m1 -E 'time per frame' "$dir/run.txt" | sed 's/^ *//' || true)
   echo "$name: ${segments:-done} ($((SECONDS - start)) s)" | tee -a "$summary"
   if [[ -n "$figures" ]]; then
     for f in "${copies[@]}"; do
@@ -70,18 +70,19 @@ run kitti-00 "$kitti/velodyne" 000000/overlay.png 000000/birds_eye.png -- \
   detect --kitti "$kitti" --frames 0:10 --config "$root/config/sensors/hdl-64e.yaml"
 desk=$shared/stereo-desk-foundationstereo
 run stereo-desk "$desk/K.txt" overlay.png disparity_color.png -- \
-  detect --left "$desk/left.png" --right "$desk/right.png" --stereo-calib "$desk/K.txt" \
+  detect --left "$desk/left.png" --right "$desk/right.png" --stereo-calib "$real/desk-rig.yaml" \
   --config "$real/stereo-desk.yaml"
 tum=$shared/rgbd-tum-frame
 run rgbd-tum "$tum/TUM_depth.png" overlay.png -- \
   detect --depth "$tum/TUM_depth.png" --intrinsics "$real/tum-kinect.yaml" \
-  --config "$real/indoor.yaml"
+  --config "$root/config/default.yaml"
 run octomap-fr079 "$shared/octomap-fr079/scan.dat.bz2" overlay.png birds_eye.png -- \
-  detect --points "$shared/octomap-fr079/scan.dat.bz2" --config "$real/indoor.yaml"
-run mrpt-kinect "$mrpt/tests_rgbd.rawlog" 000000_KINECT/overlay.png -- \
-  detect --rawlog "$mrpt/tests_rgbd.rawlog" --config "$real/indoor.yaml" \
+  detect --points "$shared/octomap-fr079/scan.dat.bz2" --config "$root/config/default.yaml"
+run mrpt-kinect "$mrpt/tests_rgbd.rawlog" 000000_OPENNI2/overlay.png -- \
+  detect --rawlog "$mrpt/tests_rgbd.rawlog" --config "$root/config/default.yaml" \
   --annotated "$out/tests_rgbd.annotated.rawlog"
-run mrpt-vlp16 "$mrpt/test_velodyne_VLP16.rawlog" 000000_Velodyne1_SCAN/birds_eye.png -- \
+run mrpt-vlp16 "$mrpt/test_velodyne_VLP16.rawlog" 000000_Velodyne1_SCAN/birds_eye.png \
+  000000_Velodyne1_SCAN/overlay.png -- \
   detect --rawlog "$mrpt/test_velodyne_VLP16.rawlog" --config "$root/config/sensors/vlp-16.yaml"
 run mrpt-rotating "$mrpt/rot_scan_velodyne.rawlog" -- \
   detect --rawlog "$mrpt/rot_scan_velodyne.rawlog" --config "$root/config/sensors/vlp-16.yaml"

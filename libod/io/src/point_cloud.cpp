@@ -1167,6 +1167,7 @@ Expected<RgbImage> RenderBirdsEye(const RangeImage& image,
   };
   draw(static_cast<std::uint8_t>(SegmentClass::kNone), {110, 110, 110}, 0);
   draw(static_cast<std::uint8_t>(SegmentClass::kRejected), {255, 0, 0}, 1);
+  draw(kBirdsEyeFoot, {120, 220, 255}, 1);
   draw(static_cast<std::uint8_t>(SegmentClass::kKept), {0, 40, 255}, 1);
   return out;
 }
@@ -1197,7 +1198,15 @@ Expected<ScanOutputs> WriteScanOutputs(const std::filesystem::path& dir, const R
   out.labels = dir / "labels.label";
   if (Status s = WriteLabelFile(out.labels, *labels); !s) return s.error();
   std::vector<std::uint8_t> point_class(labels->size());
-  for (std::size_t i = 0; i < labels->size(); ++i) point_class[i] = (*labels)[i] & 0xFFFFu;
+  const bool feet_known = detection.foot.size() == detection.labels.size();
+  const std::vector<std::int32_t>& cell = image.cell_of_point();
+  for (std::size_t i = 0; i < labels->size(); ++i) {
+    point_class[i] = (*labels)[i] & 0xFFFFu;
+    if (feet_known && point_class[i] == static_cast<std::uint8_t>(SegmentClass::kKept) &&
+        i < cell.size() && cell[i] >= 0 && detection.foot[cell[i]] != 0) {
+      point_class[i] = kBirdsEyeFoot;
+    }
+  }
   Expected<RgbImage> birds_eye = RenderBirdsEye(image, points, point_class);
   if (!birds_eye) return birds_eye.error();
   out.birds_eye = dir / "birds_eye.png";

@@ -189,8 +189,12 @@ struct BirdsEyeOptions {
   double half_extent_m = 30.0;     ///< shown: |x|, |y| up to this [m]
 };
 
+/// point_class of RenderBirdsEye for the foot of a kept segment (Detection::foot).
+inline constexpr std::uint8_t kBirdsEyeFoot = 3;
+
 /// Each return as a pixel coloured by `point_class` (one per point: 0 grey, 1 kept blue,
-/// 2 rejected red); obstacle points drawn last so that the ground does not hide them.
+/// 2 rejected red, kBirdsEyeFoot light blue); obstacle points drawn last so that the ground
+/// does not hide them.
 /// Points are levelled with the image's up vector. Fails on size mismatches or bad options.
 Expected<RgbImage> RenderBirdsEye(const RangeImage& image,
                                   const std::vector<Eigen::Vector3f>& points,
