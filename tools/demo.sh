@@ -44,4 +44,4 @@ echo "  summary.txt, summary.json, frames.csv, poses.tum   figures, per-frame po
   --config "$root/config/default.yaml" \
   --out "$out" >/dev/null
 echo
-echo "demo: one frame's detection is in $out/ (overlay.png: kept obstacles blue, rejected red)"
+echo "demo: one frame's detection is in $out/ (overlay.png: kept obstacles blue, their foot light blue, rejected red)"
