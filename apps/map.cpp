@@ -647,6 +647,8 @@ struct StageTimes {
 struct RunState {
   json input;               ///< FrameSource::Describe()
   std::string config_text;  ///< the --config file's bytes ("" for the defaults)
+  json options;             ///< the command-line options that change the map (RunOptions)
+  double wall_s = 0.0;      ///< wall time of the runs before this one [s]
   std::vector<FrameRecord> records;
   double carry_roll = 0.0, carry_pitch = 0.0, carry_dz = 0.0;
   int refined_frames = 0;
@@ -706,6 +708,8 @@ std::string ResumeStateJson(const RunState& state) {
   const json j = {{"format", "cairn map resume state 1"},
                   {"input", state.input},
                   {"config_text", state.config_text},
+                  {"options", state.options},
+                  {"wall_s", state.wall_s},
                   {"carry", {state.carry_roll, state.carry_pitch, state.carry_dz}},
                   {"refined_frames", state.refined_frames},
                   {"times", times},
@@ -722,6 +726,8 @@ Expected<RunState> ResumeStateFromJson(const std::string& text, const std::strin
     RunState state;
     state.input = j.at("input");
     state.config_text = j.at("config_text").get<std::string>();
+    state.options = j.at("options");
+    state.wall_s = j.at("wall_s").get<double>();
     state.carry_roll = j.at("carry").at(0).get<double>();
     state.carry_pitch = j.at("carry").at(1).get<double>();
     state.carry_dz = j.at("carry").at(2).get<double>();
@@ -751,6 +757,15 @@ Expected<RunState> ResumeStateFromJson(const std::string& text, const std::strin
 #undef CAIRN_RECORD_FIELDS
 #undef CAIRN_SUMMARY_FIELDS
 #undef CAIRN_TIME_FIELDS
+
+/// The options of `cairn map` besides the input and --config that change what is fused: a
+/// checkpoint is resumed only with the same ones.
+json RunOptions(const MapOptions& o, bool refine_tilt, double window_size_m) {
+  return {{"--range", o.range},
+          {"--intrinsics", o.intrinsics},
+          {"--refine-tilt", refine_tilt},
+          {"--window", window_size_m}};
+}
 
 Expected<std::string> ReadWholeFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -1112,6 +1127,11 @@ int RunMap(const MapOptions& options) {
   fs::create_directories(cleanup.staging, ec);
   if (ec) return Fail(cleanup.staging.string() + ": cannot create: " + ec.message());
 
+  // From here an interruption is handled (at the next frame): nothing half-written is left.
+  g_interrupted = 0;
+  std::signal(SIGINT, OnInterrupt);
+  std::signal(SIGTERM, OnInterrupt);
+
   // Checkpoints: the map and the run's state, every --checkpoint-every frames and when
   // interrupted, in DIR/map.checkpoint (atomically); removed once the map files are written.
   Expected<std::string> config_text =
@@ -1123,6 +1143,13 @@ int RunMap(const MapOptions& options) {
   // height integrated from them persist from frame to frame.
   double carry_roll = 0.0, carry_pitch = 0.0, carry_dz = 0.0;
   int refined_frames = 0;
+  const json run_options = RunOptions(options, settings->tilt.refine, settings->map.window_size_m);
+  double earlier_wall_s = 0.0;
+  if (!options.resume && fs::exists(checkpoint)) {
+    return Fail(checkpoint.string() +
+                ": an interrupted run's checkpoint is here: continue it with --resume, or "
+                "remove it (or choose another --out) to start afresh");
+  }
   if (options.resume) {
     if (!fs::exists(checkpoint)) {
       return Fail(checkpoint.string() +
@@ -1137,6 +1164,13 @@ int RunMap(const MapOptions& options) {
     if (state->input != source->Describe()) {
       return Fail(checkpoint.string() + ": made from another input (" + state->input.dump() +
                   "), not " + source->Describe().dump() + " (--resume needs the same input)");
+    }
+    for (const auto& [key, value] : state->options.items()) {
+      if (!run_options.contains(key) || run_options.at(key) != value) {
+        return Fail(checkpoint.string() + ": made with " + key + " " + value.dump() + ", not " +
+                    (run_options.contains(key) ? run_options.at(key).dump() : "none") +
+                    " (--resume needs the same options)");
+      }
     }
     if (state->config_text != *config_text) {
       return Fail(checkpoint.string() + ": made with other settings than " +
@@ -1156,21 +1190,27 @@ int RunMap(const MapOptions& options) {
     refined_frames = state->refined_frames;
     times = state->times;
     times.read_s += open_s;
+    earlier_wall_s = state->wall_s;
     std::cerr << "cairn map: resuming from " << checkpoint.string() << " after "
               << records.size() << " frames\n";
   }
   auto save_checkpoint = [&]() -> Status {
     const Clock::time_point t0 = Clock::now();
-    const RunState state{source->Describe(), *config_text, records,        carry_roll,
-                         carry_pitch,        carry_dz,     refined_frames, times};
+    RunState state;
+    state.input = source->Describe();
+    state.config_text = *config_text;
+    state.options = run_options;
+    state.wall_s = earlier_wall_s + SecondsSince(run_start);
+    state.records = records;
+    state.carry_roll = carry_roll;
+    state.carry_pitch = carry_pitch;
+    state.carry_dz = carry_dz;
+    state.refined_frames = refined_frames;
+    state.times = times;
     Status saved = map::SaveCheckpoint(terrain, checkpoint, ResumeStateJson(state));
     times.checkpoint_s += SecondsSince(t0);
     return saved;
   };
-
-  g_interrupted = 0;
-  std::signal(SIGINT, OnInterrupt);
-  std::signal(SIGTERM, OnInterrupt);
 
   const int total =
       options.max_frames > 0 ? std::min(options.max_frames, source->total()) : source->total();
@@ -1331,7 +1371,7 @@ int RunMap(const MapOptions& options) {
 
   // Summary.
   const int n = static_cast<int>(records.size());
-  const double wall_s = SecondsSince(run_start);
+  const double wall_s = earlier_wall_s + SecondsSince(run_start);  // all runs of a resumed map
   const map::MapMemory memory = terrain.Memory();
   Expected<map::CellBox> bounds = map::ExportBounds(terrain);
   json summary;
@@ -1556,7 +1596,7 @@ Subcommand AddMapCommand(CLI::App& parent) {
       "Writes into DIR: map.bt, map.ot, obstacles.ot (OctoMap), cost.yaml + cost.pgm "
       "(map_server), cost.png, overlay.png, elevation.tiff + elevation.yaml, obstacles.json, "
       "poses.tum, frames.csv, summary.json, summary.txt. Exit 1 on bad input (nothing "
-      "written), 130 when interrupted (the map so far kept in DIR/map.checkpoint: run again "
+      "written; a checkpoint of an earlier interruption stays), 130 when interrupted (the map so far kept in DIR/map.checkpoint: run again "
       "with --resume).");
   return {app, [options] { return RunMap(*options); }};
 }

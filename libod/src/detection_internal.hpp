@@ -102,6 +102,9 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
 /// nullopt (the image is used as it is). DetectorConfig::min_range_m.
 inline std::optional<RangeImage> WithoutNearReturns(const RangeImage& image, double min_range_m) {
   if (!(min_range_m > 0.0)) return std::nullopt;
+  bool any = false;  // look before copying: most frames (and every masked one) have none
+  for (int i = 0; i < image.size() && !any; ++i) any = image.valid(i) && image.range(i) < min_range_m;
+  if (!any) return std::nullopt;
   RangeImage masked = image;
   if (masked.DropReturnsNearerThan(min_range_m) == 0) return std::nullopt;
   return masked;

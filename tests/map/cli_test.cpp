@@ -378,6 +378,17 @@ TEST_F(MapCli, AnInterruptedRunResumesFromItsCheckpointToTheSameMap) {
                                         dir());
   EXPECT_EQ(wrong_config.status, 1);
   EXPECT_NE(wrong_config.err.find("map.checkpoint"), std::string::npos) << wrong_config.err;
+  const CommandRun other_tilt = Cairn("map --rawlog '" + rawlog().string() + "' --config '" +
+                                          (fs::path(CAIRN_SOURCE_DIR) / "config" / "default.yaml")
+                                              .string() +
+                                          "' --out '" + parts.string() + "' --resume",
+                                      dir());  // without --refine-tilt
+  EXPECT_EQ(other_tilt.status, 1);
+  EXPECT_NE(other_tilt.err.find("--refine-tilt"), std::string::npos) << other_tilt.err;
+  // A run that forgets --resume does not overwrite the interrupted run's checkpoint.
+  const CommandRun afresh = Cairn(common + parts.string() + "'", dir());
+  EXPECT_EQ(afresh.status, 1);
+  EXPECT_NE(afresh.err.find("--resume"), std::string::npos) << afresh.err;
   const CommandRun no_checkpoint = Cairn(common + (dir() / "none").string() + "' --resume", dir());
   EXPECT_EQ(no_checkpoint.status, 1);
   EXPECT_NE(no_checkpoint.err.find("no checkpoint"), std::string::npos) << no_checkpoint.err;

@@ -687,6 +687,22 @@ Expected<int> StereoConfig::NumDisparities(double fx_baseline, int width) const 
   return n;
 }
 
+namespace {
+
+/// StereoDisparity::range_end_fraction of the pixels that are no hole.
+double RangeEndFraction(const StereoDisparity& d) {
+  const float range_end = 0.875f * static_cast<float>(d.num_disparities);
+  std::size_t matched = 0, at_end = 0;
+  for (std::size_t i = 0; i < d.disparity_px.data.size(); ++i) {
+    if (d.hole.data[i] != static_cast<std::uint8_t>(StereoHole::kNone)) continue;
+    ++matched;
+    at_end += d.disparity_px.data[i] >= range_end ? 1 : 0;
+  }
+  return matched > 0 ? static_cast<double>(at_end) / matched : 0.0;
+}
+
+}  // namespace
+
 Expected<StereoDisparity> ComputeDisparity(const GreyImage& left, const GreyImage& right,
                                            const StereoConfig& config, int num_disparities) {
   if (Status s = config.Validate(); !s) return s.error();
@@ -757,15 +773,7 @@ Expected<StereoDisparity> ComputeDisparity(const GreyImage& left, const GreyImag
       out.hole.at(r, c) = static_cast<std::uint8_t>(reason);
     }
   }
-  const float range_end = 0.875f * static_cast<float>(num_disparities);
-  std::size_t matched = 0, at_end = 0;
-  for (std::size_t i = 0; i < out.disparity_px.data.size(); ++i) {
-    const float d = out.disparity_px.data[i];
-    if (out.hole.data[i] != static_cast<std::uint8_t>(StereoHole::kNone)) continue;
-    ++matched;
-    at_end += d >= range_end ? 1 : 0;
-  }
-  out.range_end_fraction = matched > 0 ? static_cast<double>(at_end) / matched : 0.0;
+  out.range_end_fraction = RangeEndFraction(out);
   return out;
 }
 
@@ -806,6 +814,7 @@ Expected<StereoDepth> ComputeStereoDepth(const StereoPair& pair, const StereoCon
     out.depth_m.data[i] = static_cast<float>(z);
     out.sigma_m.data[i] = static_cast<float>(z * z / fb * config.disparity_sigma_px);
   }
+  d.range_end_fraction = RangeEndFraction(d);  // over the pixels max_depth left matched
   out.disparity = std::move(d);
   return out;
 }

@@ -110,7 +110,9 @@ struct Detection {
   std::vector<std::uint8_t> foot;
 
   bool is_obstacle(int index) const { return labels[index] != 0; }
-  bool is_foot(int index) const { return foot[index] != 0; }
+  bool is_foot(int index) const {
+    return static_cast<std::size_t>(index) < foot.size() && foot[index] != 0;
+  }
 };
 
 /// `detection` with its feet taken out: labels are 0 at foot points, so that the foot

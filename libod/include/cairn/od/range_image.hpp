@@ -68,7 +68,8 @@ class RangeImage {
 
   /// Turns every return nearer than `range_m` to the sensor origin into no return (the
   /// vehicle's own body, the sensor's blind zone); returns how many were dropped. Cells of
-  /// cell_of_point() stay: their points then have no result.
+  /// cell_of_point() stay: their points then have no result (a farther point that shared
+  /// the cell with a dropped one is not brought back).
   int DropReturnsNearerThan(double range_m);
 
  private:
