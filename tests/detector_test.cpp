@@ -338,12 +338,29 @@ TEST(Detector, BankSteeperThanThetaIsAnObstacle) {
   }
 }
 
-TEST(Detector, PoleTallerThanHtIsOneSegmentAroundThePole) {
+// A 1.5 m pole 6 m ahead on flat ground, seen and detected with HT 0.3 m, Hmax 1 m, 45 deg.
+struct PoleCase {
+  int pole = 0;
+  View v;
+  od::DetectorConfig config;
+  od::Detection d;
+};
+PoleCase LookAtAPole() {
   sim::Scene scene;
-  const int pole = scene.AddPole(6.0, 0.5, 0.1, 1.5, true);
-  const View v = Look(scene, Eye(scene.terrain(), 8.0, 0.0));
-  const od::DetectorConfig config = Config(0.3, 1.0, 45.0);
-  const od::Detection d = RunCone(v.image, config);
+  PoleCase c;
+  c.pole = scene.AddPole(6.0, 0.5, 0.1, 1.5, true);
+  c.v = Look(scene, Eye(scene.terrain(), 8.0, 0.0));
+  c.config = Config(0.3, 1.0, 45.0);
+  c.d = RunCone(c.v.image, c.config);
+  return c;
+}
+
+TEST(Detector, PoleTallerThanHtIsOneSegmentAroundThePole) {
+  const PoleCase c = LookAtAPole();
+  const int pole = c.pole;
+  const View& v = c.v;
+  const od::DetectorConfig& config = c.config;
+  const od::Detection& d = c.d;
   ASSERT_EQ(d.segments.size(), 1u);
   // Every pole pixel is in it; every other pixel in it is ground close enough to be
   // compatible with some pole point: within Hmax / tan(theta) of the pole's surface.
@@ -372,11 +389,11 @@ TEST(Detector, TheFootIsTheGroundAtThePoleAndItsLowestHt) {
   // of a pair with the ground at its foot: never foot. The segment's ground points and the
   // pole's points lower than HT are the upper point of no pair (nothing lies HT below them)
   // and lie less than HT above the segment's ground: its foot.
-  sim::Scene scene;
-  const int pole = scene.AddPole(6.0, 0.5, 0.1, 1.5, true);
-  const View v = Look(scene, Eye(scene.terrain(), 8.0, 0.0));
-  const od::DetectorConfig config = Config(0.3, 1.0, 45.0);
-  const od::Detection d = RunCone(v.image, config);
+  const PoleCase c = LookAtAPole();
+  const int pole = c.pole;
+  const View& v = c.v;
+  const od::DetectorConfig& config = c.config;
+  const od::Detection& d = c.d;
   ASSERT_EQ(d.segments.size(), 1u);
   ASSERT_EQ(d.foot.size(), d.labels.size());
   int pole_up = 0, pole_foot = 0, ground_foot = 0;
