@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs `cairn detect` on every real recording this project is tested with: the data sets in
-# ../shared/datasets (see its README) and Debian's mrpt-common rawlogs. One folder per run in
+# ../shared/datasets (see its README) and Debian's mrpt-common rawlogs; and `cairn map` on
+# the KITTI sequence, the one with poses. One folder per run in
 # OUT (default out/real), each with the command's outputs and its console report (run.txt);
 # OUT/summary.txt collects one line per run. A data set that is absent is skipped, saying so.
 # With --figures, the overlays are also copied into datasets/real/figures/ (the gallery of
@@ -47,7 +48,7 @@ run() {
   fi
   mv "$out/$name.txt" "$dir/run.txt"
   local segments  # the run's own summary line: one frame, a rawlog, or a sequence
-  segments=$(grep -m1 -E '^\s+(segments|total): ' "$dir/run.txt" | sed 's/^ *//' || true)
+  segments=$(grep -m1 -E '^\s+(segments|total|map): ' "$dir/run.txt" | sed 's/^ *//' || true)
   [[ -z "$segments" ]] && segments=$(grep -m1 -E 'time per frame' "$dir/run.txt" | sed 's/^ *//' || true)
   echo "$name: ${segments:-done} ($((SECONDS - start)) s)" | tee -a "$summary"
   if [[ -n "$figures" ]]; then
@@ -68,6 +69,8 @@ run rellis3d-vlp32c "$rellis/extras/vel000104.bin" overlay.png birds_eye.png -- 
 kitti=$shared/kitti-seq00-0-10
 run kitti-00 "$kitti/velodyne" 000000/overlay.png 000000/birds_eye.png -- \
   detect --kitti "$kitti" --frames 0:10 --config "$root/config/sensors/hdl-64e.yaml"
+run kitti-00-map "$kitti/poses.txt" overlay.png -- \
+  map --kitti "$kitti" --config "$root/config/sensors/hdl-64e.yaml"
 desk=$shared/stereo-desk-foundationstereo
 run stereo-desk "$desk/K.txt" overlay.png disparity_color.png -- \
   detect --left "$desk/left.png" --right "$desk/right.png" --stereo-calib "$real/desk-rig.yaml" \

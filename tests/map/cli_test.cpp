@@ -5,7 +5,10 @@
 // nothing behind.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <Eigen/Core>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -421,6 +424,68 @@ TEST_F(MapCli, ACorruptCheckpointIsRefusedNamingIt) {
   EXPECT_NE(run.err.find((out / "map.checkpoint").string()), std::string::npos) << run.err;
   EXPECT_TRUE(fs::exists(out / "map.checkpoint"));  // left as it was
   EXPECT_FALSE(fs::exists(out / "map.bt"));
+}
+
+// The real sequence with poses (datasets/real/REPORT.md): KITTI 00, scans 0-10, fused along
+// poses.txt. The road the car drove on stays free; the building fronts and parked cars
+// beside it are lethal.
+TEST(MapKitti, TheSharedSequenceLeavesTheRoadFreeAndItsSidesLethal) {
+  const fs::path kitti = fs::path(CAIRN_SHARED_DATASETS) / "kitti-seq00-0-10";
+  if (!fs::exists(kitti / "poses.txt")) {
+    GTEST_SKIP() << kitti.string() << " not found (see ../shared/datasets/README.md)";
+  }
+  const fs::path dir = fs::temp_directory_path() / ("cairn_map_kitti_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const CommandRun run =
+      Cairn("map --kitti '" + kitti.string() + "' --config '" +
+                (fs::path(CAIRN_SOURCE_DIR) / "config" / "sensors" / "hdl-64e.yaml").string() +
+                "' --out '" + (dir / "out").string() + "'",
+            dir);
+  ASSERT_EQ(run.status, 0) << run.err;
+  const json summary = json::parse(ReadFile(dir / "out" / "summary.json"));
+  EXPECT_EQ(summary.at("frames").get<int>(), 11);
+  EXPECT_GE(summary.at("obstacles").at("live").get<int>(), 10);
+  // The path: the sensor's positions as fused.
+  std::vector<Eigen::Vector2d> path;
+  std::istringstream poses(ReadFile(dir / "out" / "poses.tum"));
+  for (std::string line; std::getline(poses, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    double stamp = 0.0, x = 0.0, y = 0.0;
+    fields >> stamp >> x >> y;
+    path.emplace_back(x, y);
+  }
+  ASSERT_EQ(path.size(), 11u);
+  const auto distance_to_path = [&](const Eigen::Vector2d& p) {
+    double best = 1e9;
+    for (std::size_t k = 0; k + 1 < path.size(); ++k) {
+      const Eigen::Vector2d a = path[k], ab = path[k + 1] - a;
+      const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
+      best = std::min(best, (p - (a + t * ab)).norm());
+    }
+    return best;
+  };
+  Expected<map::OccupancyGrid> grid = map::ReadMapServerMap(dir / "out" / "cost.yaml");
+  ASSERT_TRUE(grid) << grid.error().message;
+  int lethal = 0, lethal_on_road = 0, road_known = 0;
+  for (int row = 0; row < grid->height; ++row) {
+    for (int col = 0; col < grid->width; ++col) {
+      const Eigen::Vector2d xy(grid->origin.x() + (col + 0.5) * grid->resolution_m,
+                               grid->origin.y() + (row + 0.5) * grid->resolution_m);
+      const int v = grid->at(col, row);
+      const bool on_road = distance_to_path(xy) < 1.5;  // the car's own lane
+      lethal += v == 100 ? 1 : 0;
+      if (on_road && v >= 0) ++road_known;
+      if (on_road && v == 100) ++lethal_on_road;
+    }
+  }
+  std::printf("KITTI map: %d lethal cells, %d on the road (%d road cells known)\n", lethal,
+              lethal_on_road, road_known);
+  EXPECT_GT(lethal, 1000);
+  EXPECT_GT(road_known, 100);
+  EXPECT_EQ(lethal_on_road, 0);
+  fs::remove_all(dir);
 }
 
 }  // namespace
