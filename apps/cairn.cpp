@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
 #ifdef CAIRN_HAVE_MAP
     commands.push_back(AddMapCommand(app));
 #endif
+    commands.push_back(AddBenchCommand(app));
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -81,12 +81,11 @@ namespace io = od::io;
 using Clock = DetectClock;
 using Options = DetectOptions;
 
-int RunDetectPoints(const DetectOptions& options) {
-  const Clock::time_point start = Clock::now();
-  Expected<io::DetectSettings> settings = LoadDetectSettingsOrDefaults(options);
-  if (!settings) return DetectFail(settings.error().message);
+}  // namespace
+
+Expected<LoadedScan> LoadScan(const DetectOptions& options) {
   Expected<Eigen::Vector3d> up = ParseUpVector(options.up);
-  if (!up) return DetectFail(up.error().message);
+  if (!up) return up.error();
   io::LayoutOptions layout_options;
   layout_options.columns = options.columns;
   layout_options.organised = options.organised == "yes"  ? io::OrganisedMode::kYes
@@ -95,16 +94,41 @@ int RunDetectPoints(const DetectOptions& options) {
   if (!options.sensor.empty()) {
     Expected<od::SphericalModel> preset =
         od::SphericalModel::Preset(options.sensor, options.columns);
-    if (!preset) return DetectFail("--sensor: " + preset.error().message);
+    if (!preset) return Error{"--sensor: " + preset.error().message};
     layout_options.preset = *preset;
   }
   Expected<io::PointCloud> cloud = io::ReadPointFile(options.points);
-  if (!cloud) return DetectFail(cloud.error().message);
+  if (!cloud) return cloud.error();
   Expected<io::FoundLayout> layout = io::FindLayout(*cloud, layout_options, options.points);
-  if (!layout) return DetectFail(layout.error().message);
+  if (!layout) return layout.error();
   Expected<od::RangeImage> image =
       od::RangeImage::FromPoints(cloud->points, layout->model, *up, layout->rows, layout->cols);
-  if (!image) return DetectFail(options.points + ": " + image.error().message);
+  if (!image) return Error{options.points + ": " + image.error().message};
+  return LoadedScan{std::move(*cloud), std::move(*layout), std::move(*image)};
+}
+
+Expected<LoadedDepth> LoadDepth(const DetectOptions& options) {
+  Expected<io::CameraIntrinsics> intrinsics = io::LoadIntrinsics(options.intrinsics);
+  if (!intrinsics) return intrinsics.error();
+  Expected<io::Grid<float>> depth = io::ReadDepthImage(options.depth, *intrinsics);
+  if (!depth) return depth.error();
+  Expected<od::RangeImage> image =
+      od::RangeImage::FromDepth(depth->data, intrinsics->model, intrinsics->up);
+  if (!image) return Error{options.depth + ": " + image.error().message};
+  return LoadedDepth{std::move(*intrinsics), std::move(*depth), std::move(*image)};
+}
+
+namespace {
+
+int RunDetectPoints(const DetectOptions& options) {
+  const Clock::time_point start = Clock::now();
+  Expected<io::DetectSettings> settings = LoadDetectSettingsOrDefaults(options);
+  if (!settings) return DetectFail(settings.error().message);
+  Expected<LoadedScan> scan = LoadScan(options);
+  if (!scan) return DetectFail(scan.error().message);
+  const io::PointCloud* cloud = &scan->cloud;
+  const io::FoundLayout* layout = &scan->layout;
+  const od::RangeImage* image = &scan->image;
 
   Expected<DetectResult> result = DetectAndClassify(*image, *settings, options);
   if (!result) return DetectFail(result.error().message);
@@ -173,16 +197,13 @@ int RunDetect(const DetectOptions& options) {
   }
   const Clock::time_point start = Clock::now();
 
-  Expected<io::CameraIntrinsics> intrinsics = io::LoadIntrinsics(options.intrinsics);
-  if (!intrinsics) return DetectFail(intrinsics.error().message);
   Expected<io::DetectSettings> loaded_settings = LoadDetectSettingsOrDefaults(options);
   if (!loaded_settings) return DetectFail(loaded_settings.error().message);
   const io::DetectSettings settings = *loaded_settings;
-  Expected<io::Grid<float>> depth = io::ReadDepthImage(options.depth, *intrinsics);
-  if (!depth) return DetectFail(depth.error().message);
-  Expected<od::RangeImage> image =
-      od::RangeImage::FromDepth(depth->data, intrinsics->model, intrinsics->up);
-  if (!image) return DetectFail(options.depth + ": " + image.error().message);
+  Expected<LoadedDepth> loaded = LoadDepth(options);
+  if (!loaded) return DetectFail(loaded.error().message);
+  const io::Grid<float>* depth = &loaded->depth_m;
+  const od::RangeImage* image = &loaded->image;
 
   Expected<DetectResult> result = DetectAndClassify(*image, settings, options);
   if (!result) return DetectFail(result.error().message);

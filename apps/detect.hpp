@@ -10,7 +10,10 @@
 
 #include "cairn/od/detector.hpp"
 #include "cairn/od/expected.hpp"
+#include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/detect_config.hpp"
+#include "cairn/od/io/intrinsics.hpp"
+#include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
 
@@ -68,6 +71,23 @@ struct DetectResult {
 Expected<DetectResult> DetectAndClassify(const od::RangeImage& image,
                                          const od::io::DetectSettings& settings,
                                          const DetectOptions& options);
+
+/// A LiDAR scan read and placed in its range image (--points, --sensor, --organised,
+/// --columns, --up of `options`).
+struct LoadedScan {
+  od::io::PointCloud cloud;
+  od::io::FoundLayout layout;
+  od::RangeImage image;
+};
+Expected<LoadedScan> LoadScan(const DetectOptions& options);
+
+/// A depth image and its range image (--depth, --intrinsics of `options`).
+struct LoadedDepth {
+  od::io::CameraIntrinsics intrinsics;
+  od::io::Grid<float> depth_m;
+  od::RangeImage image;
+};
+Expected<LoadedDepth> LoadDepth(const DetectOptions& options);
 
 // The inputs that live in their own files (each present when its library is built).
 int RunDetectRawlog(const DetectOptions& options);  // detect_rawlog.cpp, CAIRN_HAVE_SOURCES

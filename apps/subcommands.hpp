@@ -28,5 +28,7 @@ Subcommand AddEvalCommand(CLI::App& parent);
 Subcommand AddInfoCommand(CLI::App& parent);
 /// `cairn map`: a whole sequence fused into an OctoMap and a 2.5-D cost grid.
 Subcommand AddMapCommand(CLI::App& parent);
+/// `cairn bench`: the detectors timed on one frame, checked against the definition.
+Subcommand AddBenchCommand(CLI::App& parent);
 
 }  // namespace cairn::apps

@@ -197,6 +197,26 @@ TEST_F(DetectCli, FindsTheBoxAndNotTheGround) {
   EXPECT_EQ(doc["inputs"]["config"], config_.string());
 }
 
+TEST_F(DetectCli, BenchTimesEveryMethodAndChecksTheExactOneAgainstTheDefinition) {
+  // 160x120 with a box: small enough for the brute force, which must agree.
+  const RunResult run = RunCairn({"bench", "--depth", (dir_ / "depth.png").string(),
+                                  "--intrinsics", intrinsics_.string(), "--config",
+                                  config_.string(), "--repeat", "3", "--rate", "10"});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  for (const char* line : {"cone exact, 1 thread", "cone exact, every core",
+                           "cone paper window, 1 thread", "column baseline",
+                           "brute force (the definition)", "exact = brute force: yes",
+                           "at 10.0 Hz a frame has 100.0 ms"}) {
+    EXPECT_NE(run.output.find(line), std::string::npos) << line << " missing in:\n" << run.output;
+  }
+  // The reference row is its own unit.
+  EXPECT_NE(run.output.find("1.00x"), std::string::npos) << run.output;
+  ExpectFailure({"bench", "--depth", (dir_ / "none.png").string(), "--intrinsics",
+                 intrinsics_.string()},
+                "none.png");
+  ExpectFailure({"bench"}, "give --depth");
+}
+
 TEST_F(DetectCli, WithoutRulesEveryObstaclePointIsKept) {
   std::vector<std::string> args = Args(dir_ / "depth.png", intrinsics_, config_);
   args.push_back("--no-rules");

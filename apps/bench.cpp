@@ -1,0 +1,196 @@
+// cairn bench: how fast the detectors run on the user's own frame, as medians of repeated
+// runs, each as a ratio to the exact cone detector on one thread measured in the same run,
+// against the time a sensor rate leaves per frame. The exact detector's result is checked
+// against the O(N^2) definition when the frame is small enough (or --brute-force).
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cairn/od/column_detector.hpp"
+#include "cairn/od/detector.hpp"
+#include "detect.hpp"
+#include "subcommands.hpp"
+
+namespace cairn::apps {
+namespace {
+
+struct BenchOptions {
+  DetectOptions input;  ///< --depth/--intrinsics or --points (with --sensor ...), --config
+  int repeat = 5;
+  double rate_hz = 10.0;
+  bool brute_force = false;
+};
+
+/// Brute force runs by default up to this many valid points (about 2 s).
+constexpr int kBruteForceAuto = 20000;
+
+struct Timing {
+  std::string method;
+  std::vector<double> ms;
+  od::Detection last;
+  double median() const {
+    std::vector<double> v = ms;
+    std::sort(v.begin(), v.end());
+    return v.empty() ? 0.0 : v.size() % 2 ? v[v.size() / 2]
+                                          : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+  }
+};
+
+int BenchFail(const std::string& message) {
+  std::cerr << "cairn bench: error: " << message << "\n";
+  return kExitFailure;
+}
+
+int RunBench(const BenchOptions& o) {
+  if (o.input.points.empty() == o.input.depth.empty()) {
+    return BenchFail("give --depth FILE --intrinsics FILE.yaml, or --points FILE");
+  }
+  Expected<od::io::DetectSettings> settings = LoadDetectSettingsOrDefaults(o.input);
+  if (!settings) return BenchFail(settings.error().message);
+  od::RangeImage image;
+  std::string what;
+  if (!o.input.points.empty()) {
+    Expected<LoadedScan> scan = LoadScan(o.input);
+    if (!scan) return BenchFail(scan.error().message);
+    image = std::move(scan->image);
+    what = o.input.points;
+  } else {
+    Expected<LoadedDepth> depth = LoadDepth(o.input);
+    if (!depth) return BenchFail(depth.error().message);
+    image = std::move(depth->image);
+    what = o.input.depth;
+  }
+
+  using Clock = std::chrono::steady_clock;
+  const auto time = [&](const std::string& name, auto&& run) -> Expected<Timing> {
+    Timing t;
+    t.method = name;
+    for (int k = 0; k < o.repeat; ++k) {
+      const Clock::time_point start = Clock::now();
+      Expected<od::Detection> d = run();
+      t.ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+      if (!d) return Error{name + ": " + d.error().message};
+      t.last = std::move(*d);
+    }
+    return t;
+  };
+  od::DetectorConfig one = settings->detector;
+  one.threads = 1;
+  od::DetectorConfig window = one;
+  window.search = od::SearchMode::kPaperWindow;
+  od::DetectorConfig all = settings->detector;
+  all.search = od::SearchMode::kExact;
+  one.search = od::SearchMode::kExact;
+  od::ColumnConfig column = od::ColumnConfig::From(settings->detector);
+  column.min_blob_pixels = settings->min_blob_pixels;
+
+  std::vector<Timing> rows;
+  const auto add = [&](const std::string& name, auto&& run) -> Status {
+    Expected<Timing> t = time(name, run);
+    if (!t) return t.error();
+    rows.push_back(std::move(*t));
+    std::cerr << "cairn bench: " << name << " done\n";
+    return {};
+  };
+  if (Status s = add("cone exact, 1 thread", [&] { return od::Detect(image, one); }); !s) {
+    return BenchFail(s.message());
+  }
+  const std::string threads =
+      all.threads > 0 ? std::to_string(all.threads) + " threads" : "every core";
+  if (Status s = add("cone exact, " + threads, [&] { return od::Detect(image, all); }); !s) {
+    return BenchFail(s.message());
+  }
+  if (Status s = add("cone paper window, 1 thread", [&] { return od::Detect(image, window); });
+      !s) {
+    return BenchFail(s.message());
+  }
+  if (Status s = add("column baseline", [&] { return od::DetectColumns(image, column); }); !s) {
+    return BenchFail(s.message());
+  }
+  const bool brute = o.brute_force || image.valid_count() <= kBruteForceAuto;
+  bool same = true;
+  if (brute) {
+    if (Status s = add("brute force (the definition)",
+                       [&] { return od::DetectBruteForce(image, one); });
+        !s) {
+      return BenchFail(s.message());
+    }
+    const od::Detection& exact = rows[0].last;
+    const od::Detection& reference = rows.back().last;
+    same = exact.labels == reference.labels &&
+           exact.stats.pairs_compatible == reference.stats.pairs_compatible;
+  }
+
+  const double reference_ms = rows[0].median();
+  const double budget_ms = 1000.0 / o.rate_hz;
+  std::cout << std::fixed << "cairn bench: " << what << " (" << image.width() << "x"
+            << image.height() << ", " << image.valid_count() << " valid points), "
+            << o.repeat << " runs each, medians\n";
+  std::cout << "  " << std::left << std::setw(30) << "method" << std::right << std::setw(12)
+            << "median ms" << std::setw(12) << "min ms" << std::setw(10) << "ratio"
+            << std::setw(16) << "pairs tested" << std::setw(14) << "compatible" << std::setw(10)
+            << "segments"
+            << "\n";
+  for (const Timing& t : rows) {
+    const double med = t.median();
+    std::cout << "  " << std::left << std::setw(30) << t.method << std::right
+              << std::setprecision(1) << std::setw(12) << med << std::setw(12)
+              << *std::min_element(t.ms.begin(), t.ms.end()) << std::setprecision(2)
+              << std::setw(9) << med / reference_ms << "x" << std::setw(16)
+              << t.last.stats.pairs_tested << std::setw(14) << t.last.stats.pairs_compatible
+              << std::setw(10) << t.last.segments.size() << "\n";
+  }
+  std::cout << "  ratio: to the exact cone detector on 1 thread, measured in this run\n";
+  if (brute) {
+    std::cout << "  exact = brute force: " << (same ? "yes" : "NO") << " (same obstacle "
+              << "points, segments and compatible pairs)\n";
+  } else {
+    std::cout << "  brute force skipped (" << image.valid_count() << " valid points > "
+              << kBruteForceAuto << "; --brute-force runs it)\n";
+  }
+  const double fastest_exact = std::min(rows[0].median(), rows[1].median());
+  std::cout << std::setprecision(1) << "  at " << o.rate_hz << " Hz a frame has " << budget_ms
+            << " ms: the exact detector takes " << std::setprecision(2)
+            << fastest_exact / budget_ms << " of it\n";
+  return same ? kExitOk : kExitFailure;
+}
+
+}  // namespace
+
+Subcommand AddBenchCommand(CLI::App& parent) {
+  auto o = std::make_shared<BenchOptions>();
+  CLI::App* app = parent.add_subcommand(
+      "bench",
+      "Time the detectors on one frame of yours (medians of repeated runs, ratios to the exact "
+      "detector on one thread in the same run), checked against the O(N^2) definition");
+  app->add_option("--depth", o->input.depth, "z-depth image (16-bit PNG or float TIFF)")
+      ->type_name("FILE");
+  app->add_option("--intrinsics", o->input.intrinsics, "camera YAML (with --depth)")
+      ->type_name("FILE.yaml");
+  app->add_option("--points", o->input.points, "LiDAR scan (.bin, PLY, text), as cairn detect")
+      ->type_name("FILE");
+  app->add_option("--sensor", o->input.sensor, "LiDAR preset (with --points)")
+      ->check(CLI::IsMember({"HDL-64E", "VLP-16", "VLP-32C", "OS1-64"}));
+  app->add_option("--up", o->input.up, "gravity's up in the LiDAR frame (with --points)")
+      ->capture_default_str();
+  app->add_option("--config", o->input.config, "settings YAML (config/default.yaml)")
+      ->type_name("FILE");
+  app->add_option("--repeat", o->repeat, "runs of each method")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app->add_option("--rate", o->rate_hz, "sensor frame rate [Hz] for the time budget")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app->add_flag("--brute-force", o->brute_force,
+                "also run the O(N^2) definition on a large frame (slow)");
+  app->footer("Exit 1 on bad input, or when the exact detector differs from the definition.");
+  return {app, [o] { return RunBench(*o); }};
+}
+
+}  // namespace cairn::apps
