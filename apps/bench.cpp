@@ -80,13 +80,12 @@ int RunBench(const BenchOptions& o) {
     }
     return t;
   };
-  od::DetectorConfig one = settings->detector;
+  od::DetectorConfig all = settings->detector;  // exact, with the settings' threads
+  all.search = od::SearchMode::kExact;
+  od::DetectorConfig one = all;
   one.threads = 1;
   od::DetectorConfig window = one;
   window.search = od::SearchMode::kPaperWindow;
-  od::DetectorConfig all = settings->detector;
-  all.search = od::SearchMode::kExact;
-  one.search = od::SearchMode::kExact;
   od::ColumnConfig column = od::ColumnConfig::From(settings->detector);
   column.min_blob_pixels = settings->min_blob_pixels;
 

@@ -773,29 +773,6 @@ Expected<std::string> ReadWholeFile(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
-/// p' = c + R (p - c) + dz e_z about the sensor origin c, applied on the left of a pose.
-Eigen::Isometry3d Correct(const Eigen::Isometry3d& T_world_sensor, double roll, double pitch,
-                          double dz) {
-  const Eigen::Matrix3d R = (Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-                             Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
-                                .toRotationMatrix();
-  const Eigen::Vector3d c = T_world_sensor.translation();
-  Eigen::Isometry3d C = Eigen::Isometry3d::Identity();
-  C.linear() = R;
-  C.translation() = c - R * c + Eigen::Vector3d(0.0, 0.0, dz);
-  return C * T_world_sensor;
-}
-
-map::ElevationPatch PatchFor(const map::TerrainMap& terrain, const Eigen::Vector2d& centre,
-                             double half_size_m) {
-  const map::GridPatch grid = terrain.PatchAround(centre, half_size_m);
-  map::ElevationPatch patch;
-  patch.z = grid.elevation_m.transpose().cast<double>();  // rows along y, columns along x
-  patch.origin_m = grid.origin;
-  patch.resolution_m = grid.cell_size_m;
-  return patch;
-}
-
 std::string TumLine(double stamp_s, const Eigen::Isometry3d& T) {
   Eigen::Quaterniond q(T.linear());
   if (q.w() < 0) q.coeffs() = -q.coeffs();
@@ -1261,7 +1238,7 @@ int RunMap(const MapOptions& options) {
     Eigen::Isometry3d T_world_sensor = frame.T_world_sensor;
     if (settings->tilt.refine) {
       t = Clock::now();
-      const Eigen::Isometry3d prior = Correct(T_world_sensor, carry_roll, carry_pitch, carry_dz);
+      const Eigen::Isometry3d prior = map::ApplyTiltCorrection(T_world_sensor, carry_roll, carry_pitch, carry_dz);
       std::vector<Eigen::Vector3f> ground;
       ground.reserve(frame.image.size());
       for (int i = 0; i < frame.image.size(); ++i) {
@@ -1273,7 +1250,8 @@ int RunMap(const MapOptions& options) {
         ground.push_back(frame.image.point(i).cast<float>());
       }
       const map::ElevationPatch patch =
-          PatchFor(terrain, prior.translation().head<2>(), settings->tilt.refiner.max_range_m);
+          map::ElevationPatchAround(terrain, prior.translation().head<2>(),
+                                    settings->tilt.refiner.max_range_m);
       Expected<map::TiltEstimate> estimate =
           map::RefineTilt(ground, prior, patch, settings->tilt.refiner);
       if (!estimate) return Fail(frame.name + ": tilt: " + estimate.error().message);

@@ -31,6 +31,7 @@
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/rules.hpp"
 #include "cairn/sim/eval/methods.hpp"
+#include "io/cairn_command.hpp"
 #include "io/temp_dir.hpp"
 
 namespace cairn::sim::eval {
@@ -689,22 +690,10 @@ TEST(RellisFrame, ReportNumbersAreReproducedAndConeBeatsColumn) {
 
 #ifdef CAIRN_EXE
 
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (const char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  return q + "'";
-}
-
 int RunCairn(const std::vector<std::string>& args, std::string* output) {
-  std::string command = Quote(CAIRN_EXE);
-  for (const std::string& a : args) command += " " + Quote(a);
-  command += " 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (!pipe) return -1;
-  std::array<char, 4096> buffer;
-  while (std::fgets(buffer.data(), buffer.size(), pipe)) *output += buffer.data();
-  const int status = ::pclose(pipe);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  const test::CommandResult run = test::RunProgram(CAIRN_EXE, args);
+  *output += run.output;
+  return run.exit_code;
 }
 
 /// The text from `heading` to the next "## " heading.

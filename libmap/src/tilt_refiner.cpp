@@ -236,11 +236,27 @@ Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_poi
   estimate.pitch_rad = correction[1];
   estimate.dz_m = correction[2];
   estimate.rms_after_m = rms(correction);
-  Eigen::Isometry3d refined = T_world_sensor_prior;
-  refined.linear() = CorrectionRotation(correction[0], correction[1]) * T_world_sensor_prior.linear();
-  refined.translation() = origin + Eigen::Vector3d(0.0, 0.0, correction[2]);
-  estimate.T_world_sensor = refined;
+  estimate.T_world_sensor =
+      ApplyTiltCorrection(T_world_sensor_prior, correction[0], correction[1], correction[2]);
   return estimate;
+}
+
+ElevationPatch ElevationPatchAround(const TerrainMap& terrain, const Eigen::Vector2d& centre,
+                                    double half_size_m) {
+  const GridPatch grid = terrain.PatchAround(centre, half_size_m);
+  ElevationPatch patch;
+  patch.z = grid.elevation_m.transpose().cast<double>();  // rows along y, columns along x
+  patch.origin_m = grid.origin;
+  patch.resolution_m = grid.cell_size_m;
+  return patch;
+}
+
+Eigen::Isometry3d ApplyTiltCorrection(const Eigen::Isometry3d& T_world_sensor, double roll_rad,
+                                      double pitch_rad, double dz_m) {
+  Eigen::Isometry3d corrected = T_world_sensor;
+  corrected.linear() = CorrectionRotation(roll_rad, pitch_rad) * T_world_sensor.linear();
+  corrected.translation() = T_world_sensor.translation() + Eigen::Vector3d(0.0, 0.0, dz_m);
+  return corrected;
 }
 
 }  // namespace cairn::map

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -13,6 +14,7 @@
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/io/intrinsics.hpp"
 #include "cairn/od/range_image.hpp"
+#include "plane_fit.hpp"
 #include "temp_dir.hpp"
 
 namespace cairn::od::io {
@@ -277,6 +279,24 @@ TEST(DepthImage, TheTumOfficeIsFurnitureStandingOnAFloorOfFeet) {
   ASSERT_TRUE(depth.ok()) << depth.error().message;
   Expected<RangeImage> image = RangeImage::FromDepth(depth->data, camera->model, camera->up);
   ASSERT_TRUE(image.ok()) << image.error().message;
+  // The up vector of tum-kinect.yaml is the floor's normal, as its comment says: the plane
+  // through every other pixel of two floor patches.
+  std::vector<Eigen::Vector3d> floor_points;
+  for (const auto& [r0, r1, c0, c1] : {std::array<int, 4>{430, 480, 250, 360},
+                                       std::array<int, 4>{300, 480, 600, 640}}) {
+    for (int r = r0; r < r1; r += 2) {
+      for (int c = c0; c < c1; c += 2) {
+        if (image->valid(r * 640 + c)) floor_points.push_back(image->point(r * 640 + c));
+      }
+    }
+  }
+  const test::PlaneFit plane = test::FitPlane(floor_points);
+  EXPECT_EQ(plane.points, 1387);
+  EXPECT_LT(plane.rms_m, 0.011);
+  EXPECT_NEAR(plane.height_m, 1.79, 0.01);
+  EXPECT_LT(std::acos(std::min(1.0, plane.normal.dot(camera->up.normalized()))), 0.2 * M_PI / 180)
+      << "floor normal " << plane.normal.transpose();
+
   Expected<Detection> d = Detect(*image, settings->detector);
   ASSERT_TRUE(d.ok()) << d.error().message;
   // Share of the returns in a box of the image that are obstacle points, and feet.

@@ -16,6 +16,7 @@
 
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/detection_files.hpp"
+#include "cairn_command.hpp"
 #include "temp_dir.hpp"
 
 #ifndef CAIRN_EXE
@@ -95,29 +96,10 @@ double DistanceToBox(const Eigen::Vector3d& p) {
   return std::hypot(dx, dy);
 }
 
-struct RunResult {
-  int exit_code = -1;  ///< -1 when it did not exit normally (a crash)
-  std::string output;  ///< stdout and stderr
-};
-
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (const char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  return q + "'";
-}
+using RunResult = test::CommandResult;
 
 RunResult RunCairn(const std::vector<std::string>& args) {
-  std::string command = Quote(CAIRN_EXE);
-  for (const std::string& a : args) command += " " + Quote(a);
-  command += " 2>&1";
-  RunResult result;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (!pipe) return result;
-  std::array<char, 4096> buffer;
-  while (std::fgets(buffer.data(), buffer.size(), pipe)) result.output += buffer.data();
-  const int status = ::pclose(pipe);
-  if (WIFEXITED(status)) result.exit_code = WEXITSTATUS(status);
-  return result;
+  return test::RunProgram(CAIRN_EXE, args);
 }
 
 const char* kIntrinsics =

@@ -23,6 +23,7 @@
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
+#include "cairn_command.hpp"
 #include "temp_dir.hpp"
 
 namespace cairn {
@@ -383,24 +384,10 @@ TEST(KittiDetection, FindsCarsPolesAndWallsButNotTheRoad) {
 
 #if defined(CAIRN_EXE)
 
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (const char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  return q + "'";
-}
-
-/// Runs the built command; returns its exit code (-1 on a crash) and fills `output` with
-/// stdout and stderr.
 int RunCairn(const std::vector<std::string>& args, std::string* output) {
-  std::string command = Quote(CAIRN_EXE);
-  for (const std::string& a : args) command += " " + Quote(a);
-  command += " 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (!pipe) return -1;
-  std::array<char, 4096> buffer;
-  while (std::fgets(buffer.data(), buffer.size(), pipe)) *output += buffer.data();
-  const int status = ::pclose(pipe);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  const test::CommandResult run = test::RunProgram(CAIRN_EXE, args);
+  *output += run.output;
+  return run.exit_code;
 }
 
 TEST(DetectKittiCli, WritesAFolderPerFrameAndASummary) {

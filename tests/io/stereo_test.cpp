@@ -24,6 +24,8 @@
 #include "cairn/sim/scene.hpp"
 #include "cairn/sim/stereo.hpp"
 #include "cairn/sim/world.hpp"
+#include "cairn_command.hpp"
+#include "plane_fit.hpp"
 #include "temp_dir.hpp"
 
 namespace cairn::od::io {
@@ -753,6 +755,29 @@ TEST(FoundationStereoDesk, RunsEndToEndWithItsKTxt) {
                                                      Eigen::Vector3d(0.0, -1.0, 0.0));
   ASSERT_TRUE(image.ok()) << image.error().message;
   EXPECT_EQ(image->valid_count(), static_cast<int>(z.size()));
+
+  // datasets/real/desk-rig.yaml: K.txt's camera and baseline, and the up vector its comment
+  // says was measured on this depth, the plane through the keyboard.
+  Expected<StereoCalibration> rig = LoadStereoCalibration(
+      std::filesystem::path(CAIRN_SOURCE_DIR) / "datasets" / "real" / "desk-rig.yaml");
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  EXPECT_NEAR(rig->model.fx, calib->model.fx, 1e-9);
+  EXPECT_NEAR(rig->model.cx, calib->model.cx, 1e-9);
+  EXPECT_NEAR(rig->model.cy, calib->model.cy, 1e-9);
+  EXPECT_NEAR(rig->baseline_m, calib->baseline_m, 1e-12);
+  ASSERT_TRUE(rig->up.has_value());
+  std::vector<Eigen::Vector3d> keyboard;
+  for (int r = 330; r < 470; r += 2) {
+    for (int c = 300; c < 900; c += 2) {
+      if (image->valid(r * 960 + c)) keyboard.push_back(image->point(r * 960 + c));
+    }
+  }
+  const test::PlaneFit plane = test::FitPlane(keyboard, 2);
+  EXPECT_NEAR(plane.points, 9336, 50);
+  EXPECT_LT(plane.rms_m, 0.002);
+  EXPECT_NEAR(plane.height_m, 0.284, 0.003);
+  EXPECT_LT(std::acos(std::min(1.0, plane.normal.dot(rig->up->normalized()))), 0.2 * M_PI / 180)
+      << "keyboard normal " << plane.normal.transpose();
 }
 
 TEST(StereoPreset, TheVehicleRigFindsThePolesAndTreesOfAGalleryWorld) {
@@ -822,20 +847,10 @@ TEST(StereoPreset, TheVehicleRigFindsThePolesAndTreesOfAGalleryWorld) {
 }
 
 #ifdef CAIRN_EXE
-struct RunResult {
-  int exit_code = -1;
-  std::string output;
-};
+using RunResult = test::CommandResult;
 
 RunResult RunCairn(const std::string& args) {
-  RunResult result;
-  FILE* pipe = ::popen((std::string("'") + CAIRN_EXE + "' " + args + " 2>&1").c_str(), "r");
-  if (!pipe) return result;
-  std::array<char, 4096> buffer;
-  while (std::fgets(buffer.data(), buffer.size(), pipe)) result.output += buffer.data();
-  const int status = ::pclose(pipe);
-  if (WIFEXITED(status)) result.exit_code = WEXITSTATUS(status);
-  return result;
+  return test::RunShell(test::ShellQuote(CAIRN_EXE) + " " + args);
 }
 
 TEST(DetectStereoCli, TheDeskPairGivesDepthAndObstacles) {

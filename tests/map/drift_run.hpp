@@ -46,7 +46,7 @@ struct DriftRunSpec {
 
 /// Odometry that drifts by `fraction` of the distance (sigma of the scale error) and, in
 /// proportion, 0.5 deg of heading per 10 m at 1 %.
-inline void SetOdometryDrift(DriftRunSpec& spec, double fraction) {
+inline void DriftOdometryBy(DriftRunSpec& spec, double fraction) {
   spec.odom_sigma_per_m = fraction;
   spec.odom_yaw_sigma_rad_per_m = fraction * 0.5 * kDriftDeg / 0.1;
 }
@@ -93,61 +93,11 @@ inline double TiltBetween(const Eigen::Matrix3d& R_a, const Eigen::Matrix3d& R_b
   return std::atan2(up_a.cross(up_b).norm(), up_a.dot(up_b));
 }
 
-/// p' = c + Ry(pitch) Rx(roll) (p - c) + dz e_z about the sensor origin c (as RefineTilt).
-inline Eigen::Isometry3d CorrectTilt(const Eigen::Isometry3d& T_world_sensor, double roll_rad,
-                                     double pitch_rad, double dz_m) {
-  const Eigen::Matrix3d R = (Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
-                             Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
-                                .toRotationMatrix();
-  const Eigen::Vector3d c = T_world_sensor.translation();
-  Eigen::Isometry3d C = Eigen::Isometry3d::Identity();
-  C.linear() = R;
-  C.translation() = c - R * c + Eigen::Vector3d(0.0, 0.0, dz_m);
-  return C * T_world_sensor;
-}
-
-inline map::ElevationPatch ElevationAround(const map::TerrainMap& terrain,
-                                           const Eigen::Vector2d& centre, double half_size_m) {
-  const map::GridPatch grid = terrain.PatchAround(centre, half_size_m);
-  map::ElevationPatch patch;
-  patch.z = grid.elevation_m.transpose().cast<double>();  // rows along y, columns along x
-  patch.origin_m = grid.origin;
-  patch.resolution_m = grid.cell_size_m;
-  return patch;
-}
-
 namespace detail {
 
-using CellSet = std::set<std::pair<int, int>>;
 
 inline double CellDistance(const std::pair<int, int>& a, const std::pair<int, int>& b, double s) {
   return std::hypot(a.first - b.first, a.second - b.second) * s;
-}
-
-// Per object, its cells (among the observed cells of the map) and its height above the
-// terrain there: 4 x 4 vertical rays per cell cast down through the scene.
-inline std::map<int, std::map<std::pair<int, int>, double>> ObjectCells(
-    const sim::Scene& scene, const map::TerrainGrid& grid, const map::CellBox& box) {
-  const sim::RayCaster caster(scene);
-  sim::RenderOptions options;
-  options.max_range_m = 12.0;
-  std::map<int, std::map<std::pair<int, int>, double>> cells;
-  const double s = grid.cell_size();
-  for (int j = box.min.y(); j <= box.max.y(); ++j) {
-    for (int i = box.min.x(); i <= box.max.x(); ++i) {
-      if (!grid.At({i, j}).observed) continue;
-      for (int k = 0; k < 16; ++k) {
-        const double x = (i + (k % 4 + 0.5) / 4.0) * s, y = (j + (k / 4 + 0.5) / 4.0) * s;
-        const double ground = scene.terrain().Height(x, y);
-        const sim::Ray ray{{x, y, ground + 6.0}, {0.0, 0.0, -1.0}};
-        const std::optional<sim::RayHit> hit = caster.Cast(ray, options);
-        if (!hit || hit->id <= 0) continue;
-        double& height = cells[hit->id][{i, j}];
-        height = std::max(height, ray.At(hit->t).z() - ground);
-      }
-    }
-  }
-  return cells;
 }
 
 // Scores the map of `r` against the world (same measures as terrain_map_sim_test).
@@ -160,19 +110,11 @@ inline void Score(const sim::World& world, const std::map<int, int>& pixels_seen
     r.error = "nothing observed";
     return;
   }
-  const auto heights = ObjectCells(world.scene, grid, *box);
-  std::map<int, CellSet> objects;
-  CellSet lethal, near_object;
-  for (const auto& [id, cells] : heights) {
-    for (const auto& [c, height] : cells) {
-      for (int dj = -3; dj <= 3; ++dj) {
-        for (int di = -3; di <= 3; ++di) near_object.insert({c.first + di, c.second + dj});
-      }
-      if (height < 0.15 || !world.scene.Find(id)->is_obstacle) continue;
-      objects[id].insert(c);
-      r.truth_cells.insert(c);
-    }
-  }
+  const TrueCells true_cells = TrueCellsOf(world.scene, grid, *box);
+  const std::map<int, CellSet>& objects = true_cells.obstacles;
+  const CellSet& near_object = true_cells.near_object;
+  r.truth_cells = true_cells.all;
+  CellSet lethal;
   for (int j = box->min.y(); j <= box->max.y(); ++j) {
     for (int i = box->min.x(); i <= box->max.x(); ++i) {
       if (grid.At({i, j}).lethal) lethal.insert({i, j});
@@ -274,7 +216,7 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
           sim::RotationFromAttitude({s.imu.roll_rad, s.imu.pitch_rad, s.odometry.yaw_rad});
       T_world_body.translation() = Eigen::Vector3d(s.odometry.x_m, s.odometry.y_m, z_body);
       T_world_sensor = T_world_body * drive->T_body_sensor;
-      if (spec.refine_tilt) T_world_sensor = CorrectTilt(T_world_sensor, roll, pitch, dz);
+      if (spec.refine_tilt) T_world_sensor = map::ApplyTiltCorrection(T_world_sensor, roll, pitch, dz);
     }
     previous = &s;
     // Render from the true pose; level with the believed up vector.
@@ -304,7 +246,7 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
         ground.push_back(frame->image.point(i).cast<float>());
       }
       const map::ElevationPatch patch =
-          ElevationAround(r.map, T_world_sensor.translation().head<2>(), refiner.max_range_m);
+          map::ElevationPatchAround(r.map, T_world_sensor.translation().head<2>(), refiner.max_range_m);
       Expected<map::TiltEstimate> estimate =
           map::RefineTilt(ground, T_world_sensor, patch, refiner);
       if (!estimate) return estimate.error();

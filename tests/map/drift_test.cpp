@@ -27,7 +27,7 @@ DriftRunSpec PolesAndRocks(double drift) {
   DriftRunSpec spec;
   spec.world = "poles_and_rocks";
   spec.waypoints = {{0.0, 0.0}, {16.0, 0.0}};
-  SetOdometryDrift(spec, drift);
+  DriftOdometryBy(spec, drift);
   return spec;
 }
 

@@ -60,7 +60,7 @@ std::vector<Condition> Conditions(bool sloped) {
   out.push_back(truth);
   for (const double drift : {0.0, 0.01, 0.03}) {
     Condition c{"odometry " + Fmt("%.0f", drift * 100.0) + "%", {}, drift > 0.0 ? 3 : 1};
-    SetOdometryDrift(c.spec, drift);
+    DriftOdometryBy(c.spec, drift);
     out.push_back(c);
   }
   if (sloped) {
@@ -72,11 +72,11 @@ std::vector<Condition> Conditions(bool sloped) {
     refined.spec.refine_tilt = true;
     out.push_back(refined);
     Condition drift_bias{"odometry 1% + IMU bias 2 deg", {}, 3};
-    SetOdometryDrift(drift_bias.spec, 0.01);
+    DriftOdometryBy(drift_bias.spec, 0.01);
     drift_bias.spec.imu_bias_rad = 2.0 * kDriftDeg;
     out.push_back(drift_bias);
     Condition both{"odometry 1% + IMU bias 2 deg + tilt refiner", {}, 3};
-    SetOdometryDrift(both.spec, 0.01);
+    DriftOdometryBy(both.spec, 0.01);
     both.spec.imu_bias_rad = 2.0 * kDriftDeg;
     both.spec.refine_tilt = true;
     out.push_back(both);

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -130,6 +132,61 @@ inline Expected<sim::Drive> TrueDrive(const sim::Terrain& terrain,
   spec.odom_sigma_per_m = spec.odom_yaw_sigma_rad_per_m = 0.0;
   spec.imu_sigma_rad = spec.imu_bias_rad = 0.0;
   return sim::SimulateDrive(terrain, spec, sensor, 1);
+}
+
+/// Map cells as (x, y) cell indices.
+using CellSet = std::set<std::pair<int, int>>;
+
+/// For every object, its cells (among the observed cells of the map) and how high it rises
+/// there above the terrain, seen from above: 4 x 4 vertical rays per observed cell, cast down
+/// through the scene with libsim's ray caster (objects stand less than 6 m tall).
+inline std::map<int, std::map<std::pair<int, int>, double>> ObjectCells(
+    const sim::Scene& scene, const map::TerrainGrid& grid, const map::CellBox& box) {
+  const sim::RayCaster caster(scene);
+  sim::RenderOptions options;
+  options.max_range_m = 12.0;
+  std::map<int, std::map<std::pair<int, int>, double>> cells;
+  const double s = grid.cell_size();
+  for (int j = box.min.y(); j <= box.max.y(); ++j) {
+    for (int i = box.min.x(); i <= box.max.x(); ++i) {
+      if (!grid.At({i, j}).observed) continue;
+      for (int k = 0; k < 16; ++k) {
+        const double x = (i + (k % 4 + 0.5) / 4.0) * s, y = (j + (k / 4 + 0.5) / 4.0) * s;
+        const double ground = scene.terrain().Height(x, y);
+        const sim::Ray ray{{x, y, ground + 6.0}, {0.0, 0.0, -1.0}};
+        const std::optional<sim::RayHit> hit = caster.Cast(ray, options);
+        if (!hit || hit->id <= 0) continue;
+        double& height = cells[hit->id][{i, j}];
+        height = std::max(height, ray.At(hit->t).z() - ground);
+      }
+    }
+  }
+  return cells;
+}
+
+/// The truth a map is scored against: per obstacle its cells where it rises 0.15 m
+/// (obstacle_min_height) or more, all those cells, and the cells within 3 of any object
+/// (left out of the elevation's error).
+struct TrueCells {
+  std::map<int, CellSet> obstacles;
+  CellSet all;
+  CellSet near_object;
+};
+
+inline TrueCells TrueCellsOf(const sim::Scene& scene, const map::TerrainGrid& grid,
+                             const map::CellBox& box) {
+  TrueCells out;
+  for (const auto& [id, cells] : ObjectCells(scene, grid, box)) {
+    for (const auto& [c, height] : cells) {
+      for (int dj = -3; dj <= 3; ++dj) {
+        for (int di = -3; di <= 3; ++di) out.near_object.insert({c.first + di, c.second + dj});
+      }
+      if (height < 0.15 || !scene.Find(id)->is_obstacle) continue;
+      out.obstacles[id].insert(c);
+      out.all.insert(c);
+    }
+  }
+  return out;
 }
 
 }  // namespace cairn::test

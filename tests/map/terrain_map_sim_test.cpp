@@ -77,35 +77,7 @@ DriveRun Drive(const sim::World& world, const std::vector<std::vector<Eigen::Vec
   return run;
 }
 
-using CellSet = std::set<std::pair<int, int>>;
-
-// For every object, its cells and how high it rises there above the terrain, seen from
-// above: 4 x 4 vertical rays per observed cell, cast down through the scene with libsim's ray
-// caster (objects stand less than 6 m tall).
-std::map<int, std::map<std::pair<int, int>, double>> ObjectCells(const sim::Scene& scene,
-                                                                 const TerrainGrid& grid,
-                                                                 const CellBox& box) {
-  const sim::RayCaster caster(scene);
-  sim::RenderOptions options;
-  options.max_range_m = 12.0;
-  std::map<int, std::map<std::pair<int, int>, double>> cells;
-  const double s = grid.cell_size();
-  for (int j = box.min.y(); j <= box.max.y(); ++j) {
-    for (int i = box.min.x(); i <= box.max.x(); ++i) {
-      if (!grid.At({i, j}).observed) continue;
-      for (int k = 0; k < 16; ++k) {
-        const double x = (i + (k % 4 + 0.5) / 4.0) * s, y = (j + (k / 4 + 0.5) / 4.0) * s;
-        const double ground = scene.terrain().Height(x, y);
-        const sim::Ray ray{{x, y, ground + 6.0}, {0.0, 0.0, -1.0}};
-        const std::optional<sim::RayHit> hit = caster.Cast(ray, options);
-        if (!hit || hit->id <= 0) continue;
-        double& height = cells[hit->id][{i, j}];
-        height = std::max(height, ray.At(hit->t).z() - ground);
-      }
-    }
-  }
-  return cells;
-}
+using test::CellSet;
 
 double Distance(const std::pair<int, int>& a, const std::pair<int, int>& b, double s) {
   return std::hypot(a.first - b.first, a.second - b.second) * s;
@@ -135,20 +107,11 @@ Scores Score(const sim::World& world, const DriveRun& run, const std::string& la
   EXPECT_TRUE(box.has_value());
   if (!box) return out;
   // True obstacle cells: where an obstacle rises 0.15 m (obstacle_min_height) or more.
-  const auto heights = ObjectCells(world.scene, grid, *box);
-  std::map<int, CellSet> objects;
-  CellSet truth, all_obstacle, lethal, near_object;
-  for (const auto& [id, cells] : heights) {
-    for (const auto& [c, height] : cells) {
-      for (int dj = -3; dj <= 3; ++dj) {
-        for (int di = -3; di <= 3; ++di) near_object.insert({c.first + di, c.second + dj});
-      }
-      if (height < 0.15 || !world.scene.Find(id)->is_obstacle) continue;
-      objects[id].insert(c);
-      all_obstacle.insert(c);
-      truth.insert(c);  // observed: only observed cells were sampled
-    }
-  }
+  const test::TrueCells true_cells = test::TrueCellsOf(world.scene, grid, *box);
+  const std::map<int, CellSet>& objects = true_cells.obstacles;
+  const CellSet& truth = true_cells.all;  // observed: only observed cells were sampled
+  const CellSet& near_object = true_cells.near_object;
+  CellSet lethal;
   for (int j = box->min.y(); j <= box->max.y(); ++j) {
     for (int i = box->min.x(); i <= box->max.x(); ++i) {
       if (grid.At({i, j}).lethal) lethal.insert({i, j});
@@ -161,7 +124,7 @@ Scores Score(const sim::World& world, const DriveRun& run, const std::string& la
   out.iou = both / static_cast<double>(lethal.size() + truth.size() - both);
   for (const auto& c : lethal) {
     double nearest = 1e9;
-    for (const auto& t : all_obstacle) nearest = std::min(nearest, Distance(c, t, s));
+    for (const auto& t : truth) nearest = std::min(nearest, Distance(c, t, s));
     out.far_lethal += nearest > 0.5;
   }
   // Each obstacle seen well (30 pixels in a frame at least): its distance to a lethal cell.
@@ -194,7 +157,7 @@ Scores Score(const sim::World& world, const DriveRun& run, const std::string& la
   for (const Obstacle& o : map.obstacles()) {
     bool matched = false;
     for (const CellIndex& oc : o.cells) {
-      for (const auto& t : all_obstacle)
+      for (const auto& t : truth)
         matched = matched || Distance({oc.x(), oc.y()}, t, s) < 0.3;
     }
     out.unmatched += !matched;

@@ -37,6 +37,7 @@
 #include "cairn/sources/annotate.hpp"
 #include "cairn/sources/decode.hpp"
 #include "cairn/sources/rawlog_file.hpp"
+#include "../io/cairn_command.hpp"
 #include "helpers.hpp"
 #include "io/temp_dir.hpp"
 
@@ -240,15 +241,8 @@ struct CommandRun {
 };
 
 CommandRun Cairn(const std::string& args) {
-  CommandRun run;
-  const std::string command = std::string(CAIRN_EXE) + " " + args + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return run;
-  std::array<char, 4096> buffer;
-  while (fgets(buffer.data(), static_cast<int>(buffer.size()), pipe) != nullptr) run.out += buffer.data();
-  const int status = pclose(pipe);
-  run.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
+  const test::CommandResult run = test::RunShell(std::string(CAIRN_EXE) + " " + args);
+  return {run.exit_code, run.output};
 }
 
 nlohmann::json ReadJson(const fs::path& path) {

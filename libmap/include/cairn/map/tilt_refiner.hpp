@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/map/terrain_map.hpp"
 #include "cairn/od/expected.hpp"
 
 namespace cairn::map {
@@ -62,6 +63,17 @@ struct TiltEstimate {
   bool usable = false;     ///< false: too few points or Ceres failed; T_world_sensor = prior
   std::string report;      ///< Ceres' brief report, or why the prior was kept
 };
+
+/// The patch of `terrain`'s fused elevation within half_size_m of `centre` (world x, y [m]),
+/// as RefineTilt reads it.
+ElevationPatch ElevationPatchAround(const TerrainMap& terrain, const Eigen::Vector2d& centre,
+                                    double half_size_m);
+
+/// `T_world_sensor` corrected as above: rotated by Ry(pitch) Rx(roll) about the world x and y
+/// axes through its origin, and raised by dz. A TiltEstimate's T_world_sensor is its prior
+/// corrected by its roll_rad, pitch_rad and dz_m.
+Eigen::Isometry3d ApplyTiltCorrection(const Eigen::Isometry3d& T_world_sensor, double roll_rad,
+                                      double pitch_rad, double dz_m);
 
 /// Refines T_world_sensor_prior from `ground_points_sensor` (points the detector did not flag,
 /// in the sensor frame [m]) against `terrain`. Fails only on an invalid config; too little
