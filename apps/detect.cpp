@@ -160,8 +160,7 @@ int RunDetectPoints(const DetectOptions& options) {
   std::cout << ", rules " << (options.no_rules ? "off" : "on") << "\n"
             << "  segments: " << d.segments.size() << " found, " << result->classification.kept
             << " kept, " << result->classification.rejected << " rejected ("
-            << d.stats.obstacle_points << " obstacle cells, " << d.stats.pairs_compatible
-            << " compatible pairs)\n"
+            << d.stats.obstacle_points << " obstacle cells)\n"
             << "  time: detect " << result->detect_ms << " ms, total " << total_ms << " ms\n"
             << "  wrote: " << files->labels.string() << "\n"
             << "         " << files->birds_eye.string()
@@ -232,7 +231,7 @@ int RunDetect(const DetectOptions& options) {
   std::cout << ", rules " << (options.no_rules ? "off" : "on") << "\n"
             << "  segments: " << d.segments.size() << " found, " << classification->kept
             << " kept, " << classification->rejected << " rejected (" << d.stats.obstacle_points
-            << " obstacle points, " << d.stats.pairs_compatible << " compatible pairs)\n"
+            << " obstacle points)\n"
             << "  time: detect " << detect_ms << " ms, total " << total_ms << " ms\n"
             << "  wrote: " << files->segments_png.string() << "\n"
             << "         " << files->classes_png.string() << "\n"

@@ -185,8 +185,7 @@ int RunDetectStereo(const DetectOptions& options) {
   std::cout << ", rules " << (options.no_rules ? "off" : "on") << "\n"
             << "  segments: " << d.segments.size() << " found, " << result->classification.kept
             << " kept, " << result->classification.rejected << " rejected ("
-            << d.stats.obstacle_points << " obstacle points, " << d.stats.pairs_compatible
-            << " compatible pairs)\n"
+            << d.stats.obstacle_points << " obstacle points)\n"
             << "  time: stereo " << stereo_ms << " ms, detect " << result->detect_ms
             << " ms, total " << total_ms << " ms\n"
             << "  wrote: " << depth_path.string() << " (z-depth [m], 0 = hole)\n"

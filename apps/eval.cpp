@@ -108,7 +108,7 @@ struct WorldRun {
 bool RulesDisabled(const od::RuleConfig& r) {
   return r.min_points == 0 && r.min_volume_m3 == 0.0 && r.min_perimeter_m == 0.0 &&
          r.min_slope_mean_rad == 0.0 && r.min_slope_max_rad == 0.0 && r.min_height_mean_m == 0.0 &&
-         r.min_height_max_m == 0.0 && r.min_pairs == 0;
+         r.min_height_max_m == 0.0 && r.min_raised == 0;
 }
 
 std::string CommandLine(const EvalOptions& o) {

@@ -147,9 +147,6 @@ TEST(ColumnDetector, ObstaclePointsAreThoseOfTheColumnPairs) {
     EXPECT_EQ(missed, 0) << what;
     EXPECT_EQ(invented, 0) << what;
     EXPECT_EQ(beyond_cone, 0) << what;
-    EXPECT_GE(columns.stats.pairs_compatible, strict_pairs) << what;
-    EXPECT_LE(columns.stats.pairs_compatible, loose_pairs) << what;
-    EXPECT_LE(columns.stats.pairs_compatible, cone.stats.pairs_compatible) << what;
     with_obstacles += columns.stats.obstacle_points > 0;
   }
   EXPECT_GE(with_obstacles, 6);
@@ -202,9 +199,9 @@ TEST(ColumnDetector, BlobsAreEightConnected) {
   EXPECT_EQ(d.segments[0].col_min, 5);
   EXPECT_EQ(d.segments[0].col_max, 6);
   // Three pairs per stack of four: rows (0, 2), (0, 3), (1, 3); neighbours are only
-  // 0.2 m apart, below HT.
-  EXPECT_EQ(d.stats.pairs_compatible, 5 * 3);
-  EXPECT_EQ(d.segments[0].pair_count, 6);
+  // 0.2 m apart, below HT. Rows 2 and 3 stand above a partner: two raised points a stack.
+  EXPECT_EQ(d.segments[0].raised_count, 4);
+  EXPECT_EQ(d.segments[1].raised_count, 2);
 }
 
 TEST(ColumnDetector, BlobAreaRejectionRemovesSmallBlobs) {

@@ -20,7 +20,7 @@ SegmentFeatures Big(int id) {
   SegmentFeatures f;
   f.id = id;
   f.point_count = 500;
-  f.pair_count = 4000;
+  f.raised_count = 4000;
   f.bbox_min = {5.0, -0.5, -1.6};
   f.bbox_max = {6.0, 0.5, -0.6};
   f.bbox_perimeter_m = 4.0;
@@ -98,10 +98,10 @@ std::vector<RuleCase> Cases() {
        [](RuleConfig& r) { r.min_height_max_m = 0.6; },
        [](SegmentFeatures& f) { f.height_max_m = 0.45; },
        {"height", "max"}},
-      {"pairs",
-       [](RuleConfig& r) { r.min_pairs = 50; },
-       [](SegmentFeatures& f) { f.pair_count = 10; },
-       {"pair"}},
+      {"raised points",
+       [](RuleConfig& r) { r.min_raised = 50; },
+       [](SegmentFeatures& f) { f.raised_count = 10; },
+       {"raised"}},
   };
 }
 
@@ -167,7 +167,7 @@ TEST(Rules, ValueEqualToTheThresholdPasses) {
     f.slope_max_rad = rules.min_slope_max_rad > 0 ? rules.min_slope_max_rad : f.slope_max_rad;
     f.height_mean_m = rules.min_height_mean_m > 0 ? rules.min_height_mean_m : f.height_mean_m;
     f.height_max_m = rules.min_height_max_m > 0 ? rules.min_height_max_m : f.height_max_m;
-    f.pair_count = rules.min_pairs > 0 ? rules.min_pairs : f.pair_count;
+    f.raised_count = rules.min_raised > 0 ? rules.min_raised : f.raised_count;
     const Classification c = MustClassify(TwoSegments(Big(0), f), rules);
     EXPECT_EQ(c.verdicts[1].cls, SegmentClass::kKept) << rc.name << ": " << c.verdicts[1].reason;
   }
@@ -242,7 +242,7 @@ TEST(RuleConfig, ValidationNamesTheBadThreshold) {
       {"min_slope_max", [](RuleConfig& r) { r.min_slope_max_rad = INFINITY; }},
       {"min_height_mean", [](RuleConfig& r) { r.min_height_mean_m = -0.2; }},
       {"min_height_max", [nan](RuleConfig& r) { r.min_height_max_m = nan; }},
-      {"min_pairs", [](RuleConfig& r) { r.min_pairs = -5; }},
+      {"min_raised", [](RuleConfig& r) { r.min_raised = -5; }},
   };
   for (const auto& [field, spoil] : bad) {
     RuleConfig rules = RuleConfig::None();

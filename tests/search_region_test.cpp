@@ -127,7 +127,7 @@ TEST(SearchRegion, LidarDetectionEqualsBruteForce) {
     config.min_height_m = 0.2;
     config.max_height_m = 1.5;
     config.min_slope_rad = 0.6;
-    const Detection exact = *Detect(image, config);
+    const Detection exact = *DetectRegionScan(image, config);
     const Detection brute = *DetectBruteForce(image, config);
     EXPECT_EQ(exact.labels, brute.labels) << "trial " << trial;
     EXPECT_EQ(exact.stats.pairs_compatible, brute.stats.pairs_compatible) << "trial " << trial;
@@ -176,7 +176,7 @@ TEST(SearchRegion, LidarDetectionEqualsBruteForceOnMeasuredOverlappingRings) {
     config.max_height_m = 1.0 + trial * 0.5;
     config.min_slope_rad = 0.5 + 0.2 * trial;
     CheckEveryPartnerInside(image, config, "measured rings trial " + std::to_string(trial));
-    const Detection exact = *Detect(image, config);
+    const Detection exact = *DetectRegionScan(image, config);
     const Detection brute = *DetectBruteForce(image, config);
     EXPECT_EQ(exact.labels, brute.labels) << "trial " << trial;
     EXPECT_EQ(exact.stats.pairs_compatible, brute.stats.pairs_compatible) << "trial " << trial;

@@ -3,7 +3,7 @@
 #include <string>
 
 #include "detection_internal.hpp"
-#include "search_region.hpp"
+#include "pair_search.hpp"
 
 namespace cairn::od {
 
@@ -49,33 +49,21 @@ Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& c
   const int n = image.size(), width = image.width(), height = image.height();
   const internal::LevelPoints level(image);
   const PairTest test(pair_config);
-  internal::PairAccumulator pairs(n);
-  std::vector<std::uint8_t> obstacle(n, 0), raised(n, 0);
-  DetectionStats stats;
 
-  // 1. Column profiles: partners of each pixel among the pixels of its own column, limited
-  //    to the rows its upper cone can reach (which is every row where a partner can be).
-  if (image.valid_count() > 0) {
-    const internal::ConeRegion region(image, pair_config);
-    internal::RowSpans spans(height);
-    for (int p = 0; p < n; ++p) {
-      if (!image.valid(p)) continue;
-      region.Compute(p, spans);
-      const int col = p % width;
-      for (int r = spans.row_begin; r < spans.row_end; ++r) {
-        if (!spans.Contains(r, col, width)) continue;
-        const int q = r * width + col;
-        ++stats.pairs_tested;
-        const float dx = level.x[q] - level.x[p], dy = level.y[q] - level.y[p],
-                    dz = level.z[q] - level.z[p];
-        if (!test(dx, dy, dz)) continue;
-        ++stats.pairs_compatible;
-        pairs.Add(p, dx, dy, dz);
-        obstacle[p] = obstacle[q] = 1;
-        raised[q] = 1;
-      }
-    }
-  }
+  // 1. Column profiles: the compatible pairs within each column, one tree of blocks of
+  //    rows per column (pair_search.hpp), so that a column's far apart rows are skipped
+  //    in blocks.
+  const internal::Candidates candidates = internal::FindCandidates(level, test);
+  const internal::PointTree lower(level, candidates.lower, width, height, 8, 1, true);
+  const internal::PointTree upper(level, candidates.upper, width, height, 8, 1, true);
+  internal::PairSearchOptions options;
+  options.unions = false;
+  const internal::PairSearchResult found = internal::SearchPairs(lower, upper, n, test, options);
+  std::vector<std::uint8_t> obstacle(n, 0);
+  for (int i = 0; i < n; ++i) obstacle[i] = found.lower[i] | found.raised[i];
+  const std::vector<std::uint8_t>& raised = found.raised;
+  DetectionStats stats = found.stats;
+  stats.node_pairs = stats.blocks_accepted = 0;
 
   // 2. Blob colouring of the obstacle mask, 8-connected.
   internal::UnionFind blobs(n);
@@ -101,7 +89,7 @@ Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& c
   for (int i = 0; i < n; ++i) {
     if (component[i] >= 0 && area[component[i]] < config.min_blob_pixels) component[i] = -1;
   }
-  return internal::BuildDetection(image, level, component, pairs, raised, test.min_height, stats);
+  return internal::BuildDetection(image, level, component, raised, test.min_height, stats);
 }
 
 }  // namespace cairn::od

@@ -57,44 +57,13 @@ class UnionFind {
   std::vector<std::int32_t> parent_;
 };
 
-/// Slope angle atan2(dz, horizontal) for dz >= 0, within 2e-5 rad of std::atan2 (the
-/// polynomial of Abramowitz & Stegun 4.4.49 on [0, 1], mirrored for steeper pairs). The
-/// detectors compute one per compatible pair, where the library call dominated the run time.
-inline float PairSlope(float dz, float horizontal) {
-  constexpr float kHalfPi = 1.57079632679f;
-  const bool steep = dz > horizontal;
-  const float num = steep ? horizontal : dz, den = steep ? dz : horizontal;
-  if (den <= 0.0f) return 0.0f;
-  const float x = num / den, x2 = x * x;
-  const float a =
-      x * (0.9998660f + x2 * (-0.3302995f + x2 * (0.1801410f + x2 * (-0.0851330f + x2 * 0.0208351f))));
-  return steep ? kHalfPi - a : a;
-}
-
-/// Per-pixel sums over the compatible pairs whose lower point is that pixel.
-struct PairAccumulator {
-  std::vector<double> slope_sum;     // [rad]
-  std::vector<float> slope_max;      // [rad]
-  std::vector<std::int32_t> count;
-
-  // Writes only the lower point's entries, so threads scanning disjoint lower points share
-  // one accumulator safely.
-  explicit PairAccumulator(int n) : slope_sum(n, 0.0), slope_max(n, 0.0f), count(n, 0) {}
-  void Add(int lower, float dx, float dy, float dz) {
-    const float slope = PairSlope(dz, std::sqrt(dx * dx + dy * dy));
-    slope_sum[lower] += slope;
-    if (slope > slope_max[lower]) slope_max[lower] = slope;
-    ++count[lower];
-  }
-};
-
 /// Builds the Detection: `component[i]` is a representative pixel of i's segment (equal for
 /// pixels of one segment) or -1 when i is in none. Ids follow the row-major order of each
 /// segment's first pixel; features follow the definitions in detector.hpp.
 /// `raised[i]` is 1 where i is the upper point of some compatible pair; with `min_height`
 /// (HT) it decides the feet (Detection::foot).
 Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
-                         const std::vector<std::int32_t>& component, const PairAccumulator& pairs,
+                         const std::vector<std::int32_t>& component,
                          const std::vector<std::uint8_t>& raised, float min_height,
                          const DetectionStats& stats);
 

@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <variant>
 
 #include "detection_internal.hpp"
 
@@ -90,7 +91,7 @@ struct SegmentSums {
 }  // namespace
 
 Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
-                         const std::vector<std::int32_t>& component, const PairAccumulator& pairs,
+                         const std::vector<std::int32_t>& component,
                          const std::vector<std::uint8_t>& raised, float min_height,
                          const DetectionStats& stats) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -129,10 +130,9 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     const Eigen::Vector3d p(level.x[i], level.y[i], level.z[i]);
     const double range = image.range(i);
     ++f.point_count;
-    f.pair_count += pairs.count[i];
+    f.raised_count += raised[i] != 0;
     f.bbox_min = f.bbox_min.cwiseMin(p);
     f.bbox_max = f.bbox_max.cwiseMax(p);
-    f.slope_max_rad = std::max(f.slope_max_rad, static_cast<double>(pairs.slope_max[i]));
     f.range_min_m = std::min(f.range_min_m, range);
     const int r = i / width, c = i % width;
     f.row_min = std::min(f.row_min, r);
@@ -143,8 +143,40 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     s.sy += p.y();
     s.sz += p.z();
     s.s_range += range;
-    s.slope_sum += pairs.slope_sum[i];
     s.z_min = std::min(s.z_min, p.z());
+  }
+  // Surface slopes from each point's neighbours in its own segment.
+  const bool wraps = std::holds_alternative<SphericalModel>(image.model());
+  const int height = image.height();
+  const auto at = [&](int j) { return Eigen::Vector3d(level.x[j], level.y[j], level.z[j]); };
+  // The tangent along one line through i: neighbours `before` and `after` (-1: none).
+  const auto tangent = [&](int i, int before, int after, Eigen::Vector3d& t) {
+    const int id = det.labels[i];
+    const bool b = before >= 0 && det.labels[before] == id;
+    const bool a = after >= 0 && det.labels[after] == id;
+    if (!a && !b) return false;
+    t = (a ? at(after) : at(i)) - (b ? at(before) : at(i));
+    return true;
+  };
+  for (int i = 0; i < n; ++i) {
+    const int id = det.labels[i];
+    if (id == 0) continue;
+    const int r = i / width, c = i % width;
+    int left = c > 0 ? i - 1 : (wraps ? i + width - 1 : -1);
+    int right = c + 1 < width ? i + 1 : (wraps ? i - c : -1);
+    if (width == 1) left = right = -1;
+    const int up = r > 0 ? i - width : -1;
+    const int down = r + 1 < height ? i + width : -1;
+    Eigen::Vector3d tu, tv;
+    if (!tangent(i, left, right, tu) || !tangent(i, up, down, tv)) continue;
+    const Eigen::Vector3d normal = tu.cross(tv);
+    const double horizontal = std::hypot(normal.x(), normal.y());
+    if (!(horizontal > 0.0 || normal.z() != 0.0)) continue;
+    const double slope = std::atan2(horizontal, std::abs(normal.z()));
+    SegmentFeatures& f = det.segments[id - 1];
+    ++f.slope_points;
+    f.slope_max_rad = std::max(f.slope_max_rad, slope);
+    sums[id - 1].slope_sum += slope;
   }
   for (std::size_t k = 0; k < det.segments.size(); ++k) {
     SegmentFeatures& f = det.segments[k];
@@ -153,10 +185,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     const Eigen::Vector3d extent = f.bbox_max - f.bbox_min;
     f.bbox_perimeter_m = 2.0 * (extent.x() + extent.y());
     f.bbox_volume_m3 = extent.x() * extent.y() * extent.z();
-    // The float slope approximation may overshoot a vertical pair's 90 deg by an ulp.
-    constexpr double kHalfPi = 1.5707963267948966;
-    f.slope_max_rad = std::min(f.slope_max_rad, kHalfPi);
-    f.slope_mean_rad = f.pair_count > 0 ? std::min(s.slope_sum / f.pair_count, kHalfPi) : 0.0;
+    f.slope_mean_rad = f.slope_points > 0 ? s.slope_sum / f.slope_points : 0.0;
     f.centroid = Eigen::Vector3d(s.sx, s.sy, s.sz) / np;
     f.ground_height_m = s.z_min;
     f.height_mean_m = f.centroid.z() - s.z_min;

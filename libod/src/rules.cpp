@@ -28,7 +28,7 @@ Status RuleConfig::Validate() const {
       {"min_slope_max", min_slope_max_rad},
       {"min_height_mean", min_height_mean_m},
       {"min_height_max", min_height_max_m},
-      {"min_pairs", static_cast<double>(min_pairs)},
+      {"min_raised", static_cast<double>(min_raised)},
   };
   for (const auto& [name, value] : fields) {
     if (!std::isfinite(value) || value < 0.0) {
@@ -45,7 +45,7 @@ Expected<Classification> Classify(const Detection& detection, const RuleConfig& 
   for (const SegmentFeatures& f : detection.segments) {
     const Rule checks[] = {
         {"points", double(f.point_count), double(rules.min_points), "", 1.0},
-        {"pairs", double(f.pair_count), double(rules.min_pairs), "", 1.0},
+        {"raised points", double(f.raised_count), double(rules.min_raised), "", 1.0},
         {"volume", f.bbox_volume_m3, rules.min_volume_m3, " m^3", 1.0},
         {"perimeter", f.bbox_perimeter_m, rules.min_perimeter_m, " m", 1.0},
         {"mean slope", f.slope_mean_rad, rules.min_slope_mean_rad, " deg", kRadToDeg},

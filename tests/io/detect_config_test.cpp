@@ -35,7 +35,7 @@ rules:
   min_slope_max: 60
   min_height_mean: 0.1
   min_height_max: 0.3
-  min_pairs: 100
+  min_raised: 100
 column:
   min_blob_pixels: 25
 )";
@@ -55,7 +55,7 @@ column:
   EXPECT_DOUBLE_EQ(s->rules.min_slope_max_rad, 60 * kPi / 180);
   EXPECT_DOUBLE_EQ(s->rules.min_height_mean_m, 0.1);
   EXPECT_DOUBLE_EQ(s->rules.min_height_max_m, 0.3);
-  EXPECT_EQ(s->rules.min_pairs, 100);
+  EXPECT_EQ(s->rules.min_raised, 100);
   EXPECT_EQ(s->min_blob_pixels, 25);
 }
 
@@ -132,7 +132,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"detector:\n  region_slabs: 0\n", "cfg.yaml: detector.region_slabs: "},
         BadCase{"rules:\n  min_volume: -1\n", "cfg.yaml: rules.min_volume: "},
         BadCase{"rules:\n  min_height_max: -0.3\n", "cfg.yaml: rules.min_height_max: "},
-        BadCase{"rules:\n  min_pairs: -1\n", "cfg.yaml: rules.min_pairs: "},
+        BadCase{"rules:\n  min_raised: -1\n", "cfg.yaml: rules.min_raised: "},
         BadCase{"column:\n  min_blob_pixels: -4\n", "cfg.yaml: column.min_blob_pixels: "}));
 
 TEST(DetectSettings, LoadNamesTheFile) {
@@ -180,7 +180,7 @@ TEST(DetectSettings, DefaultPresetStatesTheBuiltInDefaults) {
   EXPECT_EQ(s->rules.min_slope_max_rad, r.min_slope_max_rad);
   EXPECT_EQ(s->rules.min_height_mean_m, r.min_height_mean_m);
   EXPECT_EQ(s->rules.min_height_max_m, r.min_height_max_m);
-  EXPECT_EQ(s->rules.min_pairs, r.min_pairs);
+  EXPECT_EQ(s->rules.min_raised, r.min_raised);
   const DetectorConfig d;
   EXPECT_EQ(s->detector.min_height_m, d.min_height_m);
   EXPECT_EQ(s->detector.max_height_m, d.max_height_m);

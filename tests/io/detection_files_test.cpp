@@ -29,7 +29,7 @@ Detection SmallDetection(std::int32_t first_id = 1, std::int32_t second_id = 2) 
   SegmentFeatures a;
   a.id = 1;
   a.point_count = 3;
-  a.pair_count = 2;
+  a.raised_count = 2;
   a.bbox_min = {1, -1, 0};
   a.bbox_max = {2, 1, 0.5};
   a.bbox_perimeter_m = 6;
@@ -156,7 +156,7 @@ TEST(DetectionFiles, WritesTheFiveFilesIntoANewDirectory) {
   EXPECT_NEAR(s1["slope_mean_deg"].get<double>(), 60.0, 1e-9);
   EXPECT_NEAR(s1["slope_max_deg"].get<double>(), 90.0, 1e-9);
   EXPECT_EQ(s1["bbox_max_m"], nlohmann::json::array({2.0, 1.0, 0.5}));
-  for (const char* key : {"point_count", "pair_count", "bbox_min_m", "bbox_perimeter_m",
+  for (const char* key : {"point_count", "raised_count", "bbox_min_m", "bbox_perimeter_m",
                           "bbox_volume_m3", "ground_height_m", "height_mean_m", "height_max_m",
                           "centroid_m", "range_mean_m", "range_min_m", "rows_px", "cols_px"}) {
     EXPECT_TRUE(s1.contains(key)) << key;

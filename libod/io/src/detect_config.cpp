@@ -46,7 +46,7 @@ std::vector<Field> RuleFields(RuleConfig& c) {
           {"min_slope_max", Kind::kDegrees, "min_slope_max_rad", &c.min_slope_max_rad},
           {"min_height_mean", Kind::kNumber, "min_height_mean_m", &c.min_height_mean_m},
           {"min_height_max", Kind::kNumber, "min_height_max_m", &c.min_height_max_m},
-          {"min_pairs", Kind::kInt64, "min_pairs", &c.min_pairs}};
+          {"min_raised", Kind::kInt, "min_raised", &c.min_raised}};
 }
 
 std::vector<Field> ColumnFields(DetectSettings& s) {

@@ -81,7 +81,7 @@ Json SettingsJson(const DetectSettings& s) {
                 {"min_slope_max_deg", r.min_slope_max_rad * kRadToDeg},
                 {"min_height_mean_m", r.min_height_mean_m},
                 {"min_height_max_m", r.min_height_max_m},
-                {"min_pairs", r.min_pairs}};
+                {"min_raised", r.min_raised}};
   Json column = {{"min_blob_pixels", s.min_blob_pixels}};
   return {{"detector", detector}, {"rules", rules}, {"column", column}};
 }
@@ -92,7 +92,7 @@ Json SegmentJson(const SegmentFeatures& f, const SegmentVerdict& v) {
           {"rejection_reason", v.reason},
           {"point_count", f.point_count},
           {"foot_count", f.foot_count},
-          {"pair_count", f.pair_count},
+          {"raised_count", f.raised_count},
           {"bbox_min_m", Vec3(f.bbox_min)},
           {"bbox_max_m", Vec3(f.bbox_max)},
           {"bbox_perimeter_m", f.bbox_perimeter_m},
@@ -252,7 +252,7 @@ Status WriteSegmentsJson(const std::filesystem::path& path, const Detection& det
     segments.push_back(SegmentJson(detection.segments[i], classification.verdicts[i]));
   }
   Json doc = {
-      {"format", "cairn-segments-1"},
+      {"format", "cairn-segments-2"},
       {"image", {{"width", detection.width}, {"height", detection.height}}},
       {"method", run.method},
       {"rules_applied", run.rules_applied},
@@ -265,7 +265,7 @@ Status WriteSegmentsJson(const std::filesystem::path& path, const Detection& det
       {"stats",
        {{"obstacle_points", detection.stats.obstacle_points},
         {"pairs_tested", detection.stats.pairs_tested},
-        {"pairs_compatible", detection.stats.pairs_compatible}}},
+        {"pairs_found", detection.stats.pairs_compatible}}},
       {"summary",
        {{"segments", detection.segments.size()},
         {"kept", classification.kept},

@@ -265,7 +265,7 @@ std::string SettingsMarkdown(const od::io::DetectSettings& s, const std::string&
       << " m^3, min_perimeter " << r.min_perimeter_m << " m, min_slope_mean "
       << r.min_slope_mean_rad * kRadToDeg << " deg, min_slope_max "
       << r.min_slope_max_rad * kRadToDeg << " deg, min_height_mean " << r.min_height_mean_m
-      << " m, min_height_max " << r.min_height_max_m << " m, min_pairs " << r.min_pairs
+      << " m, min_height_max " << r.min_height_max_m << " m, min_raised " << r.min_raised
       << " (0 disables a rule). Column baseline: min_blob_pixels " << s.min_blob_pixels << ".\n";
   return out.str();
 }

@@ -27,7 +27,7 @@ const std::vector<Key>& Keys() {
       {"rules", "min_volume", Unit::kCubicMetre},   {"rules", "min_perimeter", Unit::kMetre},
       {"rules", "min_slope_mean", Unit::kDegree},   {"rules", "min_slope_max", Unit::kDegree},
       {"rules", "min_height_mean", Unit::kMetre},   {"rules", "min_height_max", Unit::kMetre},
-      {"rules", "min_pairs", Unit::kCount},
+      {"rules", "min_raised", Unit::kCount},
   };
   return keys;
 }
@@ -102,7 +102,7 @@ Status ApplySetting(od::io::DetectSettings& settings, const std::string& key, do
   if (name == "min_slope_max") r.min_slope_max_rad = value * kDegToRad;
   if (name == "min_height_mean") r.min_height_mean_m = value;
   if (name == "min_height_max") r.min_height_max_m = value;
-  if (name == "min_pairs") r.min_pairs = integer;
+  if (name == "min_raised") r.min_raised = static_cast<int>(integer);
   if (IsInteger(k->unit) && (integer < 0 || integer > 1000000000)) {
     return Error{name + " = " + std::to_string(integer) + ": out of range"};
   }

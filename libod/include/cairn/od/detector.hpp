@@ -7,10 +7,14 @@
 //    i.e. the line joining them is steeper than theta from the horizontal;
 //  - an obstacle point has at least one compatible partner;
 //  - a segment is a connected component of the graph whose edges are the compatible pairs.
-// Each pair is found once, from its lower point, by scanning the pixels onto which that
-// point's upper cone (height HT..Hmax above it, half-angle 90 deg - theta about `up`) can
-// project. In `kExact` mode that region is computed from the point, the sensor model and
-// the tilt, with a margin: the result equals DetectBruteForce's, pair for pair.
+// Each pair is found once, from its lower point. Detect bounds blocks of points (a tree of
+// pixel rectangles with their 3-D boxes): block pairs that provably hold no compatible pair
+// are skipped, block pairs that provably hold only compatible pairs are joined at once, and
+// block pairs that can change nothing are skipped; the result equals DetectBruteForce's,
+// point for point and segment for segment. DetectRegionScan, the earlier method,
+// scans for each point the pixels onto which its upper cone (height HT..Hmax above it,
+// half-angle 90 deg - theta about `up`) can project; it is kept as the reference that
+// benchmarks and tests compare with, and it runs the paper's square window.
 #pragma once
 
 #include <Eigen/Core>
@@ -24,7 +28,7 @@
 namespace cairn::od {
 
 enum class SearchMode {
-  kExact,        ///< the whole projection of each pixel's upper cone (default)
+  kExact,        ///< every compatible pair: the O(N^2) definition's result (default)
   kPaperWindow,  ///< the paper's square window above the pixel: an approximation
 };
 
@@ -37,9 +41,9 @@ struct DetectorConfig {
   /// object at the pixel's range (the paper uses 4-5); it spans from the pixel upwards and
   /// is centred on its column.
   double window_scale = 4.5;
-  /// kExact: the cone is bounded by this many height slabs, each by the bounding box of its
-  /// projection; more slabs give a tighter region and cost more per pixel. Exactness does
-  /// not depend on it.
+  /// DetectRegionScan: the cone is bounded by this many height slabs, each by the bounding
+  /// box of its projection; more slabs give a tighter region and cost more per pixel.
+  /// Exactness does not depend on it.
   int region_slabs = 4;
   /// Worker threads; 0 uses every hardware thread. The result does not depend on it.
   int threads = 0;
@@ -59,17 +63,28 @@ struct SegmentFeatures {
   int id = 0;                 ///< segment id, 1..n (0 is "no segment")
   int point_count = 0;        ///< obstacle points (pixels) in the segment
   int foot_count = 0;         ///< of which its foot (Detection::foot)
-  std::int64_t pair_count = 0;  ///< compatible pairs joining its points
+  /// Of which the upper point of some compatible pair: the points that stand HT..Hmax above,
+  /// and steeper than theta from, another point of the segment (all but its foot and the
+  /// lowest HT of its body). (Until 2026-12 segments counted their compatible pairs instead:
+  /// on dense obstacles that meant billions, one by one.)
+  int raised_count = 0;
   Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero();  ///< axis-aligned box, level frame [m]
   Eigen::Vector3d bbox_max = Eigen::Vector3d::Zero();
   /// Perimeter of the box's footprint on the horizontal plane: 2 (dx + dy) [m].
   double bbox_perimeter_m = 0.0;
   /// Volume of the box: dx * dy * dz [m^3].
   double bbox_volume_m3 = 0.0;
-  /// Slope of a pair: atan(|dh| / horizontal distance), in (theta, 90 deg], computed to
-  /// within 2e-5 rad. Mean and max over the segment's pairs [rad].
+  /// Slope of the surface at a point, as the paper's section 1 defines slope: the angle of
+  /// its normal from up, in [0, 90 deg]. The normal is the cross product of the point's
+  /// tangents along the row and along the column, each the difference of its two
+  /// neighbours on that line that belong to the same segment (central), or of the one
+  /// neighbour and the point (one-sided); columns wrap on spherical images. Points with no
+  /// such neighbour on a line, or a degenerate normal, have no slope. Mean and max over
+  /// the segment's points that have one; 0 when none has [rad]. (Until 2026-12 these were
+  /// the mean and max slope of the segment's compatible pairs, which cost a slope per pair.)
   double slope_mean_rad = 0.0;
   double slope_max_rad = 0.0;
+  int slope_points = 0;       ///< points with a slope
   /// Ground under the segment: the height of its lowest point, where its lowest compatible
   /// pair meets the terrain [m, level frame].
   double ground_height_m = 0.0;
@@ -86,9 +101,14 @@ struct SegmentFeatures {
 };
 
 /// Counters that show how much work a detection did.
+/// Work counters, not results: Detect skips the pairs that can change nothing, so its
+/// pairs_compatible is less than the number of compatible pairs, which DetectRegionScan and
+/// DetectBruteForce count exactly.
 struct DetectionStats {
-  std::int64_t pairs_tested = 0;     ///< candidate pairs on which the test ran
-  std::int64_t pairs_compatible = 0;  ///< compatible pairs found
+  std::int64_t pairs_tested = 0;      ///< candidate pairs on which the test ran one by one
+  std::int64_t pairs_compatible = 0;  ///< compatible pairs found (in blocks or one by one)
+  std::int64_t node_pairs = 0;        ///< Detect: block pairs not rejected at once
+  std::int64_t blocks_accepted = 0;   ///< Detect: block pairs compatible whole
   int obstacle_points = 0;
 };
 
@@ -122,7 +142,14 @@ struct Detection {
 Detection WithoutFeet(Detection detection);
 
 /// OD-2 + OS-2 on one range image. Fails only when the config does not validate.
+/// kExact bounds blocks of points (see above); kPaperWindow runs DetectRegionScan's scan
+/// over the paper's window.
 Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config);
+
+/// OD-2 + OS-2 by scanning each pixel's search region (the projected cone in kExact mode,
+/// the paper's window in kPaperWindow): the earlier method, kept as the reference. Equal to
+/// Detect in kExact mode, and slower.
+Expected<Detection> DetectRegionScan(const RangeImage& image, const DetectorConfig& config);
 
 /// The definition, by testing every pair of valid points: O(N^2), for tests and benchmarks.
 /// Ignores config.search.

@@ -23,7 +23,7 @@ struct RuleConfig {
   double min_slope_max_rad = 0.0;     ///< least slope_max_rad [rad]
   double min_height_mean_m = 0.0;     ///< least height_mean_m [m]
   double min_height_max_m = 0.3;      ///< least height_max_m [m]
-  std::int64_t min_pairs = 0;         ///< least pair_count
+  int min_raised = 0;                 ///< least raised_count
 
   /// Every threshold 0: every segment is kept.
   static RuleConfig None() {

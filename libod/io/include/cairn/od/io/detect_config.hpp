@@ -18,7 +18,7 @@
 //   rules:                   # 0 disables a rule
 //     min_points: 10         min_volume: 0.005 [m^3]   min_perimeter [m]
 //     min_slope_mean [deg]   min_slope_max [deg]       min_height_mean [m]
-//     min_height_max [m]     min_pairs
+//     min_height_max [m]     min_raised
 //   column:
 //     min_blob_pixels: 0     # column baseline blob-area rejection [px]
 //   stereo:                  # stereo pairs only (StereoConfig in stereo.hpp)

@@ -19,7 +19,7 @@ namespace cairn::sim::eval {
 
 /// Keys a sweep may step: min_height, max_height, min_slope, window_scale (detector),
 /// min_blob_pixels (column) and every rules key (min_points, min_volume, min_perimeter,
-/// min_slope_mean, min_slope_max, min_height_mean, min_height_max, min_pairs).
+/// min_slope_mean, min_slope_max, min_height_mean, min_height_max, min_raised).
 const std::vector<std::string>& SweepableKeys();
 
 /// Sets the value of `key` (optionally prefixed by its section: "rules.min_volume") in

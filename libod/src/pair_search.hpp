@@ -1,0 +1,94 @@
+// Internal: every compatible pair of one range image, found by bounding blocks of points
+// rather than testing pairs one by one (a dual-tree search).
+//
+// 1. Candidates. A horizontal grid of cells holds the highest and lowest point of each; a
+//    point can be the lower point of a pair only if some cell within reach (Hmax / tan
+//    theta) holds a point high enough above it for the cell's distance, and the upper point
+//    only if one holds a point low enough. The bounds are conservative (distances between
+//    cells taken at their least, a margin against rounding): every point that has a partner
+//    stays, most of the open ground goes.
+// 2. Trees. The candidates of each kind are stored in a binary tree over the image grid: a
+//    node is a rectangle of pixels, split along its longer side down to leaves of a few
+//    pixels (sorted by height), with the axis-aligned box of its points in the level frame.
+// 3. Search. Ordered node pairs (lower, upper) are visited from (root, root) down. A pair
+//    is rejected when no point of the upper box can lie HT..Hmax above, and steeper than
+//    theta from, any point of the lower box; accepted whole when every point of the upper
+//    box does so for every point of the lower one (all its points join one segment, at
+//    once); settled, and skipped, when it can change nothing (every lower point has a
+//    partner, every upper point is raised, both nodes are one segment already); else split,
+//    down to leaves, where each lower point meets the height-sorted upper points between
+//    HT and Hmax above it, one by one.
+// The box bounds use the pair test's own float operations, which are monotonic in each
+// coordinate, so a rejected pair holds no compatible pair and an accepted one holds only
+// compatible pairs: the obstacle points, the raised points and the sets equal the O(N^2)
+// definition's. Pairs are not counted: settled pairs, most of them on dense obstacles, are
+// never looked at.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "cairn/od/detector.hpp"
+#include "detection_internal.hpp"
+
+namespace cairn::od::internal {
+
+/// Which points can be the lower / upper point of a compatible pair (1 = may, 0 = cannot),
+/// per pixel, by the grid bound above. Invalid points are 0 in both.
+struct Candidates {
+  std::vector<std::uint8_t> lower, upper;
+};
+Candidates FindCandidates(const LevelPoints& level, const PairTest& test);
+
+/// Points of an image (those with mask[pixel] != 0) in a binary tree of pixel rectangles.
+struct PointTree {
+  struct Node {
+    float lo[3], hi[3];     // level-frame box of its points [m]
+    std::int32_t begin;     // its points are stored at [begin, end)
+    std::int32_t end;
+    std::int32_t child[2];  // -1, -1 for a leaf
+    std::int32_t parent;    // -1 for a root
+  };
+  std::vector<Node> nodes;
+  /// Per tree: one for the whole image, or one per column (column mode; -1 when the column
+  /// holds no point).
+  std::vector<std::int32_t> roots;
+  /// Stored points in tree order (each leaf's points together, by ascending height).
+  std::vector<float> x, y, z;
+  std::vector<std::int32_t> pixel;  ///< image index of each stored point
+
+  /// Leaves hold at most leaf_rows x leaf_cols pixels. With `per_column`, one tree per image
+  /// column (leaves of leaf_rows pixels): pairs are then only searched within a column.
+  PointTree(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width,
+            int height, int leaf_rows, int leaf_cols, bool per_column = false);
+
+  int size() const { return static_cast<int>(pixel.size()); }
+
+ private:
+  std::int32_t Build(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width,
+                     int r0, int r1, int c0, int c1, int leaf_rows, int leaf_cols);
+};
+
+struct PairSearchOptions {
+  bool unions = true;  ///< build the sets (cone detector); off for the column baseline
+  int threads = 1;     ///< >= 1
+};
+
+/// Per pixel of the image.
+struct PairSearchResult {
+  std::vector<std::uint8_t> lower;   ///< 1: the lower point of some compatible pair
+  std::vector<std::uint8_t> raised;  ///< 1: the upper point of some compatible pair
+  /// With unions: a representative pixel per pixel, equal within a set (a pixel in no pair
+  /// is its own).
+  std::vector<std::int32_t> set;
+  /// pairs_tested: tested one by one; pairs_compatible: found (one by one or in accepted
+  /// blocks; settled pairs are not looked at, so this is not the number of pairs).
+  DetectionStats stats;
+};
+
+/// Searches the pairs (lower point in `lower`, upper point in `upper`), two trees over the
+/// same image of `pixels` pixels with the same number of roots (matched by position).
+PairSearchResult SearchPairs(const PointTree& lower, const PointTree& upper, int pixels,
+                             const PairTest& test, const PairSearchOptions& options);
+
+}  // namespace cairn::od::internal

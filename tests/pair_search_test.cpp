@@ -1,0 +1,258 @@
+// Detect bounds blocks of points instead of testing pairs one by one; these tests hold it to
+// the O(N^2) definition (DetectBruteForce) and to the earlier region scan (DetectRegionScan,
+// itself checked against the definition here):
+//  - seeded random camera views and LiDAR scans, tilted, with noise and holes;
+//  - points on a coarse lattice, where many pairs sit exactly on HT, Hmax or theta, so that
+//    the block bounds' rounding is put to the test;
+//  - the benchmark frames themselves (RELLIS-3D, KITTI, the demo frame);
+//  - the surface slope of a segment (detector.hpp) on planes of known inclination.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "cairn/od/column_detector.hpp"
+#include "cairn/od/detector.hpp"
+#include "cairn/od/io/depth_png.hpp"
+#include "cairn/od/io/detect_config.hpp"
+#include "cairn/od/io/intrinsics.hpp"
+#include "cairn/od/io/point_cloud.hpp"
+#include "cairn/od/leveling.hpp"
+#include "cairn/od/range_image.hpp"
+#include "cairn/sim/random_scene.hpp"
+#include "cairn/sim/render.hpp"
+
+namespace cairn::od {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+
+// Same obstacle points and segments (numbering is deterministic), feet, pair counts and
+// features derived from them.
+void ExpectSame(const Detection& a, const Detection& b, const std::string& what) {
+  ASSERT_EQ(a.labels.size(), b.labels.size()) << what;
+  int differing = 0;
+  for (std::size_t i = 0; i < a.labels.size(); ++i) differing += a.labels[i] != b.labels[i];
+  EXPECT_EQ(differing, 0) << what << ": pixels with other labels";
+  EXPECT_TRUE(a.foot == b.foot) << what << ": feet differ";
+  EXPECT_EQ(a.stats.obstacle_points, b.stats.obstacle_points) << what;
+  ASSERT_EQ(a.segments.size(), b.segments.size()) << what;
+  for (std::size_t s = 0; s < a.segments.size(); ++s) {
+    EXPECT_EQ(a.segments[s].raised_count, b.segments[s].raised_count) << what << ", segment " << s;
+    EXPECT_EQ(a.segments[s].point_count, b.segments[s].point_count) << what << ", segment " << s;
+    EXPECT_EQ(a.segments[s].slope_points, b.segments[s].slope_points) << what;
+    EXPECT_DOUBLE_EQ(a.segments[s].slope_max_rad, b.segments[s].slope_max_rad) << what;
+  }
+}
+
+DetectorConfig RandomConfig(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  DetectorConfig c;
+  c.min_height_m = 0.05 + 0.5 * u(rng);
+  c.max_height_m = c.min_height_m + 0.1 + 1.5 * u(rng);
+  c.min_slope_rad = (15.0 + 65.0 * u(rng)) * kDeg;
+  c.threads = 1 + static_cast<int>(rng() % 3);
+  return c;
+}
+
+RangeImage RandomView(int seed, double noise, double holes) {
+  sim::RandomSceneOptions options;
+  options.width = 72;
+  options.height = 54;
+  const sim::RandomView view = sim::MakeRandomView(seed, options);
+  sim::RenderOptions render;
+  render.max_range_m = 40.0;
+  sim::DepthFrame frame = *sim::RenderDepth(view.scene, view.camera, render);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (float& d : frame.depth_m) {
+    if (d <= 0.0f) continue;
+    d = u(rng) < holes ? 0.0f : static_cast<float>(d * (1.0 + noise * (u(rng) - 0.5)));
+  }
+  return *RangeImage::FromDepth(frame.depth_m, view.camera.model, frame.up_optical);
+}
+
+TEST(PairSearch, EqualsTheDefinitionAndTheRegionScanOnRandomViews) {
+  std::mt19937 rng(77);
+  int with_obstacles = 0;
+  for (int seed = 0; seed < 16; ++seed) {
+    const RangeImage image = RandomView(300 + seed, seed % 2 ? 0.03 : 0.0, seed % 3 ? 0.05 : 0.0);
+    const DetectorConfig config = RandomConfig(rng);
+    const Detection fast = *Detect(image, config);
+    const Detection brute = *DetectBruteForce(image, config);
+    const Detection scan = *DetectRegionScan(image, config);
+    const std::string what = "view " + std::to_string(seed);
+    ExpectSame(fast, brute, what + " (blocks vs definition)");
+    ExpectSame(scan, brute, what + " (region scan vs definition)");
+    with_obstacles += brute.stats.obstacle_points > 0;
+    // Blocks test fewer pairs one by one than the definition tests.
+    EXPECT_LE(fast.stats.pairs_tested, brute.stats.pairs_tested) << what;
+  }
+  EXPECT_GE(with_obstacles, 12);
+}
+
+// Depths on a 0.1 m lattice seen by a level camera with fx = fy = 1 at pixel-centred rays of
+// integer slope: coordinates are multiples of 0.1 m, so many pairs sit exactly on HT = 0.3,
+// Hmax = 1.0 and the 45-degree slope, where rounding decides.
+TEST(PairSearch, EqualsTheDefinitionOnThresholdsExactly) {
+  std::mt19937 rng(4242);
+  for (int trial = 0; trial < 12; ++trial) {
+    PinholeModel model;
+    model.width = 40;
+    model.height = 30;
+    model.fx = model.fy = 10.0 + trial;
+    model.cx = 19.5;
+    model.cy = 14.5;
+    std::vector<float> depth(model.width * model.height);
+    for (float& d : depth) d = rng() % 10 == 0 ? 0.0f : 0.1f * (5 + rng() % 30);
+    const RangeImage image = *RangeImage::FromDepth(depth, model, {0.0, -1.0, 0.0});
+    DetectorConfig config;
+    config.min_height_m = trial % 2 ? 0.3 : 0.1;
+    config.max_height_m = trial % 3 ? 1.0 : 0.5;
+    config.min_slope_rad = trial % 4 ? kPi / 4 : std::atan(2.0);
+    config.threads = 1 + trial % 2;
+    const Detection brute = *DetectBruteForce(image, config);
+    ExpectSame(*Detect(image, config), brute, "lattice trial " + std::to_string(trial));
+    EXPECT_GT(brute.stats.pairs_compatible, 0);
+  }
+}
+
+// Random LiDAR scans: points along each ring at random ranges, some above the ground, the
+// sensor tilted.
+RangeImage RandomScan(std::mt19937& rng, const std::string& sensor, int width) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const SphericalModel model = *SphericalModel::Preset(sensor, width);
+  std::vector<Eigen::Vector3f> points;
+  std::vector<std::int32_t> rows, cols;
+  for (int r = 0; r < model.height(); ++r) {
+    for (int c = 0; c < width; ++c) {
+      if (u(rng) < 0.1) continue;
+      const double e = model.ring_elevation_rad[r] + 0.002 * (u(rng) - 0.5);
+      const double a = model.ColumnAzimuth(c);
+      const double d = 1.0 + (c % 17 < 4 ? 3.0 : 15.0) * u(rng);
+      points.emplace_back(d * std::cos(e) * std::cos(a), d * std::cos(e) * std::sin(a),
+                          d * std::sin(e));
+      rows.push_back(r);
+      cols.push_back(c);
+    }
+  }
+  const Eigen::Vector3d up(0.2 * (u(rng) - 0.5), 0.2 * (u(rng) - 0.5), 1.0);
+  return *RangeImage::FromPoints(points, model, up, rows, cols);
+}
+
+TEST(PairSearch, EqualsTheDefinitionOnLidarScans) {
+  std::mt19937 rng(1964);
+  for (int trial = 0; trial < 8; ++trial) {
+    const RangeImage image = RandomScan(rng, trial % 2 ? "VLP-16" : "OS1-64", 60 + 8 * trial);
+    const DetectorConfig config = RandomConfig(rng);
+    const Detection brute = *DetectBruteForce(image, config);
+    ExpectSame(*Detect(image, config), brute, "scan " + std::to_string(trial));
+    ExpectSame(*DetectRegionScan(image, config), brute, "scan (region) " + std::to_string(trial));
+    ColumnConfig columns = ColumnConfig::From(config);
+    columns.min_blob_pixels = 0;
+    // The column baseline keeps the pairs within each column: a subset of the definition's.
+    const Detection column = *DetectColumns(image, columns);
+    for (int i = 0; i < image.size(); ++i) {
+      EXPECT_TRUE(!column.is_obstacle(i) || brute.is_obstacle(i)) << "scan " << trial << ", " << i;
+    }
+  }
+}
+
+// --- The benchmark frames -------------------------------------------------------------------
+
+const std::string kShared = CAIRN_SHARED_DATASETS;
+const std::string kSource = CAIRN_SOURCE_DIR;
+
+Expected<RangeImage> LoadScan(const std::string& path, const std::string& sensor) {
+  Expected<io::PointCloud> cloud = io::ReadPointFile(path);
+  if (!cloud) return cloud.error();
+  io::LayoutOptions options;
+  options.preset = *SphericalModel::Preset(sensor);
+  Expected<io::FoundLayout> layout = io::FindLayout(*cloud, options, path);
+  if (!layout) return layout.error();
+  return RangeImage::FromPoints(cloud->points, layout->model, Eigen::Vector3d::UnitZ(),
+                                layout->rows, layout->cols);
+}
+
+TEST(PairSearch, EqualsTheDefinitionOnTheRellisScan) {
+  const std::string path = kShared + "/rellis3d-000104/os1_bin/000104.bin";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is absent (../shared/datasets)";
+  Expected<RangeImage> image = LoadScan(path, "OS1-64");
+  ASSERT_TRUE(image.ok()) << image.error().message;
+  DetectorConfig config = io::LoadDetectSettings(kSource + "/config/sensors/os1-64.yaml")->detector;
+  const Detection brute = *DetectBruteForce(*image, config);
+  EXPECT_GT(brute.stats.pairs_compatible, 100000);
+  for (int threads : {1, 2}) {
+    config.threads = threads;
+    ExpectSame(*Detect(*image, config), brute, "RELLIS, " + std::to_string(threads) + " threads");
+  }
+}
+
+TEST(PairSearch, EqualsTheRegionScanOnTheKittiScan) {
+  const std::string path = kShared + "/kitti-seq00-0-10/velodyne/000000.bin";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is absent (../shared/datasets)";
+  Expected<RangeImage> image = LoadScan(path, "HDL-64E");
+  ASSERT_TRUE(image.ok()) << image.error().message;
+  const DetectorConfig config =
+      io::LoadDetectSettings(kSource + "/config/sensors/hdl-64e.yaml")->detector;
+  const Detection scan = *DetectRegionScan(*image, config);
+  EXPECT_GT(scan.stats.pairs_compatible, 100000);
+  ExpectSame(*Detect(*image, config), scan, "KITTI 00 scan 0");
+}
+
+TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
+  const std::string dir = kSource + "/datasets/frames/demo/";
+  const io::CameraIntrinsics camera = *io::LoadIntrinsics(dir + "intrinsics.yaml");
+  const io::Grid<float> depth = *io::ReadDepthImage(dir + "depth.png", camera);
+  const RangeImage image = *RangeImage::FromDepth(depth.data, camera.model, camera.up);
+  DetectorConfig config = io::LoadDetectSettings(kSource + "/config/default.yaml")->detector;
+  config.threads = 2;
+  const Detection scan = *DetectRegionScan(image, config);
+  EXPECT_GT(scan.segments.size(), 5u);
+  ExpectSame(*Detect(image, config), scan, "demo frame");
+}
+
+// --- Surface slope -----------------------------------------------------------------------
+
+// A level camera (up = -y) facing a plane that rises 4 m ahead at `slope` from the
+// horizontal, with nothing else in view: every tangent between two of its points lies in
+// the plane, so every point with neighbours has the plane's slope, to float rounding.
+TEST(SegmentSlope, IsTheInclinationOfThePlane) {
+  for (double slope_deg : {50.0, 70.0, 90.0}) {
+    PinholeModel model;
+    model.width = 80;
+    model.height = 60;
+    model.fx = model.fy = 60.0;
+    model.cx = 39.5;
+    model.cy = 29.5;
+    const double t = std::tan(slope_deg * kDeg);
+    std::vector<float> depth(model.width * model.height, 0.0f);
+    for (int r = 0; r < model.height; ++r) {
+      const double v = (r - model.cy) / model.fy;
+      // Height above the camera's foot at depth z: 1.5 - v z (y down); on the plane it is
+      // t (z - 4) (z - 4 = 0 for the vertical plane). The plane spans 0..2.5 m up.
+      const double z = slope_deg == 90.0 ? 4.0 : (1.5 + 4.0 * t) / (t + v);
+      const double height = 1.5 - v * z;
+      if (height < 0.0 || height > 2.5 || z <= 0.0) continue;
+      for (int c = 0; c < model.width; ++c) depth[r * model.width + c] = static_cast<float>(z);
+    }
+    const RangeImage image = *RangeImage::FromDepth(depth, model, {0.0, -1.0, 0.0});
+    DetectorConfig config;
+    config.min_height_m = 0.3;
+    config.max_height_m = 1.0;
+    config.min_slope_rad = 45.0 * kDeg;
+    const Detection d = *Detect(image, config);
+    ASSERT_EQ(d.segments.size(), 1u) << slope_deg << " deg";
+    const SegmentFeatures& plane = d.segments[0];
+    EXPECT_EQ(plane.slope_points, plane.point_count) << slope_deg << " deg";
+    EXPECT_NEAR(plane.slope_max_rad, slope_deg * kDeg, 1e-4) << slope_deg << " deg";
+    EXPECT_NEAR(plane.slope_mean_rad, slope_deg * kDeg, 1e-4) << slope_deg << " deg";
+  }
+}
+
+}  // namespace
+}  // namespace cairn::od
