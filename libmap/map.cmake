@@ -1,6 +1,7 @@
 # cairn::map — TerrainMap: OctoMap fusion, the 2.5-D cost grid, persistent obstacles, map
-# files. Included by libmap/CMakeLists.txt. OctoMap is public (TerrainOcTree is part of the
-# API); OpenCV, yaml-cpp and nlohmann_json stay private (files at the edge).
+# files, the Mapper. Included by libmap/CMakeLists.txt. OctoMap and cairn::od_io are public
+# (TerrainOcTree is part of the API; mapper_config_file.hpp hands out od_io's StereoConfig);
+# OpenCV, yaml-cpp and nlohmann_json stay private (files at the edge).
 find_package(octomap REQUIRED)
 find_package(OpenCV 4 REQUIRED COMPONENTS core imgcodecs)
 find_package(yaml-cpp REQUIRED)
@@ -13,16 +14,19 @@ cairn_add_library(cairn_map EXPORT_NAME map SOURCES
   src/map_config.cpp
   src/map_config_file.cpp
   src/map_files.cpp
+  src/mapper.cpp
+  src/mapper_config_file.cpp
   src/terrain_grid.cpp
   src/terrain_map.cpp
   src/terrain_octree.cpp
   src/tilt_refiner.cpp
+  src/tilt_step.cpp
 )
 # OctoMap's package exports the imported targets octomap and octomath. An installed cairn
 # needs find_dependency(octomap) in cmake/cairn-config.cmake.in for cairn::map.
 target_link_libraries(cairn_map
-  PUBLIC cairn::od Eigen3::Eigen octomap
-  PRIVATE cairn::od_io opencv_core opencv_imgcodecs yaml-cpp Ceres::ceres
+  PUBLIC cairn::od cairn::od_io Eigen3::Eigen octomap
+  PRIVATE opencv_core opencv_imgcodecs yaml-cpp Ceres::ceres
           $<BUILD_INTERFACE:nlohmann_json::nlohmann_json>)
 # The strict YAML field reader of cairn_od_io (internal header, linked through cairn::od_io).
 target_include_directories(cairn_map PRIVATE $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/libod/io/src>)

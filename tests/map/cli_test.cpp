@@ -4,11 +4,13 @@
 // world has them, and bad input fails with a message naming the file or field, leaving
 // nothing behind.
 #include <gtest/gtest.h>
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <Eigen/Core>
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -16,8 +18,10 @@
 #include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "cairn/map/map_files.hpp"
@@ -94,6 +98,34 @@ CommandRun Cairn(const std::string& args, const fs::path& scratch) {
                               "' 2>'" + err.string() + "'";
   const int raw = std::system(command.c_str());
   CommandRun run;
+  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  run.out = ReadFile(out);
+  run.err = ReadFile(err);
+  return run;
+}
+
+/// Runs `cairn <args>` and interrupts it (SIGINT, as Ctrl-C does) as soon as `watched`
+/// exists: a run stopped part-way, at whatever frame it has reached.
+CommandRun CairnInterruptedOnceThere(const std::string& args, const fs::path& watched,
+                                     const fs::path& scratch) {
+  const fs::path out = scratch / "stdout.txt", err = scratch / "stderr.txt";
+  const std::string command = std::string("exec '") + CAIRN_EXE + "' " + args + " >'" +
+                              out.string() + "' 2>'" + err.string() + "'";
+  CommandRun run;
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  int raw = 0;
+  bool sent = false;
+  while (::waitpid(pid, &raw, WNOHANG) == 0) {
+    if (!sent && fs::exists(watched)) {
+      ::kill(pid, SIGINT);
+      sent = true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
   run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
   run.out = ReadFile(out);
   run.err = ReadFile(err);
@@ -224,11 +256,10 @@ TEST_F(MapCli, FusesARawlogIntoEveryFileWithTheObstaclesWhereTheWorldHasThem) {
   EXPECT_EQ(summary.at("truth").at("false_obstacles").get<int>(), 0);
 }
 
-TEST_F(MapCli, DepthFolderWithTumPosesGivesTheSameObstacles) {
-  // The rawlog's depth frames as PNGs named by their stamps, with the true sensor poses.
-  const fs::path frames = dir() / "frames";
+/// The rawlog's depth frames as PNGs named by their stamps in `frames`, with intrinsics.yaml.
+void WriteDepthFrames(const fs::path& rawlog, const fs::path& frames) {
   fs::create_directories(frames);
-  Expected<sources::RawlogSource> source = sources::RawlogSource::Open(rawlog());
+  Expected<sources::RawlogSource> source = sources::RawlogSource::Open(rawlog);
   ASSERT_TRUE(source) << source.error().message;
   while (true) {
     Expected<std::optional<sources::Frame>> frame = source->NextFrame();
@@ -249,6 +280,21 @@ TEST_F(MapCli, DepthFolderWithTumPosesGivesTheSameObstacles) {
     intrinsics.up = Eigen::Vector3d(0, -1, 0);
     ASSERT_TRUE(od::io::WriteIntrinsics(frames / "intrinsics.yaml", intrinsics, "# test"));
   }
+}
+
+std::vector<fs::path> Pngs(const fs::path& dir) {
+  std::vector<fs::path> pngs;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+    if (e.path().extension() == ".png") pngs.push_back(e.path());
+  }
+  std::sort(pngs.begin(), pngs.end());
+  return pngs;
+}
+
+TEST_F(MapCli, DepthFolderWithTumPosesGivesTheSameObstacles) {
+  // The rawlog's depth frames as PNGs named by their stamps, with the true sensor poses.
+  const fs::path frames = dir() / "frames";
+  WriteDepthFrames(rawlog(), frames);
   const CommandRun run = Cairn("map --frames '" + frames.string() + "' --poses '" +
                                    (dir() / "seq" / "poses_sensor.tum").string() + "' --out '" +
                                    (dir() / "out_frames").string() + "'",
@@ -361,10 +407,15 @@ TEST_F(MapCli, AnInterruptedRunResumesFromItsCheckpointToTheSameMap) {
   ASSERT_EQ(once.status, 0) << once.err;
   EXPECT_FALSE(fs::exists(whole / "map.checkpoint"));  // removed once the map is written
 
-  // Interrupted (SIGINT through the handler) after 6 of 11 frames, checkpoints every 4.
-  const CommandRun cut =
-      Cairn(common + parts.string() + "' --checkpoint-every 4 --interrupt-after 6", dir());
+  // Interrupted (SIGINT through the handler) once the first checkpoint (after 2 of 11
+  // frames) is written: the run stops at the next frame and saves where it is.
+  const CommandRun cut = CairnInterruptedOnceThere(
+      common + parts.string() + "' --checkpoint-every 2", parts / "map.checkpoint", dir());
   EXPECT_EQ(cut.status, 130) << cut.err;
+  std::smatch where;
+  ASSERT_TRUE(std::regex_search(cut.err, where, std::regex("interrupted after ([0-9]+) frames")))
+      << cut.err;
+  const std::string frames_done = where[1];
   EXPECT_NE(cut.err.find("--resume"), std::string::npos) << cut.err;
   std::vector<std::string> left;
   for (const fs::directory_entry& e : fs::directory_iterator(parts)) {
@@ -398,7 +449,8 @@ TEST_F(MapCli, AnInterruptedRunResumesFromItsCheckpointToTheSameMap) {
 
   const CommandRun resumed = Cairn(common + parts.string() + "' --resume", dir());
   ASSERT_EQ(resumed.status, 0) << resumed.err;
-  EXPECT_NE(resumed.err.find("after 6 frames"), std::string::npos) << resumed.err;
+  EXPECT_NE(resumed.err.find("after " + frames_done + " frames"), std::string::npos)
+      << resumed.err;
   EXPECT_FALSE(fs::exists(parts / "map.checkpoint"));
   // The same map, byte for byte, as the run that was never interrupted.
   for (const char* name : {"map.bt", "map.ot", "obstacles.ot", "cost.pgm", "cost.yaml",
@@ -485,6 +537,114 @@ TEST(MapKitti, TheSharedSequenceLeavesTheRoadFreeAndItsSidesLethal) {
   EXPECT_GT(lethal, 1000);
   EXPECT_GT(road_known, 100);
   EXPECT_EQ(lethal_on_road, 0);
+  fs::remove_all(dir);
+}
+
+// Nothing is skipped in silence: in the depth folder, one image without a single return and
+// one pose 100 m off its neighbours (the frame after it jumps back) are named on stderr, the
+// other frames are mapped, and the summary counts them by reason; --strict makes the first
+// an error naming it, and writes nothing.
+TEST_F(MapCli, FramesThatCannotBeUsedAreNamedAndCountedAndStrictRefusesThem) {
+  const fs::path frames = dir() / "frames_bad";
+  WriteDepthFrames(rawlog(), frames);
+  const std::vector<fs::path> pngs = Pngs(frames);
+  ASSERT_EQ(pngs.size(), 11u);
+  Expected<od::io::CameraIntrinsics> camera = od::io::LoadIntrinsics(frames / "intrinsics.yaml");
+  ASSERT_TRUE(camera) << camera.error().message;
+  od::io::Grid<float> empty;
+  empty.width = camera->model.width;
+  empty.height = camera->model.height;
+  empty.data.assign(static_cast<std::size_t>(empty.width) * empty.height, 0.0f);
+  ASSERT_TRUE(od::io::WriteDepthPng(pngs[3], empty, 0.001));
+  // The poses, the 8th (frame 7) moved 100 m along x.
+  std::istringstream poses(ReadFile(dir() / "seq" / "poses_sensor.tum"));
+  std::ostringstream jumped;
+  int pose = 0;
+  for (std::string line; std::getline(poses, line);) {
+    if (line.empty() || line[0] == '#') {
+      jumped << line << "\n";
+      continue;
+    }
+    if (pose++ == 7) {
+      std::istringstream fields(line);
+      double v[8];
+      for (double& x : v) fields >> x;
+      v[1] += 100.0;
+      jumped << std::setprecision(17);
+      for (int k = 0; k < 8; ++k) jumped << (k ? " " : "") << v[k];
+      jumped << "\n";
+      continue;
+    }
+    jumped << line << "\n";
+  }
+  const fs::path tum = dir() / "poses_jumped.tum";
+  std::ofstream(tum) << jumped.str();
+
+  const std::string args = "map --frames '" + frames.string() + "' --poses '" + tum.string() + "'";
+  const CommandRun run = Cairn(args + " --out '" + (dir() / "out_skips").string() + "'", dir());
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_NE(run.err.find("skipped " + pngs[3].string() + ": no valid points"), std::string::npos)
+      << run.err;
+  EXPECT_NE(run.err.find("skipped " + pngs[7].string() + ": pose jump"), std::string::npos)
+      << run.err;
+  EXPECT_NE(run.err.find("skipped " + pngs[8].string() + ": pose jump"), std::string::npos)
+      << run.err;
+  const json summary = json::parse(ReadFile(dir() / "out_skips" / "summary.json"));
+  EXPECT_EQ(summary.at("frames").get<int>(), 8);
+  EXPECT_EQ(summary.at("skipped").at("count").get<int>(), 3);
+  EXPECT_EQ(summary.at("skipped").at("by_reason").at("no valid points").get<int>(), 1);
+  EXPECT_EQ(summary.at("skipped").at("by_reason").at("pose jump").get<int>(), 2);
+  EXPECT_NE(run.out.find("skipped: 3 frames not fused (no valid points 1, pose jump 2"),
+            std::string::npos)
+      << run.out;
+
+  const fs::path strict_out = dir() / "out_strict";
+  const CommandRun strict = Cairn(args + " --strict --out '" + strict_out.string() + "'", dir());
+  EXPECT_EQ(strict.status, 1);
+  EXPECT_NE(strict.err.find(pngs[3].string() + ": no valid points"), std::string::npos)
+      << strict.err;
+  EXPECT_NE(strict.err.find("--strict"), std::string::npos) << strict.err;
+  EXPECT_FALSE(fs::exists(strict_out));
+}
+
+// A KITTI sequence (the shared scans 0-2) with scan 1 missing from velodyne/ and scan 2 cut
+// short: both named and counted, scan 0 mapped; --strict refuses the missing one.
+TEST(MapKitti, AMissingAndATruncatedScanAreNamedAndCounted) {
+  const fs::path kitti = fs::path(CAIRN_SHARED_DATASETS) / "kitti-seq00-0-10";
+  if (!fs::exists(kitti / "poses.txt")) {
+    GTEST_SKIP() << kitti.string() << " not found (see ../shared/datasets/README.md)";
+  }
+  const fs::path dir =
+      fs::temp_directory_path() / ("cairn_map_kitti_holes_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const fs::path seq = dir / "seq";
+  fs::create_directories(seq / "velodyne");
+  for (const char* name : {"calib.txt", "times.txt", "poses.txt"}) {
+    fs::create_symlink(kitti / name, seq / name);
+  }
+  for (const char* scan : {"000000.bin", "000003.bin"}) {
+    fs::create_symlink(kitti / "velodyne" / scan, seq / "velodyne" / scan);
+  }
+  std::ofstream(seq / "velodyne" / "000002.bin", std::ios::binary) << std::string(23, '\0');
+  const std::string args = "map --kitti '" + seq.string() + "' --range 0:2 --config '" +
+                           (fs::path(CAIRN_SOURCE_DIR) / "config" / "sensors" / "hdl-64e.yaml")
+                               .string() +
+                           "'";
+  const CommandRun run = Cairn(args + " --out '" + (dir / "out").string() + "'", dir);
+  ASSERT_EQ(run.status, 0) << run.err;
+  const std::string missing = (seq / "velodyne" / "000001.bin").string();
+  const std::string truncated = (seq / "velodyne" / "000002.bin").string();
+  EXPECT_NE(run.err.find("skipped " + missing + ": missing"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("skipped " + truncated + ": truncated (23 bytes"), std::string::npos)
+      << run.err;
+  const json summary = json::parse(ReadFile(dir / "out" / "summary.json"));
+  EXPECT_EQ(summary.at("frames").get<int>(), 1);
+  EXPECT_EQ(summary.at("skipped").at("by_reason").at("missing").get<int>(), 1);
+  EXPECT_EQ(summary.at("skipped").at("by_reason").at("truncated").get<int>(), 1);
+  const CommandRun strict = Cairn(args + " --strict --out '" + (dir / "strict").string() + "'", dir);
+  EXPECT_EQ(strict.status, 1);
+  EXPECT_NE(strict.err.find(missing + ": missing"), std::string::npos) << strict.err;
+  EXPECT_FALSE(fs::exists(dir / "strict"));
   fs::remove_all(dir);
 }
 

@@ -20,8 +20,8 @@
 #include <utility>
 #include <vector>
 
+#include "cairn/map/mapper.hpp"
 #include "cairn/map/terrain_map.hpp"
-#include "cairn/map/tilt_refiner.hpp"
 #include "cairn/sim/render.hpp"
 #include "sim_frames.hpp"
 
@@ -68,8 +68,9 @@ struct PoseError {
 };
 
 struct DriftRunResult {
-  explicit DriftRunResult(map::TerrainMap m) : map(std::move(m)) {}
-  map::TerrainMap map;
+  explicit DriftRunResult(map::Mapper m) : mapper(std::move(m)) {}
+  map::Mapper mapper;  ///< the run's Mapper, its map fused
+  const map::TerrainMap& map() const { return mapper.map(); }
   int frames = 0;
   double distance_m = 0.0;
   int refined_frames = 0;
@@ -103,9 +104,9 @@ inline double CellDistance(const std::pair<int, int>& a, const std::pair<int, in
 // Scores the map of `r` against the world (same measures as terrain_map_sim_test).
 inline void Score(const sim::World& world, const std::map<int, int>& pixels_seen,
                   const std::map<int, double>& first_seen_m, DriftRunResult& r) {
-  const map::TerrainGrid& grid = r.map.grid();
+  const map::TerrainGrid& grid = r.map().grid();
   const double s = grid.cell_size();
-  const std::optional<map::CellBox> box = r.map.ObservedBounds();
+  const std::optional<map::CellBox> box = r.map().ObservedBounds();
   if (!box) {
     r.error = "nothing observed";
     return;
@@ -170,16 +171,20 @@ inline Expected<sim::World> LoadGalleryWorld(const std::string& name) {
   return sim::LoadWorld((SourceDir() / "datasets" / "worlds" / (name + ".yaml")).string());
 }
 
-/// Drives, maps and scores one run. Fails on a world that does not load or a frame that
-/// does not render or fuse.
+/// Drives, maps and scores one run through the Mapper (prior tilt, or the tilt refiner).
+/// Fails on a world that does not load or a frame that does not render or fuse.
 inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   Expected<sim::World> world = LoadGalleryWorld(spec.world);
   if (!world) return world.error();
   const Expected<od::io::DetectSettings> settings = DefaultDetectSettings();
   if (!settings) return settings.error();
-  Expected<map::TerrainMap> created = map::TerrainMap::Create(map::MapConfig{});
-  if (!created) return created.error();
-  DriftRunResult r(std::move(*created));
+  map::MapperConfig config;
+  config.detector = settings->detector;
+  config.rules = settings->rules;
+  config.tilt.mode = spec.refine_tilt && !spec.true_poses ? map::TiltMode::kRefineToMap
+                                                          : map::TiltMode::kPrior;
+  Expected<map::Mapper> mapper = map::Mapper::Create(config);
+  if (!mapper) return mapper.error();
 
   sim::DriveSpec drive_spec;
   drive_spec.waypoints = spec.waypoints;
@@ -194,11 +199,13 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
       world->scene.terrain(), drive_spec, sim::SensorFrame::kCameraOptical, spec.drive_seed);
   if (!drive) return drive.error();
   const sim::RangeCameraSpec camera_spec = SmallCamera(world->camera, spec.camera_width);
-  const map::TiltRefinerConfig refiner;
 
   std::map<int, int> pixels_seen;
   std::map<int, double> first_seen_m;
-  double z_body = 0.0, roll = 0.0, pitch = 0.0, dz = 0.0;  // dead reckoning; refiner carry
+  std::vector<PoseError> pose_errors;
+  int refined_frames = 0;
+  double distance_m = 0.0;
+  double z_body = 0.0;  // dead reckoning
   const sim::DriveSample* previous = nullptr;
   for (const sim::DriveSample& s : drive->samples) {
     // The believed pose.
@@ -216,10 +223,10 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
           sim::RotationFromAttitude({s.imu.roll_rad, s.imu.pitch_rad, s.odometry.yaw_rad});
       T_world_body.translation() = Eigen::Vector3d(s.odometry.x_m, s.odometry.y_m, z_body);
       T_world_sensor = T_world_body * drive->T_body_sensor;
-      if (spec.refine_tilt) T_world_sensor = map::ApplyTiltCorrection(T_world_sensor, roll, pitch, dz);
     }
     previous = &s;
-    // Render from the true pose; level with the believed up vector.
+    // Render from the true pose; the Mapper levels with the believed up vector (and the
+    // correction the refiner carries).
     sim::Camera camera;
     camera.model = camera_spec.model;
     camera.T_world_camera = s.T_world_sensor;
@@ -231,57 +238,40 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
     Expected<od::RangeImage> image =
         od::RangeImage::FromDepth(rendered->depth_m, rendered->model, up);
     if (!image) return image.error();
-    Expected<SimFrame> frame = Detected(std::move(*image), rendered->object_id, T_world_sensor,
-                                        s.stamp_s, s.index, *settings);
-    if (!frame) return frame.error();
-    if (spec.refine_tilt && !spec.true_poses) {
-      std::vector<Eigen::Vector3f> ground;
-      ground.reserve(frame->image.size());
-      for (int i = 0; i < frame->image.size(); ++i) {
-        if (!frame->image.valid(i)) continue;
-        const int label = frame->detection.labels[i];
-        if (label > 0 && frame->classification.verdicts[label - 1].cls == od::SegmentClass::kKept) {
-          continue;
-        }
-        ground.push_back(frame->image.point(i).cast<float>());
-      }
-      const map::ElevationPatch patch =
-          map::ElevationPatchAround(r.map, T_world_sensor.translation().head<2>(), refiner.max_range_m);
-      Expected<map::TiltEstimate> estimate =
-          map::RefineTilt(ground, T_world_sensor, patch, refiner);
-      if (!estimate) return estimate.error();
-      if (estimate->usable && estimate->rms_after_m <= estimate->rms_before_m) {
-        roll += estimate->roll_rad;
-        pitch += estimate->pitch_rad;
-        dz += estimate->dz_m;
-        frame->T_world_sensor = estimate->T_world_sensor;
-        ++r.refined_frames;
-      }
+    Expected<map::MapperRecord> record =
+        (*mapper).Process(std::move(*image), T_world_sensor, s.stamp_s);
+    if (!record) return record.error();
+    if (!record->used()) {
+      return Error{spec.world + ": frame " + std::to_string(s.index) + " skipped: " +
+                   map::FrameSkipName(record->skip) + " (" + record->skip_detail + ")"};
     }
-    Expected<map::FrameSummary> fused = frame->IntegrateInto(r.map);
-    if (!fused) return fused.error();
+    refined_frames += record->tilt.applied ? 1 : 0;
     std::map<int, int> pixels;
-    for (const std::int32_t object : frame->object_id) {
+    for (const std::int32_t object : rendered->object_id) {
       if (object > 0) ++pixels[object];
     }
     for (const auto& [object, n] : pixels) {
       pixels_seen[object] = std::max(pixels_seen[object], n);
       if (n >= 30 && first_seen_m.count(object) == 0) first_seen_m[object] = s.distance_m;
     }
+    const Eigen::Isometry3d& fused = record->T_world_sensor;
     PoseError e;
     e.distance_m = s.distance_m;
-    e.position_m =
-        (frame->T_world_sensor.translation() - s.T_world_sensor.translation()).head<2>().norm();
+    e.position_m = (fused.translation() - s.T_world_sensor.translation()).head<2>().norm();
     const Eigen::Vector3d fwd_true = s.T_world_body.linear().col(0);
     const double yaw_true = std::atan2(fwd_true.y(), fwd_true.x());
     e.yaw_rad =
         spec.true_poses ? 0.0 : std::abs(std::remainder(s.odometry.yaw_rad - yaw_true, 2.0 * M_PI));
-    e.tilt_rad = TiltBetween(frame->T_world_sensor.linear(), s.T_world_sensor.linear());
-    e.z_m = std::abs(frame->T_world_sensor.translation().z() - s.T_world_sensor.translation().z());
-    r.pose_errors.push_back(e);
-    r.distance_m = s.distance_m;
-    ++r.frames;
+    e.tilt_rad = TiltBetween(fused.linear(), s.T_world_sensor.linear());
+    e.z_m = std::abs(fused.translation().z() - s.T_world_sensor.translation().z());
+    pose_errors.push_back(e);
+    distance_m = s.distance_m;
   }
+  DriftRunResult r(std::move(*mapper));
+  r.frames = static_cast<int>(r.mapper.frames_fused());
+  r.distance_m = distance_m;
+  r.refined_frames = refined_frames;
+  r.pose_errors = std::move(pose_errors);
   detail::Score(*world, pixels_seen, first_seen_m, r);
   if (!r.error.empty()) return Error{spec.world + ": " + r.error};
   return r;

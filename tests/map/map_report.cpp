@@ -87,7 +87,7 @@ std::vector<Condition> Conditions(bool sloped) {
 // The cost grid of one run (grey: cost, red: lethal, black: unknown) with the true obstacle
 // cells outlined in green, 4 pixels per cell, x to the right and y up.
 bool WriteCostFigure(const DriftRunResult& r, const fs::path& path) {
-  const std::optional<cairn::map::CellBox> box = r.map.ObservedBounds();
+  const std::optional<cairn::map::CellBox> box = r.map().ObservedBounds();
   if (!box) return false;
   constexpr int kPx = 4;
   const Eigen::Vector2i size = box->size();
@@ -98,7 +98,7 @@ bool WriteCostFigure(const DriftRunResult& r, const fs::path& path) {
   };
   for (int j = box->min.y(); j <= box->max.y(); ++j) {
     for (int i = box->min.x(); i <= box->max.x(); ++i) {
-      const cairn::map::Cell& cell = r.map.grid().At({i, j});
+      const cairn::map::Cell& cell = r.map().grid().At({i, j});
       cv::Scalar colour(0, 0, 0);
       if (cell.lethal) {
         colour = cv::Scalar(0, 0, 255);

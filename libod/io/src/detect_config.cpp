@@ -190,16 +190,16 @@ const char* SearchModeName(SearchMode mode) {
 }
 
 Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
-                                             const std::string& source) {
+                                             const std::string& source,
+                                             const std::vector<std::string>& other_sections) {
   Expected<YAML::Node> root = detail::ParseYaml(yaml_text, source);
   if (!root) return root.error();
   const detail::FieldReader reader(source);
-  // One settings file configures every stage; the mapping stage's section is read, as
-  // strictly, by its own loader.
-  if (Status s = reader.CheckMapping(*root, "", {"detector", "rules", "column", "stereo", "map"});
-      !s) {
-    return s.error();
-  }
+  // One settings file configures every stage; the other stages' sections are read, as
+  // strictly, by their own loaders.
+  std::vector<std::string> sections = {"detector", "rules", "column", "stereo"};
+  sections.insert(sections.end(), other_sections.begin(), other_sections.end());
+  if (Status s = reader.CheckMapping(*root, "", sections); !s) return s.error();
 
   DetectSettings settings;
   const std::vector<Field> detector = DetectorFields(settings.detector);

@@ -26,11 +26,13 @@
 //     uniqueness [%]  speckle_window [px]  speckle_range [px]  disp12_max_diff [px]
 //     pre_filter_cap  mode (sgbm | sgbm_3way | hh | hh4)  min_texture [grey levels / px]
 //     disparity_sigma [px]
-// The `map:` section belongs to the mapping stage and is read by its own loader.
+// The `map:` section (and, for `cairn map`, `tilt:` and `frames:`) belongs to the mapping
+// stage and is read by its own loader (cairn/map/mapper_config_file.hpp).
 #pragma once
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "cairn/od/detector.hpp"
 #include "cairn/od/expected.hpp"
@@ -50,9 +52,12 @@ struct DetectSettings {
 /// Reads and validates a settings file (see above).
 Expected<DetectSettings> LoadDetectSettings(const std::filesystem::path& path);
 
-/// The same from YAML text; `source` names it in error messages.
-Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
-                                             const std::string& source);
+/// The same from YAML text; `source` names it in error messages. `other_sections`: the
+/// top-level sections other loaders read (by default the mapping stage's: map, tilt,
+/// frames); any other is an error.
+Expected<DetectSettings> ParseDetectSettings(
+    const std::string& yaml_text, const std::string& source,
+    const std::vector<std::string>& other_sections = {"map", "tilt", "frames"});
 
 /// "exact" | "paper_window".
 const char* SearchModeName(SearchMode mode);

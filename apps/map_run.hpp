@@ -1,0 +1,173 @@
+// `cairn map`, the parts behind map.cpp's RunMap (parse, load, loop, report): what one run
+// keeps per fused frame, its resume state beside the Mapper's checkpoint, the scoring
+// against a synthetic world, and the files it writes besides the map's own.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <chrono>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cairn/map/mapper.hpp"
+#include "cairn/map/terrain_map.hpp"
+#include "cairn/od/expected.hpp"
+#include "cairn/sources/frame_source.hpp"
+
+namespace cairn::apps {
+
+using Clock = std::chrono::steady_clock;
+inline double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+inline constexpr double kMapDeg = 3.14159265358979323846 / 180.0;
+
+/// The command line.
+struct MapOptions {
+  // Inputs (one of three).
+  std::string rawlog;
+  std::string label;  ///< range sensor of the rawlog; empty: every one
+  std::string kitti;
+  std::string sequence;  ///< NN: DIR/sequences/NN of a KITTI root
+  std::string range;     ///< KITTI scans "A:B"
+  std::string lidar = "HDL-64E";
+  std::string frames;  ///< folder of depth PNGs
+  std::string poses;   ///< TUM file for --frames
+  std::string intrinsics;
+  // Settings.
+  std::string config;
+  std::string out;
+  double window_m = -1.0;  ///< < 0: the config's map.window_size
+  bool offline = false;
+  bool refine_tilt = false;
+  bool no_refine_tilt = false;
+  bool strict = false;  ///< a frame that cannot be used is an error
+  int max_frames = 0;
+  int progress_every = 10;
+  std::string truth;  ///< world YAML to score against
+  // Crash safety.
+  int checkpoint_every = 20;  ///< frames between checkpoints in DIR/map.checkpoint; 0: none
+  bool resume = false;        ///< continue from DIR/map.checkpoint
+};
+
+/// One fused frame, as the outputs use it.
+struct FrameRecord {
+  int index = 0;
+  double stamp_s = 0.0;
+  Eigen::Isometry3d T_world_body = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();  ///< as fused
+  int valid_points = 0;
+  int segments = 0, kept = 0;
+  map::FrameSummary fused;
+  bool tilt_from_imu = false;  ///< the prior's roll and pitch came from the IMU
+  bool refined = false;        ///< tilt refinement ran and its estimate was fused
+  double d_roll_rad = 0.0, d_pitch_rad = 0.0, dz_m = 0.0;  ///< total correction fused
+  double rms_before_m = 0.0, rms_after_m = 0.0;
+  int refine_points = 0;
+  double read_s = 0.0, detect_s = 0.0, refine_s = 0.0, fuse_s = 0.0;
+};
+
+/// A frame that was not fused.
+struct SkippedFrame {
+  std::string name, reason, detail;
+};
+
+struct StageTimes {
+  double read_s = 0.0, detect_s = 0.0, refine_s = 0.0, fuse_s = 0.0, write_s = 0.0;
+  double checkpoint_s = 0.0;
+};
+
+/// Everything of the run besides the Mapper that a resumed run needs to end as the
+/// uninterrupted one would, and what identifies the run (its input, its settings file and
+/// the options that change the map), so that a checkpoint is never resumed on other data or
+/// other settings. Stored as the app data of the Mapper's checkpoint.
+struct RunState {
+  nlohmann::json input;     ///< SourceJson(source.Describe())
+  std::string config_text;  ///< the --config file's bytes ("" for the defaults)
+  nlohmann::json options;   ///< RunOptions()
+  double wall_s = 0.0;      ///< wall time of the runs before this one [s]
+  int frames_read = 0;      ///< frames taken from the source, skipped ones included
+  std::vector<FrameRecord> records;
+  std::vector<SkippedFrame> skipped;
+  int refined_frames = 0;
+  StageTimes times;
+};
+
+nlohmann::json SourceJson(const sources::SourceInfo& info);
+/// The options besides the input and --config that change what is fused.
+nlohmann::json RunOptions(const MapOptions& o, bool refine_tilt, double window_size_m);
+std::string ResumeStateJson(const RunState& state);
+Expected<RunState> ResumeStateFromJson(const std::string& text, const std::string& path);
+
+/// The record of a fused frame.
+FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecord& r,
+                     double read_s);
+
+/// Progress on stderr: a bar on a terminal, a line every N frames otherwise.
+class Progress {
+ public:
+  /// `first`: frames already done when the run starts (a resumed run), not in the rate.
+  Progress(int total, int every, int first = 0);
+  void Update(int done);
+  /// A line of its own (a skipped frame), clearing the bar first.
+  void Note(const std::string& line);
+  void Finish();
+
+ private:
+  int total_, every_, first_;
+  bool tty_ = false;
+  bool bar_shown_ = false;
+  Clock::time_point start_;
+};
+
+// --- scoring against a synthetic world (--truth) ---
+
+struct TruthObject {
+  int id = 0;
+  std::string name;
+  bool is_obstacle = false;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  std::vector<Eigen::Vector2f> footprint;  ///< convex polygon of its footprint, world xy [m]
+  bool found = false;
+  double distance_m = -1.0;  ///< footprint to the nearest lethal cell's centre; -1: none near
+  int obstacle_id = 0;       ///< the map obstacle owning that cell
+};
+
+struct TruthScore {
+  std::string world;
+  std::vector<TruthObject> objects;
+  int obstacles = 0, found = 0, marked_non_obstacles = 0, false_obstacles = 0;
+  std::vector<int> false_obstacle_ids;
+  double iou = 0.0;  ///< lethal cells against the cells inside true obstacles' footprints
+  double elevation_rms_m = 0.0, elevation_max_m = 0.0;
+  int elevation_cells = 0;
+};
+
+/// Found: a lethal cell's centre within `tolerance_m` of the object's footprint. Fails when
+/// cairn was built without libsim.
+Expected<TruthScore> ScoreAgainstWorld(const std::string& world_path,
+                                       const map::TerrainMap& terrain, double tolerance_m);
+
+/// The overlay: cost.png enlarged, the live obstacles outlined with their ids, the path
+/// driven, and the true objects when scored.
+Status WriteOverlay(const std::filesystem::path& cost_png, const std::filesystem::path& path,
+                    const map::TerrainMap& terrain, const std::vector<FrameRecord>& records,
+                    const TruthScore* truth);
+
+/// poses.tum, frames.csv, summary.json and summary.txt into `dir` (setting times.write_s);
+/// returns summary.txt's text.
+struct RunReport {
+  const sources::FrameSource& source;
+  const map::Mapper& mapper;
+  const RunState& state;
+  const std::optional<TruthScore>& truth;
+  double wall_s = 0.0;                 ///< of every run of this map [s]
+  Clock::time_point write_start = {};  ///< times.write_s runs from here
+};
+Expected<std::string> WriteRunFiles(const RunReport& run, const std::filesystem::path& dir,
+                                    StageTimes& times);
+
+}  // namespace cairn::apps

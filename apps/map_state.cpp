@@ -1,0 +1,227 @@
+// `cairn map`: per-frame records, the run's resume state, progress (map_run.hpp).
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+
+#include "map_run.hpp"
+
+namespace cairn::apps {
+namespace {
+
+using nlohmann::json;
+
+std::string Fixed(double v, int decimals) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(decimals) << v;
+  return out.str();
+}
+
+json IsometryJson(const Eigen::Isometry3d& T) {
+  json m = json::array();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) m.push_back(T.matrix()(r, c));
+  }
+  return m;
+}
+
+Eigen::Isometry3d IsometryFromJson(const json& m) {
+  if (!m.is_array() || m.size() != 12) throw std::runtime_error("a pose is not 12 numbers");
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) T.matrix()(r, c) = m.at(4 * r + c).get<double>();
+  }
+  return T;
+}
+
+constexpr const char* kFormat = "cairn map resume state 2";
+
+}  // namespace
+
+// The fields of FrameRecord and FrameSummary that the outputs use, by name. json keeps
+// doubles exactly (shortest round-trip form), so a resumed run writes the same figures.
+#define CAIRN_RECORD_FIELDS(X)                                                              \
+  X(index) X(stamp_s) X(valid_points) X(segments) X(kept) X(tilt_from_imu) X(refined)       \
+  X(d_roll_rad) X(d_pitch_rad) X(dz_m) X(rms_before_m) X(rms_after_m) X(refine_points)      \
+  X(read_s) X(detect_s) X(refine_s) X(fuse_s)
+#define CAIRN_SUMMARY_FIELDS(X)                                                             \
+  X(frame_id) X(stamp_s) X(valid_points) X(points_in_range) X(obstacle_points)              \
+  X(ground_points) X(kept_segments) X(obstacles_created) X(obstacles_updated)               \
+  X(obstacles_merged) X(obstacles_retired) X(voxels_occupied) X(voxels_free) X(cells_hit)   \
+  X(cells_missed) X(lethal_cells) X(window_moved) X(classify_s) X(octree_s) X(grid_s)       \
+  X(obstacles_s)
+#define CAIRN_TIME_FIELDS(X) X(read_s) X(detect_s) X(refine_s) X(fuse_s) X(write_s) X(checkpoint_s)
+
+std::string ResumeStateJson(const RunState& state) {
+  json records = json::array();
+  for (const FrameRecord& r : state.records) {
+    json j, fused;
+#define CAIRN_PUT(f) j[#f] = r.f;
+    CAIRN_RECORD_FIELDS(CAIRN_PUT)
+#undef CAIRN_PUT
+#define CAIRN_PUT(f) fused[#f] = r.fused.f;
+    CAIRN_SUMMARY_FIELDS(CAIRN_PUT)
+#undef CAIRN_PUT
+    j["fused"] = fused;
+    j["T_world_body"] = IsometryJson(r.T_world_body);
+    j["T_world_sensor"] = IsometryJson(r.T_world_sensor);
+    records.push_back(std::move(j));
+  }
+  json skipped = json::array();
+  for (const SkippedFrame& s : state.skipped) {
+    skipped.push_back({{"name", s.name}, {"reason", s.reason}, {"detail", s.detail}});
+  }
+  json times;
+#define CAIRN_PUT(f) times[#f] = state.times.f;
+  CAIRN_TIME_FIELDS(CAIRN_PUT)
+#undef CAIRN_PUT
+  const json j = {{"format", kFormat},
+                  {"input", state.input},
+                  {"config_text", state.config_text},
+                  {"options", state.options},
+                  {"wall_s", state.wall_s},
+                  {"frames_read", state.frames_read},
+                  {"refined_frames", state.refined_frames},
+                  {"times", times},
+                  {"records", records},
+                  {"skipped", skipped}};
+  return j.dump();
+}
+
+Expected<RunState> ResumeStateFromJson(const std::string& text, const std::string& path) {
+  try {
+    const json j = json::parse(text);
+    if (j.at("format") != kFormat) {
+      return Error{path + ": not a cairn map checkpoint (its resume state is of another format)"};
+    }
+    RunState state;
+    state.input = j.at("input");
+    state.config_text = j.at("config_text").get<std::string>();
+    state.options = j.at("options");
+    state.wall_s = j.at("wall_s").get<double>();
+    state.frames_read = j.at("frames_read").get<int>();
+    state.refined_frames = j.at("refined_frames").get<int>();
+    const json& times = j.at("times");
+#define CAIRN_GET(f) times.at(#f).get_to(state.times.f);
+    CAIRN_TIME_FIELDS(CAIRN_GET)
+#undef CAIRN_GET
+    for (const json& rj : j.at("records")) {
+      FrameRecord r;
+#define CAIRN_GET(f) rj.at(#f).get_to(r.f);
+      CAIRN_RECORD_FIELDS(CAIRN_GET)
+#undef CAIRN_GET
+      const json& fused = rj.at("fused");
+#define CAIRN_GET(f) fused.at(#f).get_to(r.fused.f);
+      CAIRN_SUMMARY_FIELDS(CAIRN_GET)
+#undef CAIRN_GET
+      r.T_world_body = IsometryFromJson(rj.at("T_world_body"));
+      r.T_world_sensor = IsometryFromJson(rj.at("T_world_sensor"));
+      state.records.push_back(r);
+    }
+    for (const json& s : j.at("skipped")) {
+      state.skipped.push_back({s.at("name").get<std::string>(), s.at("reason").get<std::string>(),
+                               s.at("detail").get<std::string>()});
+    }
+    return state;
+  } catch (const std::exception& e) {
+    return Error{path + ": the run's resume state is unreadable (" + e.what() + ")"};
+  }
+}
+#undef CAIRN_RECORD_FIELDS
+#undef CAIRN_SUMMARY_FIELDS
+#undef CAIRN_TIME_FIELDS
+
+json SourceJson(const sources::SourceInfo& info) {
+  json j = json::object();
+  for (const auto& [key, value] : info) {
+    if (const auto* s = std::get_if<std::string>(&value)) {
+      j[key] = *s;
+    } else {
+      j[key] = std::get<std::int64_t>(value);
+    }
+  }
+  return j;
+}
+
+json RunOptions(const MapOptions& o, bool refine_tilt, double window_size_m) {
+  return {{"--range", o.range},
+          {"--intrinsics", o.intrinsics},
+          {"--refine-tilt", refine_tilt},
+          {"--window", window_size_m}};
+}
+
+FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecord& m,
+                     double read_s) {
+  FrameRecord r;
+  r.index = static_cast<int>(m.index);
+  r.stamp_s = m.stamp_s;
+  r.T_world_body = frame.T_world_body;
+  r.T_world_sensor = m.T_world_sensor;
+  r.valid_points = m.valid_points;
+  r.segments = m.segments;
+  r.kept = m.kept;
+  r.fused = m.fused;
+  r.tilt_from_imu = frame.tilt_from_imu;
+  if (m.tilt.estimated) {
+    r.refined = m.tilt.applied;
+    r.d_roll_rad = m.tilt.roll_rad;
+    r.d_pitch_rad = m.tilt.pitch_rad;
+    r.dz_m = m.tilt.dz_m;
+    r.rms_before_m = m.tilt.estimate.rms_before_m;
+    r.rms_after_m = m.tilt.estimate.rms_after_m;
+    r.refine_points = m.tilt.estimate.points_used;
+    r.refine_s = m.tilt_s;
+  }
+  r.read_s = read_s;
+  r.detect_s = m.detect_s;
+  r.fuse_s = m.fuse_s;
+  return r;
+}
+
+Progress::Progress(int total, int every, int first)
+    : total_(std::max(total, 1)), every_(std::max(every, 1)), first_(first) {
+  tty_ = isatty(fileno(stderr)) != 0;
+  start_ = Clock::now();
+}
+
+namespace {
+std::string Minutes(double seconds) {
+  const long s = std::lround(seconds);
+  std::ostringstream out;
+  out << s / 60 << ":" << std::setw(2) << std::setfill('0') << s % 60;
+  return out.str();
+}
+}  // namespace
+
+void Progress::Update(int done) {
+  const double elapsed = SecondsSince(start_);
+  const double rate = elapsed > 0.0 ? (done - first_) / elapsed : 0.0;
+  const double left = rate > 0.0 ? (total_ - done) / rate : 0.0;
+  if (tty_) {
+    constexpr int kWidth = 30;
+    const int filled = kWidth * std::min(done, total_) / total_;
+    std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] "
+              << done << "/" << total_ << " frames, " << Fixed(rate, 1) << " frames/s, "
+              << Minutes(left) << " left   " << std::flush;
+    bar_shown_ = true;
+  } else if (done % every_ == 0 || done == total_) {
+    std::cerr << "cairn map: " << done << "/" << total_ << " frames (" << 100 * done / total_
+              << "%), " << Fixed(rate, 1) << " frames/s, about " << Minutes(left) << " left\n";
+  }
+}
+
+void Progress::Note(const std::string& line) {
+  if (tty_ && bar_shown_) std::cerr << "\r" << std::string(79, ' ') << "\r";
+  std::cerr << "cairn map: " << line << "\n";
+}
+
+void Progress::Finish() {
+  if (tty_ && bar_shown_) std::cerr << "\n";
+}
+
+}  // namespace cairn::apps

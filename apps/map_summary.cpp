@@ -1,0 +1,231 @@
+// `cairn map`: the run's own files besides the map's (map_run.hpp): poses.tum (each fused
+// frame's T_world_sensor), frames.csv (per-frame figures), summary.json and summary.txt.
+#include <algorithm>
+#include <iomanip>
+#include <map>
+#include <sstream>
+
+#include "cairn/map/map_files.hpp"
+#include "cairn/od/io/atomic_file.hpp"
+#include "map_run.hpp"
+
+namespace cairn::apps {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::string Fixed(double v, int decimals) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(decimals) << v;
+  return out.str();
+}
+
+std::string TumLine(double stamp_s, const Eigen::Isometry3d& T) {
+  Eigen::Quaterniond q(T.linear());
+  if (q.w() < 0) q.coeffs() = -q.coeffs();
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(6) << stamp_s << " " << T.translation().x() << " "
+      << T.translation().y() << " " << T.translation().z() << " " << std::setprecision(9) << q.x()
+      << " " << q.y() << " " << q.z() << " " << q.w();
+  return out.str();
+}
+
+json ObstacleBrief(const map::Obstacle& o) {
+  return {{"id", o.id},
+          {"centroid", {o.centroid.x(), o.centroid.y(), o.centroid.z()}},
+          {"height_m", o.height_m},
+          {"footprint_area_m2", o.footprint_area_m2},
+          {"frames", o.frames.size()}};
+}
+
+json TruthJson(const TruthScore& truth) {
+  json objects = json::array();
+  for (const TruthObject& t : truth.objects) {
+    objects.push_back({{"id", t.id},
+                       {"name", t.name},
+                       {"is_obstacle", t.is_obstacle},
+                       {"x", t.centre.x()},
+                       {"y", t.centre.y()},
+                       {"found", t.found},
+                       {"distance_to_lethal_m", t.distance_m},
+                       {"map_obstacle", t.obstacle_id}});
+  }
+  return {{"world", truth.world},
+          {"obstacles", truth.obstacles},
+          {"found", truth.found},
+          {"non_obstacles_marked", truth.marked_non_obstacles},
+          {"false_obstacles", truth.false_obstacles},
+          {"false_obstacle_ids", truth.false_obstacle_ids},
+          {"lethal_iou", truth.iou},
+          {"elevation_rms_m", truth.elevation_rms_m},
+          {"elevation_max_error_m", truth.elevation_max_m},
+          {"elevation_cells", truth.elevation_cells},
+          {"objects", objects}};
+}
+
+void TruthText(const TruthScore& truth, std::ostringstream& text) {
+  text << "  truth (" << truth.world << "): " << truth.found << "/" << truth.obstacles
+       << " obstacles found, " << truth.marked_non_obstacles << " non-obstacles marked, "
+       << truth.false_obstacles << " false obstacles; IoU of lethal cells and obstacle "
+       << "footprints " << Fixed(truth.iou, 2) << "; elevation RMS error "
+       << Fixed(truth.elevation_rms_m, 3) << " m over " << truth.elevation_cells << " cells\n";
+  for (const TruthObject& t : truth.objects) {
+    text << "    " << std::left << std::setw(12) << t.name << std::right
+         << (t.is_obstacle ? " obstacle     " : " not obstacle ") << "at ("
+         << Fixed(t.centre.x(), 1) << ", " << Fixed(t.centre.y(), 1)
+         << "): " << (t.found ? "found" : (t.is_obstacle ? "MISSED" : "clear"));
+    if (t.distance_m >= 0) text << ", nearest lethal cell " << Fixed(t.distance_m, 2) << " m";
+    text << "\n";
+  }
+}
+
+}  // namespace
+
+Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, StageTimes& times) {
+  const std::vector<FrameRecord>& records = run.state.records;
+  const map::TerrainMap& terrain = run.mapper.map();
+  const map::MapperConfig& config = run.mapper.config();
+  const bool refine = config.tilt.mode != map::TiltMode::kPrior;
+  // Per-frame poses (TUM, as fused) and figures (CSV).
+  std::string tum =
+      "# cairn map: T_world_sensor of each frame as fused (stamp tx ty tz qx qy qz qw)\n";
+  std::ostringstream csv;
+  csv << "frame,stamp_s,valid_points,segments,kept,obstacle_points,obstacles_created,"
+         "lethal_cells,tilt_refined,d_roll_deg,d_pitch_deg,dz_m,rms_before_m,rms_after_m,"
+         "read_ms,detect_ms,refine_ms,fuse_ms\n";
+  double distance_m = 0.0;
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    const FrameRecord& r = records[k];
+    if (k > 0) {
+      distance_m +=
+          (r.T_world_body.translation() - records[k - 1].T_world_body.translation()).norm();
+    }
+    tum += TumLine(r.stamp_s, r.T_world_sensor) + "\n";
+    csv << r.index << "," << Fixed(r.stamp_s, 6) << "," << r.valid_points << "," << r.segments
+        << "," << r.kept << "," << r.fused.obstacle_points << "," << r.fused.obstacles_created
+        << "," << r.fused.lethal_cells << "," << (r.refined ? 1 : 0) << ","
+        << Fixed(r.d_roll_rad / kMapDeg, 3) << "," << Fixed(r.d_pitch_rad / kMapDeg, 3) << ","
+        << Fixed(r.dz_m, 3) << "," << Fixed(r.rms_before_m, 4) << "," << Fixed(r.rms_after_m, 4)
+        << "," << Fixed(r.read_s * 1e3, 1) << "," << Fixed(r.detect_s * 1e3, 1) << ","
+        << Fixed(r.refine_s * 1e3, 1) << "," << Fixed(r.fuse_s * 1e3, 1) << "\n";
+  }
+  if (Status s = od::io::WriteFileAtomic(dir / "poses.tum", tum); !s) return s.error();
+  if (Status s = od::io::WriteFileAtomic(dir / "frames.csv", csv.str()); !s) return s.error();
+  times.write_s = SecondsSince(run.write_start);
+
+  // Summary.
+  const int n = static_cast<int>(records.size());
+  const double wall_s = run.wall_s;
+  const map::MapMemory memory = terrain.Memory();
+  Expected<map::CellBox> bounds = map::ExportBounds(terrain);
+  json summary;
+  summary["input"] = SourceJson(run.source.Describe());
+  summary["frames"] = n;
+  const int imu_frames = static_cast<int>(std::count_if(
+      records.begin(), records.end(), [](const FrameRecord& r) { return r.tilt_from_imu; }));
+  summary["imu_tilt_frames"] = imu_frames;
+  summary["distance_driven_m"] = distance_m;
+  summary["duration_s"] = records.back().stamp_s - records.front().stamp_s;
+  summary["map"] = {{"mode", config.map.window_size_m > 0 ? "online" : "offline"},
+                    {"window_size_m", config.map.window_size_m},
+                    {"cell_size_m", config.map.cell_size_m},
+                    {"voxel_size_m", config.map.voxel_size_m},
+                    {"grid_bytes", memory.grid_bytes},
+                    {"octree_bytes", memory.octree_bytes},
+                    {"octree_leaves", memory.octree_leaves}};
+  if (bounds) summary["map"]["extent_cells"] = {bounds->size().x(), bounds->size().y()};
+  int lethal = 0, known = 0;
+  const map::TerrainGrid& g = terrain.grid();
+  for (int j = 0; j < g.extent().y(); ++j) {
+    for (int i = 0; i < g.extent().x(); ++i) {
+      const map::Cell& c = g.At(g.min_index() + map::CellIndex(i, j));
+      lethal += c.lethal ? 1 : 0;
+      known += c.observed ? 1 : 0;
+    }
+  }
+  summary["map"]["observed_cells"] = known;
+  summary["map"]["lethal_cells"] = lethal;
+  json obstacles = json::array();
+  for (const map::Obstacle& o : terrain.obstacles()) obstacles.push_back(ObstacleBrief(o));
+  summary["obstacles"] = {{"live", terrain.obstacles().size()},
+                          {"retired", terrain.obstacles_retired()},
+                          {"list", obstacles}};
+  if (refine) {
+    double sum_before = 0.0, sum_after = 0.0;
+    int counted = 0;
+    for (const FrameRecord& r : records) {
+      if (!r.refined) continue;
+      sum_before += r.rms_before_m;
+      sum_after += r.rms_after_m;
+      ++counted;
+    }
+    summary["tilt"] = {{"refine", true},
+                       {"refined_frames", run.state.refined_frames},
+                       {"final_correction_deg",
+                        {records.back().d_roll_rad / kMapDeg, records.back().d_pitch_rad / kMapDeg}},
+                       {"final_dz_m", records.back().dz_m},
+                       {"mean_rms_before_m", counted ? sum_before / counted : 0.0},
+                       {"mean_rms_after_m", counted ? sum_after / counted : 0.0}};
+  } else {
+    summary["tilt"] = {{"refine", false}};
+  }
+  // Frames not fused, by reason, and each with what was found.
+  std::map<std::string, int> by_reason;
+  json skipped_list = json::array();
+  for (const SkippedFrame& s : run.state.skipped) {
+    ++by_reason[s.reason];
+    skipped_list.push_back({{"frame", s.name}, {"reason", s.reason}, {"detail", s.detail}});
+  }
+  summary["skipped"] = {{"count", run.state.skipped.size()},
+                        {"by_reason", by_reason},
+                        {"frames", skipped_list}};
+  summary["time_s"] = {{"read", times.read_s},     {"detect", times.detect_s},
+                       {"refine", times.refine_s}, {"fuse", times.fuse_s},
+                       {"write", times.write_s},   {"checkpoint", times.checkpoint_s},
+                       {"total", wall_s}};
+  summary["frames_per_s"] = wall_s > 0 ? n / wall_s : 0.0;
+  if (run.truth) summary["truth"] = TruthJson(*run.truth);
+
+  std::ostringstream text;
+  text << "cairn map: " << n << " frames from " << summary["input"]["path"].get<std::string>()
+       << " (" << summary["input"]["kind"].get<std::string>() << "), " << Fixed(distance_m, 1)
+       << " m driven in " << Fixed(summary["duration_s"].get<double>(), 1) << " s of data\n"
+       << "  poses: " << run.source.trajectory().source() << " (IMU tilt on " << imu_frames << "/"
+       << n << " frames)\n";
+  if (!run.state.skipped.empty()) {
+    text << "  skipped: " << run.state.skipped.size() << " frame"
+         << (run.state.skipped.size() == 1 ? "" : "s") << " not fused (";
+    bool first = true;
+    for (const auto& [reason, count] : by_reason) {
+      text << (first ? "" : ", ") << reason << " " << count;
+      first = false;
+    }
+    text << "; summary.json lists them)\n";
+  }
+  text << "  map: " << summary["map"]["mode"].get<std::string>() << ", cell "
+       << config.map.cell_size_m << " m, voxel " << config.map.voxel_size_m << " m, " << known
+       << " cells observed, " << lethal << " lethal\n"
+       << "  obstacles: " << terrain.obstacles().size() << " (" << terrain.obstacles_retired()
+       << " retired on the way)\n";
+  if (refine) {
+    text << "  tilt: refined " << run.state.refined_frames << "/" << n
+         << " frames; correction at the end " << Fixed(records.back().d_roll_rad / kMapDeg, 2)
+         << " deg roll, " << Fixed(records.back().d_pitch_rad / kMapDeg, 2) << " deg pitch, "
+         << Fixed(records.back().dz_m, 3) << " m height; ground RMS "
+         << Fixed(summary["tilt"]["mean_rms_before_m"].get<double>(), 3) << " -> "
+         << Fixed(summary["tilt"]["mean_rms_after_m"].get<double>(), 3) << " m\n";
+  }
+  text << "  time: read " << Fixed(times.read_s, 2) << " s, detect " << Fixed(times.detect_s, 2)
+       << " s, refine " << Fixed(times.refine_s, 2) << " s, fuse " << Fixed(times.fuse_s, 2)
+       << " s, write " << Fixed(times.write_s, 2) << " s; " << Fixed(wall_s, 2) << " s in all, "
+       << Fixed(n / wall_s, 2) << " frames/s\n";
+  if (run.truth) TruthText(*run.truth, text);
+  if (Status s = od::io::WriteFileAtomic(dir / "summary.json", summary.dump(2) + "\n"); !s) {
+    return s.error();
+  }
+  if (Status s = od::io::WriteFileAtomic(dir / "summary.txt", text.str()); !s) return s.error();
+  return text.str();
+}
+
+}  // namespace cairn::apps

@@ -1,0 +1,105 @@
+// The Mapper's tilt step: the roll, pitch and height at which a frame is fused, from its
+// odometry pose and what the step observes, behind one small interface so that estimators
+// can be swapped without touching the per-frame pipeline.
+//
+// Per frame the Mapper asks the step twice:
+//   1. Prior(T_world_sensor_odometry): the pose before this frame's own evidence (the
+//      odometry pose with what the step carries from earlier frames). The range image is
+//      levelled with its up vector, so the detector measures heights along it.
+//   2. Estimate(frame, map): after detection, with the frame's evidence (TiltFrame: stamp,
+//      odometry pose, prior, IMU samples since the previous frame, range image, detection,
+//      classification, ground points) and the terrain fused so far (before this frame):
+//      the pose to fuse the frame at, with diagnostics. It may update what it carries.
+// What a step carries from frame to frame is its resume state (SaveState / RestoreState):
+// a Mapper restored from a checkpoint continues exactly as the uninterrupted one.
+//
+// Two steps exist (MakeTiltStep):
+//   kPrior     the odometry pose is fused as it is; nothing is carried.
+//   kRefineToMap  map::RefineTilt (tilt_refiner.hpp) matches the frame's ground points to the
+//              fused elevation around the prior; a usable estimate that lowers the ground
+//              RMS is fused and its correction is carried to the next frame's prior (IMU
+//              biases and the height integrated from them persist from frame to frame).
+// A gravity-observing estimator (accelerometer, gyro, vertical structure) plugs in as a
+// third implementation of TiltStep (Mapper::Create takes one).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cairn/map/imu.hpp"
+#include "cairn/map/terrain_map.hpp"
+#include "cairn/map/tilt_refiner.hpp"
+#include "cairn/od/detector.hpp"
+#include "cairn/od/expected.hpp"
+#include "cairn/od/range_image.hpp"
+#include "cairn/od/rules.hpp"
+
+namespace cairn::map {
+
+enum class TiltMode {
+  kPrior,        ///< fuse the odometry pose as it is
+  kRefineToMap,  ///< RefineTilt against the fused terrain, correction carried
+};
+
+/// "prior" | "refine_to_map".
+const char* TiltModeName(TiltMode mode);
+
+/// The `tilt:` section of a settings file (mapper_config_file.hpp).
+struct TiltConfig {
+  TiltMode mode = TiltMode::kPrior;
+  TiltRefinerConfig refiner;  ///< kRefineToMap
+  /// Fails naming the first bad field ("tilt.max_points: ...").
+  Status Validate() const;
+};
+
+/// What a tilt step sees of one frame (every reference lives for the Estimate() call).
+struct TiltFrame {
+  std::int64_t index = 0;  ///< frames fused before this one
+  double stamp_s = 0.0;
+  Eigen::Isometry3d T_world_sensor_odometry = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_world_sensor_prior = Eigen::Isometry3d::Identity();  ///< Prior()
+  const std::vector<ImuSample>& imu;  ///< since the previous frame, by stamp
+  const od::RangeImage& image;        ///< levelled with the prior's up vector
+  const od::Detection& detection;
+  const od::Classification& classification;
+  /// Valid returns outside every kept segment, sensor frame [m]; empty unless
+  /// TiltStep::UsesGroundPoints().
+  const std::vector<Eigen::Vector3f>& ground_points_sensor;
+};
+
+/// The step's answer for one frame.
+struct TiltOutcome {
+  Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();  ///< to fuse at
+  bool estimated = false;  ///< the step ran an estimator on this frame (not kPrior)
+  bool applied = false;    ///< its estimate replaced the prior
+  /// The estimator's diagnostics (kRefineToMap: RefineTilt's), when estimated.
+  TiltEstimate estimate;
+  /// Total correction of the fused pose relative to the odometry pose, as carried after this
+  /// frame (ApplyTiltCorrection's roll, pitch, dz) [rad, rad, m].
+  double roll_rad = 0.0, pitch_rad = 0.0, dz_m = 0.0;
+};
+
+class TiltStep {
+ public:
+  virtual ~TiltStep() = default;
+  virtual TiltMode mode() const = 0;
+  /// Whether Estimate() reads TiltFrame::ground_points_sensor (the Mapper extracts them
+  /// only then).
+  virtual bool UsesGroundPoints() const = 0;
+  /// The pose to level and detect the frame with (see the top of this file).
+  virtual Eigen::Isometry3d Prior(const Eigen::Isometry3d& T_world_sensor_odometry) const = 0;
+  /// The pose to fuse the frame at. Fails only on an invalid config or a broken frame.
+  virtual Expected<TiltOutcome> Estimate(const TiltFrame& frame, const TerrainMap& map) = 0;
+  /// What is carried from frame to frame, as bytes, and back (exactly: doubles round-trip).
+  virtual std::string SaveState() const = 0;
+  virtual Status RestoreState(const std::string& state) = 0;
+};
+
+/// The step of `config.mode`. Fails when the config does not validate.
+Expected<std::unique_ptr<TiltStep>> MakeTiltStep(const TiltConfig& config);
+
+}  // namespace cairn::map

@@ -1,0 +1,108 @@
+// FrameSource: a recorded sequence handed out one frame at a time, each frame a range image
+// placed in the world, for the Mapper (cairn/map/mapper.hpp) or any per-frame loop.
+//
+//   OpenRawlogFrames       an MRPT rawlog: a first pass gathers the odometry and IMU (and
+//                          checks the whole file), a second decodes the range frames one at
+//                          a time (stereo pairs are matched with the given StereoConfig)
+//   OpenKittiFrames        a KITTI odometry sequence: velodyne scans placed by poses.txt
+//   OpenDepthFolderFrames  a folder of 16-bit depth PNGs with a TUM file of the camera's
+//                          poses (optical frame, z-up world): files named by their stamp
+//                          (TUM RGB-D's "1305031102.160407.png") are placed at that time,
+//                          otherwise the k-th file (by name) takes the k-th pose
+//
+// Nothing is skipped in silence: a frame the source knows of but cannot read as a frame
+// comes back with its reason (SourceSkip) and no image, so that the caller names and counts
+// it. A KITTI scan missing from velodyne/ (poses.txt, or the scans around it, say it should
+// be there) is kMissing; a scan file of no whole point (empty, or a size not a multiple of
+// 16 bytes) is kTruncated. Files that are there but corrupt are errors, naming the file.
+//
+// Each image is levelled with its pose's up vector (world z up); frames, units and
+// conventions as frame.hpp and trajectory.hpp state them. Nothing is printed.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "cairn/od/expected.hpp"
+#include "cairn/od/io/stereo.hpp"
+#include "cairn/od/range_image.hpp"
+#include "cairn/sources/frame.hpp"
+#include "cairn/sources/trajectory.hpp"
+
+namespace cairn::sources {
+
+/// Why a source hands out a frame without an image.
+enum class SourceSkip {
+  kNone,
+  kMissing,    ///< the frame's file is not there
+  kTruncated,  ///< the frame's file holds no whole record
+};
+
+/// "none" | "missing" | "truncated".
+const char* SourceSkipName(SourceSkip skip);
+
+/// One frame of a sequence, placed in the world.
+struct SequenceFrame {
+  int index = 0;        ///< among the source's frames (0-based), skipped ones included
+  double stamp_s = 0.0;
+  std::string name;     ///< for messages: "FILE: frame 3 ('CAMERA', entry 12)", a file name
+  Eigen::Isometry3d T_world_body = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
+  bool tilt_from_imu = false;  ///< the pose's roll and pitch came from an IMU
+  /// IMU attitudes of the recording since the previous frame (rawlogs), by stamp.
+  std::vector<ImuAttitude> imu;
+  od::RangeImage image;  ///< sensor frame, levelled with T_world_sensor's up; empty if skipped
+  SourceSkip skip = SourceSkip::kNone;
+  std::string skip_detail;  ///< what was found ("7 bytes, not a whole 16-byte point")
+
+  bool used() const { return skip == SourceSkip::kNone; }
+};
+
+/// What a source reads, for summaries and for telling two runs' inputs apart: "kind",
+/// "path", "frames", "poses", and per kind "label" and "imu_samples" (rawlog), "lidar"
+/// (KITTI).
+using SourceInfo = std::map<std::string, std::variant<std::string, std::int64_t>>;
+
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  /// The next frame (skipped ones included), or nullopt at the end.
+  virtual Expected<std::optional<SequenceFrame>> Next() = 0;
+  /// Passes over the next `n` frames without making their range images (a resumed run).
+  virtual Status Skip(int n) = 0;
+  /// Frames the source will give, skipped ones included.
+  virtual int total() const = 0;
+  virtual SourceInfo Describe() const = 0;
+  /// Where the frames' poses come from.
+  virtual const Trajectory& trajectory() const = 0;
+};
+
+/// An MRPT rawlog's range frames (of sensor `label`, or every one when empty). Fails, naming
+/// the file, when it cannot be read to its end, holds no range frames (of that label: the
+/// labels it holds are named) or no odometry.
+Expected<std::unique_ptr<FrameSource>> OpenRawlogFrames(const std::string& path,
+                                                        const std::string& label,
+                                                        const od::io::StereoConfig& stereo);
+
+/// A KITTI odometry sequence folder (or DIR/sequences/NN when `sequence` is given), its scans
+/// `range` ("A:B", see od::io::SelectKittiFrames; empty: all), read as LiDAR preset `lidar`.
+/// Fails, naming the file, without poses.txt, on an unknown preset or a bad range.
+Expected<std::unique_ptr<FrameSource>> OpenKittiFrames(const std::string& dir,
+                                                       const std::string& sequence,
+                                                       const std::string& range,
+                                                       const std::string& lidar);
+
+/// A folder of depth PNGs with their TUM poses and the camera YAML (default
+/// DIR/intrinsics.yaml). Fails, naming the file, on no images, unreadable poses or
+/// intrinsics, or unnamed images whose count differs from the poses'.
+Expected<std::unique_ptr<FrameSource>> OpenDepthFolderFrames(const std::string& dir,
+                                                             const std::string& poses,
+                                                             const std::string& intrinsics);
+
+}  // namespace cairn::sources

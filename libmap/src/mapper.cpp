@@ -1,0 +1,292 @@
+#include "cairn/map/mapper.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <exception>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+#include <utility>
+
+#include "cairn/map/checkpoint.hpp"
+
+namespace cairn::map {
+namespace {
+
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+constexpr const char* kStateFormat = "cairn mapper state 1";
+constexpr double kMinJumpDt = 0.01;  // [s]: stamps closer than this count as 10 ms apart
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+Eigen::Vector3d UpIn(const Eigen::Isometry3d& T_world_sensor) {
+  return T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
+}
+
+json PoseJson(const Eigen::Isometry3d& T) {
+  json m = json::array();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) m.push_back(T.matrix()(r, c));
+  }
+  return m;
+}
+
+Eigen::Isometry3d PoseFromJson(const json& m) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) T.matrix()(r, c) = m.at(4 * r + c).get<double>();
+  }
+  return T;
+}
+
+std::string Fixed(double v, int decimals) {
+  std::ostringstream out;
+  out.setf(std::ios::fixed);
+  out.precision(decimals);
+  out << v;
+  return out.str();
+}
+
+}  // namespace
+
+const char* FrameSkipName(FrameSkip skip) {
+  switch (skip) {
+    case FrameSkip::kNone:
+      return "none";
+    case FrameSkip::kNoValidPoints:
+      return "no valid points";
+    case FrameSkip::kPoseJump:
+      return "pose jump";
+  }
+  return "?";
+}
+
+Status FrameCheckConfig::Validate() const {
+  if (min_valid_points < 1) return Error{"frame checks: 'min_valid_points': expected >= 1"};
+  if (!(std::isfinite(max_speed_mps) && max_speed_mps > 0.0)) {
+    return Error{"frame checks: 'max_speed': expected > 0 m/s"};
+  }
+  if (!(std::isfinite(max_turn_rate_radps) && max_turn_rate_radps > 0.0)) {
+    return Error{"frame checks: 'max_turn_rate': expected > 0 deg/s"};
+  }
+  return {};
+}
+
+Status MapperConfig::Validate() const {
+  if (Status s = detector.Validate(); !s) return Error{"detector: " + s.message()};
+  if (Status s = rules.Validate(); !s) return Error{"rules: " + s.message()};
+  if (Status s = map.Validate(); !s) return s;
+  if (Status s = tilt.Validate(); !s) return s;
+  if (Status s = frames.Validate(); !s) return s;
+  return {};
+}
+
+struct Mapper::State {
+  MapperConfig config;
+  TerrainMap map;
+  std::unique_ptr<TiltStep> tilt;
+  std::int64_t processed = 0;
+  std::int64_t fused = 0;
+  // The previous frame given to Process (the jump check's reference).
+  std::optional<std::pair<double, Eigen::Isometry3d>> previous;
+
+  State(const MapperConfig& c, TerrainMap m, std::unique_ptr<TiltStep> t)
+      : config(c), map(std::move(m)), tilt(std::move(t)) {}
+
+  /// Empty when the move from the previous frame is plausible, else the figures.
+  std::string Jump(double stamp_s, const Eigen::Isometry3d& T) const {
+    if (!previous) return {};
+    const double dt = std::max(std::abs(stamp_s - previous->first), kMinJumpDt);
+    const double moved = (T.translation() - previous->second.translation()).norm();
+    const double turned =
+        Eigen::AngleAxisd(previous->second.linear().transpose() * T.linear()).angle();
+    if (moved > config.frames.max_speed_mps * dt) {
+      return "the odometry moved " + Fixed(moved, 2) + " m in " + Fixed(dt, 3) + " s (frames.max_speed " +
+             Fixed(config.frames.max_speed_mps, 1) + " m/s)";
+    }
+    if (turned > config.frames.max_turn_rate_radps * dt) {
+      return "the odometry turned " + Fixed(turned * 180.0 / M_PI, 1) + " deg in " + Fixed(dt, 3) +
+             " s (frames.max_turn_rate " + Fixed(config.frames.max_turn_rate_radps * 180.0 / M_PI, 0) +
+             " deg/s)";
+    }
+    return {};
+  }
+};
+
+Mapper::Mapper(std::unique_ptr<State> state) : state_(std::move(state)) {}
+Mapper::Mapper(Mapper&&) noexcept = default;
+Mapper& Mapper::operator=(Mapper&&) noexcept = default;
+Mapper::~Mapper() = default;
+
+Expected<Mapper> Mapper::Create(const MapperConfig& config) {
+  if (Status s = config.Validate(); !s) return s.error();
+  Expected<std::unique_ptr<TiltStep>> tilt = MakeTiltStep(config.tilt);
+  if (!tilt) return tilt.error();
+  return Create(config, std::move(*tilt));
+}
+
+Expected<Mapper> Mapper::Create(const MapperConfig& config, std::unique_ptr<TiltStep> tilt) {
+  if (tilt == nullptr) return Error{"mapper: no tilt step"};
+  if (Status s = config.Validate(); !s) return s.error();
+  Expected<TerrainMap> map = TerrainMap::Create(config.map);
+  if (!map) return map.error();
+  return Mapper(std::make_unique<State>(config, std::move(*map), std::move(tilt)));
+}
+
+Expected<MapperRecord> Mapper::Process(od::RangeImage image,
+                                       const Eigen::Isometry3d& T_world_sensor, double stamp_s,
+                                       const std::vector<ImuSample>& imu) {
+  State& s = *state_;
+  if (!T_world_sensor.matrix().allFinite() || !std::isfinite(stamp_s)) {
+    return Error{"mapper: non-finite pose or stamp"};
+  }
+  MapperRecord r;
+  r.index = s.fused;
+  r.stamp_s = stamp_s;
+  r.T_world_sensor_odometry = T_world_sensor;
+  r.T_world_sensor = T_world_sensor;
+
+  // --- check ---
+  r.skip_detail = s.Jump(stamp_s, T_world_sensor);
+  if (!r.skip_detail.empty()) r.skip = FrameSkip::kPoseJump;
+
+  Clock::time_point t = Clock::now();
+  // --- level: the detector measures heights along the prior's up vector ---
+  const Eigen::Isometry3d prior = s.tilt->Prior(T_world_sensor);
+  if (Status st = image.SetUp(UpIn(prior)); !st) return Error{"mapper: " + st.message()};
+  // Returns of the vehicle itself are no returns for the map either (detector.min_range).
+  if (s.config.detector.min_range_m > 0.0) image.DropReturnsNearerThan(s.config.detector.min_range_m);
+  r.valid_points = image.valid_count();
+  if (r.used() && r.valid_points < s.config.frames.min_valid_points) {
+    r.skip = FrameSkip::kNoValidPoints;
+    r.skip_detail = std::to_string(r.valid_points) + " valid returns (frames.min_valid_points " +
+                    std::to_string(s.config.frames.min_valid_points) + ")";
+  }
+  if (!r.used()) {
+    s.previous.emplace(stamp_s, T_world_sensor);
+    ++s.processed;
+    return r;
+  }
+
+  // --- detect ---
+  Expected<od::Detection> detection = od::Detect(image, s.config.detector);
+  if (!detection) return detection.error();
+  Expected<od::Classification> classification = od::Classify(*detection, s.config.rules);
+  if (!classification) return classification.error();
+  r.detect_s = SecondsSince(t);
+  r.segments = static_cast<int>(detection->segments.size());
+  r.kept = classification->kept;
+  r.rejected = r.segments - r.kept;
+
+  // --- tilt ---
+  t = Clock::now();
+  std::vector<Eigen::Vector3f> ground;
+  if (s.tilt->UsesGroundPoints()) {
+    ground.reserve(image.size());
+    for (int i = 0; i < image.size(); ++i) {
+      if (!image.valid(i)) continue;
+      const int label = detection->labels[i];
+      if (label > 0 && classification->verdicts[label - 1].cls == od::SegmentClass::kKept) continue;
+      ground.push_back(image.point(i).cast<float>());
+    }
+  }
+  const TiltFrame frame{s.fused,     stamp_s,         T_world_sensor,  prior, imu,
+                        image,       *detection,      *classification, ground};
+  Expected<TiltOutcome> tilt = s.tilt->Estimate(frame, s.map);
+  if (!tilt) return Error{"tilt: " + tilt.error().message};
+  r.tilt = std::move(*tilt);
+  r.T_world_sensor = r.tilt.T_world_sensor;
+  r.tilt_s = SecondsSince(t);
+
+  // --- fuse ---
+  t = Clock::now();
+  Expected<FrameSummary> fused =
+      s.map.Integrate(image, *detection, *classification, r.T_world_sensor, stamp_s, s.fused);
+  if (!fused) return fused.error();
+  r.fuse_s = SecondsSince(t);
+  r.fused = *fused;
+  s.previous.emplace(stamp_s, T_world_sensor);
+  ++s.processed;
+  ++s.fused;
+  return r;
+}
+
+Expected<MapperRecord> Mapper::Process(const std::vector<Eigen::Vector3f>& points,
+                                       const od::SphericalModel& model,
+                                       const Eigen::Isometry3d& T_world_sensor, double stamp_s,
+                                       const std::vector<ImuSample>& imu,
+                                       const std::vector<std::int32_t>& rows,
+                                       const std::vector<std::int32_t>& cols) {
+  if (!T_world_sensor.matrix().allFinite()) return Error{"mapper: non-finite pose"};
+  Expected<od::RangeImage> image =
+      od::RangeImage::FromPoints(points, model, UpIn(state_->tilt->Prior(T_world_sensor)), rows, cols);
+  if (!image) return image.error();
+  return Process(std::move(*image), T_world_sensor, stamp_s, imu);
+}
+
+Status Mapper::SaveCheckpoint(const std::filesystem::path& dir_or_file,
+                              std::string_view app_data) const {
+  const State& s = *state_;
+  json previous = nullptr;
+  if (s.previous) previous = {{"stamp_s", s.previous->first}, {"pose", PoseJson(s.previous->second)}};
+  const json state = {{"format", kStateFormat},
+                      {"tilt_mode", TiltModeName(s.tilt->mode())},
+                      {"tilt_state", s.tilt->SaveState()},
+                      {"processed", s.processed},
+                      {"fused", s.fused},
+                      {"previous", previous},
+                      {"app", std::string(app_data)}};
+  return map::SaveCheckpoint(s.map, dir_or_file, state.dump());
+}
+
+Expected<Mapper> Mapper::FromCheckpoint(const std::filesystem::path& dir_or_file,
+                                        const MapperConfig& config, std::string* app_data,
+                                        std::unique_ptr<TiltStep> tilt) {
+  if (Status s = config.Validate(); !s) return s.error();
+  const std::string file = CheckpointPath(dir_or_file).string();
+  if (tilt == nullptr) {
+    Expected<std::unique_ptr<TiltStep>> made = MakeTiltStep(config.tilt);
+    if (!made) return made.error();
+    tilt = std::move(*made);
+  }
+  std::string user_data;
+  Expected<TerrainMap> map = LoadCheckpoint(dir_or_file, config.map, &user_data);
+  if (!map) return map.error();
+  auto state = std::make_unique<State>(config, std::move(*map), std::move(tilt));
+  try {
+    const json j = json::parse(user_data);
+    if (j.at("format") != kStateFormat) {
+      return Error{"checkpoint " + file + ": not a Mapper's (its state is of another format)"};
+    }
+    const std::string mode = j.at("tilt_mode").get<std::string>();
+    if (mode != TiltModeName(state->tilt->mode())) {
+      return Error{"checkpoint " + file + ": made with tilt mode '" + mode + "', not '" +
+                   TiltModeName(state->tilt->mode()) + "' (tilt.refine)"};
+    }
+    if (Status s = state->tilt->RestoreState(j.at("tilt_state").get<std::string>()); !s) {
+      return Error{"checkpoint " + file + ": " + s.message()};
+    }
+    state->processed = j.at("processed").get<std::int64_t>();
+    state->fused = j.at("fused").get<std::int64_t>();
+    const json& previous = j.at("previous");
+    if (!previous.is_null()) {
+      state->previous.emplace(previous.at("stamp_s").get<double>(), PoseFromJson(previous.at("pose")));
+    }
+    if (app_data != nullptr) *app_data = j.at("app").get<std::string>();
+  } catch (const std::exception& e) {
+    return Error{"checkpoint " + file + ": the Mapper's state is unreadable (" + e.what() + ")"};
+  }
+  return Mapper(std::move(state));
+}
+
+const TerrainMap& Mapper::map() const { return state_->map; }
+const MapperConfig& Mapper::config() const { return state_->config; }
+const TiltStep& Mapper::tilt() const { return *state_->tilt; }
+std::int64_t Mapper::frames_processed() const { return state_->processed; }
+std::int64_t Mapper::frames_fused() const { return state_->fused; }
+
+}  // namespace cairn::map

@@ -1,0 +1,135 @@
+#include "cairn/map/mapper_config_file.hpp"
+
+#include <cstdint>
+#include <vector>
+
+#include "cairn/map/map_config_file.hpp"
+#include "cairn/od/io/detect_config.hpp"
+#include "yaml_fields.hpp"  // cairn_od_io's strict field reader
+
+namespace cairn::map {
+namespace {
+
+namespace yaml = od::io::detail;
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+struct DoubleField {
+  const char* key;
+  double* target;
+  double scale;  // file unit -> struct unit
+};
+struct IntField {
+  const char* key;
+  int* target;
+  std::int64_t min, max;
+};
+
+Status ReadFields(const yaml::FieldReader& reader, const YAML::Node& section,
+                  const std::string& name, const std::vector<DoubleField>& doubles,
+                  const std::vector<IntField>& ints, std::vector<std::string> keys) {
+  for (const DoubleField& f : doubles) keys.emplace_back(f.key);
+  for (const IntField& f : ints) keys.emplace_back(f.key);
+  if (Status s = reader.CheckMapping(section, name, keys); !s) return s;
+  for (const DoubleField& f : doubles) {
+    if (const YAML::Node v = section[f.key]) {
+      Expected<double> value = reader.Double(v, name + "." + f.key);
+      if (!value) return value.error();
+      *f.target = *value * f.scale;
+    }
+  }
+  for (const IntField& f : ints) {
+    if (const YAML::Node v = section[f.key]) {
+      Expected<std::int64_t> value = reader.Integer(v, name + "." + f.key);
+      if (!value) return value.error();
+      if (*value < f.min || *value > f.max) {
+        return reader.Fail(name + "." + f.key,
+                           "expected " + std::to_string(f.min) + " .. " + std::to_string(f.max));
+      }
+      *f.target = static_cast<int>(*value);
+    }
+  }
+  return {};
+}
+
+Status ParseTilt(const yaml::FieldReader& reader, const YAML::Node& root, TiltConfig& tilt) {
+  const YAML::Node section = root["tilt"];
+  if (!section || section.IsNull()) return {};
+  TiltRefinerConfig& c = tilt.refiner;
+  const std::vector<DoubleField> doubles = {{"prior_sigma", &c.prior_sigma_rad, kDeg},
+                                            {"prior_sigma_z", &c.prior_sigma_z_m, 1.0},
+                                            {"huber", &c.huber_m, 1.0},
+                                            {"max_range", &c.max_range_m, 1.0}};
+  const std::vector<IntField> ints = {{"max_points", &c.max_points, 0, 100000000},
+                                      {"min_points", &c.min_points, 0, 100000000},
+                                      {"max_iterations", &c.max_iterations, 0, 100000000}};
+  if (Status s = ReadFields(reader, section, "tilt", doubles, ints, {"refine"}); !s) return s;
+  if (const YAML::Node v = section["refine"]) {
+    bool refine = false, ok = v.IsScalar();
+    if (ok) {
+      try {
+        refine = v.as<bool>();
+      } catch (const YAML::Exception&) {
+        ok = false;
+      }
+    }
+    if (!ok) return reader.Fail("tilt.refine", "expected true or false, got " + yaml::Describe(v));
+    tilt.mode = refine ? TiltMode::kRefineToMap : TiltMode::kPrior;
+  }
+  if (Status s = c.Validate(); !s) return reader.Fail("tilt", s.message());
+  return {};
+}
+
+Status ParseFrames(const yaml::FieldReader& reader, const YAML::Node& root,
+                   FrameCheckConfig& frames) {
+  const YAML::Node section = root["frames"];
+  if (!section || section.IsNull()) return {};
+  const std::vector<DoubleField> doubles = {{"max_speed", &frames.max_speed_mps, 1.0},
+                                            {"max_turn_rate", &frames.max_turn_rate_radps, kDeg}};
+  const std::vector<IntField> ints = {{"min_valid_points", &frames.min_valid_points, 1, 1000000000}};
+  if (Status s = ReadFields(reader, section, "frames", doubles, ints, {}); !s) return s;
+  if (Status s = frames.Validate(); !s) {
+    for (const char* key : {"min_valid_points", "max_speed", "max_turn_rate"}) {
+      if (s.message().find(std::string("'") + key + "'") != std::string::npos) {
+        return reader.Fail(std::string("frames.") + key, s.message());
+      }
+    }
+    return reader.Fail("frames", s.message());
+  }
+  return {};
+}
+
+}  // namespace
+
+Expected<MapperSettings> ParseMapperSettings(const std::string& yaml_text,
+                                             const std::string& source) {
+  MapperSettings settings;
+  Expected<YAML::Node> root = yaml::ParseYaml(yaml_text, source);
+  if (!root) return root.error();
+  if (root->IsNull()) return settings;  // an empty file sets nothing
+  Expected<od::io::DetectSettings> detect =
+      od::io::ParseDetectSettings(yaml_text, source, {"map", "tilt", "frames"});  // ours
+  if (!detect) return detect.error();
+  settings.mapper.detector = detect->detector;
+  settings.mapper.rules = detect->rules;
+  settings.stereo = detect->stereo;
+  Expected<MapConfig> map = ParseMapConfig(yaml_text, source);
+  if (!map) return map.error();
+  settings.mapper.map = *map;
+  if (root->IsMap()) {
+    const yaml::FieldReader reader(source);
+    if (Status s = ParseTilt(reader, *root, settings.mapper.tilt); !s) return s.error();
+    if (Status s = ParseFrames(reader, *root, settings.mapper.frames); !s) return s.error();
+  }
+  if (Status s = settings.mapper.Validate(); !s) return Error{source + ": " + s.message()};
+  return settings;
+}
+
+Expected<MapperSettings> LoadMapperSettings(const std::filesystem::path& path) {
+  if (path.empty()) return MapperSettings{};
+  Expected<std::string> text = yaml::ReadTextFile(path);
+  if (!text) return text.error();
+  return ParseMapperSettings(*text, path.string());
+}
+
+}  // namespace cairn::map

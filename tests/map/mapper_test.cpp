@@ -1,0 +1,346 @@
+// Mapper: the per-frame pipeline as one object. It fuses exactly what the hand-written loop
+// (od::Detect, od::Classify, TerrainMap::Integrate) fuses; a Mapper saved after some frames,
+// restored into a new one and fed the rest writes the same map files, byte for byte, as the
+// one never interrupted (prior and refine_to_map tilt); frames it cannot use come back with
+// their reason and change nothing; bad settings are refused naming the field.
+#include "cairn/map/mapper.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "cairn/map/checkpoint.hpp"
+#include "cairn/map/map_files.hpp"
+#include "cairn/map/mapper_config_file.hpp"
+#include "cairn/map/tilt_refiner.hpp"
+#include "cairn/sim/camera.hpp"
+#include "cairn/sim/render.hpp"
+#include "cairn/sim/scene.hpp"
+#include "sim_frames.hpp"
+
+namespace cairn::map {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+fs::path TempDir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() /
+                       ("cairn_mapper_test_" + std::to_string(::getpid()) + "_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+/// A frame as a source gives it: points in the sensor frame, the odometry pose (here the
+/// true pose tilted by a constant roll and pitch bias), the stamp.
+struct InputFrame {
+  od::RangeImage image;
+  Eigen::Isometry3d T_world_sensor;
+  double stamp_s = 0.0;
+};
+
+// A drive along +x past boxes and poles on a gentle slope: 12 frames of a small camera,
+// 0.5 m apart, seen from the true pose and placed by a pose biased by `bias_rad`.
+std::vector<InputFrame> Drive(double bias_rad) {
+  sim::Scene scene(sim::Terrain::Slope(0.0, 4.0 * kDeg, 0.0));
+  scene.AddBox(4.0, 0.5, {1.0, 1.0, 0.8}, 0.3, true, "box");
+  scene.AddPole(6.0, 2.0, 0.1, 1.2, true, "pole");
+  scene.AddBox(8.5, -1.5, {0.6, 0.8, 0.5}, 0.0, true, "rock");
+  const sim::RangeCameraSpec spec = test::SmallCamera(sim::RangeCameraSpec::Default(), 120);
+  std::vector<InputFrame> frames;
+  for (int k = 0; k < 12; ++k) {
+    const double x = 0.5 * k, y = 0.05 * k;
+    const Eigen::Vector3d position(x, y, scene.terrain().Height(x, y) + 1.5);
+    const double yaw = (1.0 * k - 4.0) * kDeg;
+    sim::Camera camera = sim::Camera::FromAttitude(spec.model, position, yaw, 15.0 * kDeg, 0.0);
+    Expected<sim::DepthFrame> depth = sim::RenderRangeCamera(scene, spec, camera, 11 + k);
+    EXPECT_TRUE(depth.ok()) << (depth ? "" : depth.error().message);
+    if (!depth) return {};
+    const Eigen::Isometry3d believed = ApplyTiltCorrection(camera.T_world_camera, bias_rad, bias_rad, 0.0);
+    // Levelled with any up vector: the Mapper replaces it with its prior's.
+    Expected<od::RangeImage> image =
+        od::RangeImage::FromDepth(depth->depth_m, depth->model, Eigen::Vector3d(0, -1, 0));
+    EXPECT_TRUE(image.ok());
+    if (!image) return {};
+    frames.push_back({std::move(*image), believed, 0.5 * k});
+  }
+  return frames;
+}
+
+MapperConfig Config(TiltMode mode) {
+  const Expected<od::io::DetectSettings> settings = test::DefaultDetectSettings();
+  EXPECT_TRUE(settings.ok());
+  MapperConfig config;
+  if (settings) {
+    config.detector = settings->detector;
+    config.rules = settings->rules;
+  }
+  config.tilt.mode = mode;
+  config.tilt.refiner.max_range_m = 12.0;
+  return config;
+}
+
+std::string ReadBytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Every map file of `a` and `b`, byte for byte.
+void ExpectSameMapFiles(const TerrainMap& a, const TerrainMap& b, const std::string& name) {
+  const fs::path da = TempDir(name + "_a"), db = TempDir(name + "_b");
+  ASSERT_TRUE(WriteMapFiles(a, da).ok());
+  ASSERT_TRUE(WriteMapFiles(b, db).ok());
+  int files = 0;
+  for (const fs::directory_entry& e : fs::directory_iterator(da)) {
+    EXPECT_TRUE(ReadBytes(e.path()) == ReadBytes(db / e.path().filename()))
+        << e.path().filename() << " differs";
+    ++files;
+  }
+  EXPECT_EQ(files, 9);  // WriteMapFiles' nine
+  fs::remove_all(da);
+  fs::remove_all(db);
+}
+
+Expected<MapperRecord> Feed(Mapper& mapper, const InputFrame& f) {
+  return mapper.Process(f.image, f.T_world_sensor, f.stamp_s);
+}
+
+// Prior tilt: the Mapper fuses exactly what the loop it replaces fused by hand.
+TEST(Mapper, PriorTiltFusesWhatTheHandWrittenLoopFuses) {
+  const std::vector<InputFrame> frames = Drive(0.0);
+  ASSERT_EQ(frames.size(), 12u);
+  const MapperConfig config = Config(TiltMode::kPrior);
+  Expected<Mapper> mapper = Mapper::Create(config);
+  ASSERT_TRUE(mapper.ok()) << mapper.error().message;
+  Expected<TerrainMap> by_hand = TerrainMap::Create(config.map);
+  ASSERT_TRUE(by_hand.ok());
+  int kept = 0;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const Expected<MapperRecord> r = Feed(*mapper, frames[k]);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_TRUE(r->used());
+    EXPECT_EQ(r->index, static_cast<std::int64_t>(k));
+    EXPECT_FALSE(r->tilt.estimated);
+    EXPECT_TRUE(r->T_world_sensor.matrix() == frames[k].T_world_sensor.matrix());
+    od::RangeImage image = frames[k].image;
+    const Eigen::Vector3d up =
+        frames[k].T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
+    ASSERT_TRUE(image.SetUp(up).ok());
+    const Expected<od::Detection> detection = od::Detect(image, config.detector);
+    ASSERT_TRUE(detection.ok());
+    const Expected<od::Classification> classes = od::Classify(*detection, config.rules);
+    ASSERT_TRUE(classes.ok());
+    EXPECT_EQ(r->segments, static_cast<int>(detection->segments.size()));
+    EXPECT_EQ(r->kept, classes->kept);
+    EXPECT_EQ(r->rejected, r->segments - r->kept);
+    kept += r->kept;
+    const Expected<FrameSummary> fused = by_hand->Integrate(
+        image, *detection, *classes, frames[k].T_world_sensor, frames[k].stamp_s,
+        static_cast<std::int64_t>(k));
+    ASSERT_TRUE(fused.ok());
+    EXPECT_EQ(r->fused.obstacle_points, fused->obstacle_points);
+    EXPECT_EQ(r->fused.lethal_cells, fused->lethal_cells);
+  }
+  EXPECT_GT(kept, 5);
+  EXPECT_EQ(mapper->frames_fused(), 12);
+  EXPECT_FALSE(mapper->map().obstacles().empty());
+  ExpectSameMapFiles(mapper->map(), *by_hand, "by_hand");
+}
+
+// Saved after 5 frames, restored into a new Mapper and fed the other 7: the same map files
+// and the same fused poses as the run that was never interrupted, in both tilt modes (the
+// refiner's correction is carried through the checkpoint).
+void ExpectResumeGivesTheSameMap(TiltMode mode, double bias_rad) {
+  const std::vector<InputFrame> frames = Drive(bias_rad);
+  ASSERT_EQ(frames.size(), 12u);
+  const MapperConfig config = Config(mode);
+  Expected<Mapper> whole = Mapper::Create(config);
+  ASSERT_TRUE(whole.ok()) << whole.error().message;
+  std::vector<MapperRecord> records;
+  for (const InputFrame& f : frames) {
+    Expected<MapperRecord> r = Feed(*whole, f);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    records.push_back(*r);
+  }
+  const fs::path dir = TempDir(std::string("resume_") + TiltModeName(mode));
+  Expected<Mapper> first = Mapper::Create(config);
+  ASSERT_TRUE(first.ok());
+  for (int k = 0; k < 5; ++k) ASSERT_TRUE(Feed(*first, frames[k]).ok());
+  ASSERT_TRUE(first->SaveCheckpoint(dir, "the caller's state").ok());
+  std::string app_data;
+  Expected<Mapper> resumed = Mapper::FromCheckpoint(dir, config, &app_data);
+  ASSERT_TRUE(resumed.ok()) << resumed.error().message;
+  EXPECT_EQ(app_data, "the caller's state");
+  EXPECT_EQ(resumed->frames_fused(), 5);
+  int applied = 0;
+  for (std::size_t k = 5; k < frames.size(); ++k) {
+    Expected<MapperRecord> r = Feed(*resumed, frames[k]);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r->index, records[k].index);
+    EXPECT_TRUE(r->T_world_sensor.matrix() == records[k].T_world_sensor.matrix()) << "frame " << k;
+    EXPECT_EQ(r->tilt.roll_rad, records[k].tilt.roll_rad);
+    EXPECT_EQ(r->tilt.pitch_rad, records[k].tilt.pitch_rad);
+    EXPECT_EQ(r->tilt.dz_m, records[k].tilt.dz_m);
+    applied += r->tilt.applied ? 1 : 0;
+  }
+  if (mode == TiltMode::kRefineToMap) {
+    EXPECT_GT(applied, 3);  // the carried correction mattered
+    EXPECT_NE(records.back().tilt.roll_rad, 0.0);
+  }
+  ExpectSameMapFiles(whole->map(), resumed->map(), std::string("resume_") + TiltModeName(mode));
+  fs::remove_all(dir);
+}
+
+TEST(Mapper, ResumedWithPriorTiltGivesTheSameMap) {
+  ExpectResumeGivesTheSameMap(TiltMode::kPrior, 0.0);
+}
+
+TEST(Mapper, ResumedWithTheTiltRefinerGivesTheSameMap) {
+  ExpectResumeGivesTheSameMap(TiltMode::kRefineToMap, 1.0 * kDeg);
+}
+
+TEST(Mapper, ACheckpointOfAnotherTiltModeIsRefused) {
+  const std::vector<InputFrame> frames = Drive(0.0);
+  ASSERT_FALSE(frames.empty());
+  Expected<Mapper> mapper = Mapper::Create(Config(TiltMode::kRefineToMap));
+  ASSERT_TRUE(mapper.ok());
+  ASSERT_TRUE(Feed(*mapper, frames[0]).ok());
+  const fs::path dir = TempDir("mode");
+  ASSERT_TRUE(mapper->SaveCheckpoint(dir).ok());
+  const Expected<Mapper> other = Mapper::FromCheckpoint(dir, Config(TiltMode::kPrior));
+  ASSERT_FALSE(other.ok());
+  EXPECT_NE(other.error().message.find("refine_to_map"), std::string::npos)
+      << other.error().message;
+  EXPECT_NE(other.error().message.find((dir / kCheckpointFileName).string()), std::string::npos)
+      << other.error().message;
+  fs::remove_all(dir);
+}
+
+// A frame without a valid return, and one whose pose jumps 40 m in half a second, come back
+// skipped with their reason; the map is the one made without them.
+TEST(Mapper, FramesItCannotUseAreSkippedWithTheirReasonAndChangeNothing) {
+  const std::vector<InputFrame> frames = Drive(0.0);
+  ASSERT_EQ(frames.size(), 12u);
+  const MapperConfig config = Config(TiltMode::kPrior);
+  Expected<Mapper> clean = Mapper::Create(config);
+  Expected<Mapper> with_bad = Mapper::Create(config);
+  ASSERT_TRUE(clean.ok() && with_bad.ok());
+  const od::PinholeModel& model = std::get<od::PinholeModel>(frames[0].image.model());
+  const std::vector<float> no_returns(static_cast<std::size_t>(model.width) * model.height, 0.0f);
+  Expected<od::RangeImage> empty = od::RangeImage::FromDepth(no_returns, model, Eigen::Vector3d(0, -1, 0));
+  ASSERT_TRUE(empty.ok());
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    ASSERT_TRUE(Feed(*clean, frames[k]).ok());
+    if (k == 4) {
+      // Between frames 4 and 5 (in time), no returns at all.
+      const Expected<MapperRecord> r =
+          (*with_bad).Process(*empty, frames[k].T_world_sensor, frames[k].stamp_s + 0.25);
+      ASSERT_TRUE(r.ok()) << r.error().message;
+      EXPECT_EQ(r->skip, FrameSkip::kNoValidPoints);
+      EXPECT_STREQ(FrameSkipName(r->skip), "no valid points");
+      EXPECT_EQ(r->valid_points, 0);
+    }
+    if (k == 8) {
+      // A pose 40 m off, 0.25 s after frame 7: 160 m/s.
+      Eigen::Isometry3d jumped = frames[k].T_world_sensor;
+      jumped.translation().x() += 40.0;
+      const Expected<MapperRecord> r =
+          (*with_bad).Process(frames[k].image, jumped, frames[k].stamp_s - 0.25);
+      ASSERT_TRUE(r.ok()) << r.error().message;
+      EXPECT_EQ(r->skip, FrameSkip::kPoseJump);
+      EXPECT_NE(r->skip_detail.find("m in 0.250 s"), std::string::npos) << r->skip_detail;
+      // The next frame jumps back from the skipped one's pose: skipped too, then the drive
+      // goes on.
+      const Expected<MapperRecord> back = Feed(*with_bad, frames[k]);
+      ASSERT_TRUE(back.ok());
+      EXPECT_EQ(back->skip, FrameSkip::kPoseJump);
+      continue;
+    }
+    const Expected<MapperRecord> r = Feed(*with_bad, frames[k]);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_TRUE(r->used()) << "frame " << k << ": " << FrameSkipName(r->skip);
+  }
+  EXPECT_EQ(with_bad->frames_processed(), 14);
+  EXPECT_EQ(with_bad->frames_fused(), 11);
+  // The clean run without frame 8.
+  Expected<Mapper> reference = Mapper::Create(config);
+  ASSERT_TRUE(reference.ok());
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (k == 8) continue;
+    ASSERT_TRUE(Feed(*reference, frames[k]).ok());
+  }
+  ExpectSameMapFiles(reference->map(), with_bad->map(), "skips");
+}
+
+TEST(Mapper, ANonFinitePoseIsAnErrorAndChangesNothing) {
+  const std::vector<InputFrame> frames = Drive(0.0);
+  ASSERT_FALSE(frames.empty());
+  Expected<Mapper> mapper = Mapper::Create(Config(TiltMode::kPrior));
+  ASSERT_TRUE(mapper.ok());
+  Eigen::Isometry3d bad = frames[0].T_world_sensor;
+  bad.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE((*mapper).Process(frames[0].image, bad, 0.0).ok());
+  EXPECT_EQ(mapper->frames_processed(), 0);
+}
+
+TEST(MapperConfig, ValidateNamesTheBadField) {
+  MapperConfig config;
+  EXPECT_TRUE(config.Validate().ok());
+  config.frames.max_speed_mps = 0.0;
+  ASSERT_FALSE(config.Validate().ok());
+  EXPECT_NE(config.Validate().message().find("max_speed"), std::string::npos);
+  config = MapperConfig{};
+  config.tilt.refiner.min_points = 1;
+  ASSERT_FALSE(config.Validate().ok());
+  EXPECT_NE(config.Validate().message().find("min_points"), std::string::npos);
+  config = MapperConfig{};
+  config.map.cell_size_m = -1.0;
+  EXPECT_NE(config.Validate().message().find("cell_size"), std::string::npos);
+  EXPECT_FALSE(Mapper::Create(config).ok());
+}
+
+TEST(MapperSettings, EverySectionOfTheFileIsReadStrictly) {
+  const Expected<MapperSettings> s = ParseMapperSettings(
+      "detector:\n  min_height: 0.25\nmap:\n  cell_size: 0.25\ntilt:\n  refine: true\n"
+      "  prior_sigma: 1.5\n  max_points: 900\nframes:\n  max_speed: 20\n  max_turn_rate: 90\n"
+      "  min_valid_points: 100\n",
+      "test.yaml");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  EXPECT_DOUBLE_EQ(s->mapper.detector.min_height_m, 0.25);
+  EXPECT_DOUBLE_EQ(s->mapper.map.cell_size_m, 0.25);
+  EXPECT_EQ(s->mapper.tilt.mode, TiltMode::kRefineToMap);
+  EXPECT_DOUBLE_EQ(s->mapper.tilt.refiner.prior_sigma_rad, 1.5 * kDeg);
+  EXPECT_EQ(s->mapper.tilt.refiner.max_points, 900);
+  EXPECT_DOUBLE_EQ(s->mapper.frames.max_speed_mps, 20.0);
+  EXPECT_DOUBLE_EQ(s->mapper.frames.max_turn_rate_radps, 90.0 * kDeg);
+  EXPECT_EQ(s->mapper.frames.min_valid_points, 100);
+  EXPECT_TRUE(ParseMapperSettings("", "empty.yaml").ok());
+  EXPECT_TRUE(ParseMapperSettings("tilt:\n  refine: false\n", "only_tilt.yaml").ok());
+  const auto fails_naming = [](const std::string& text, const std::string& field) {
+    const Expected<MapperSettings> bad = ParseMapperSettings(text, "bad.yaml");
+    ASSERT_FALSE(bad.ok()) << text;
+    EXPECT_NE(bad.error().message.find("bad.yaml"), std::string::npos) << bad.error().message;
+    EXPECT_NE(bad.error().message.find(field), std::string::npos) << bad.error().message;
+  };
+  fails_naming("tilt:\n  prior_sigm: 2\n", "tilt.prior_sigm");
+  fails_naming("tilt:\n  refine: maybe\n", "tilt.refine");
+  fails_naming("tilt:\n  min_points: 2\n", "min_points");
+  fails_naming("frames:\n  max_speed: -1\n", "frames.max_speed");
+  fails_naming("frames:\n  min_valid_points: 0\n", "frames.min_valid_points");
+  fails_naming("frames:\n  speed: 3\n", "frames.speed");
+  fails_naming("map:\n  cel_size: 0.2\n", "map.cel_size");
+  fails_naming("detector:\n  min_hieght: 0.3\n", "detector.min_hieght");
+  fails_naming("tlit:\n  refine: true\n", "tlit");
+}
+
+}  // namespace
+}  // namespace cairn::map
