@@ -111,7 +111,13 @@ class Corpus : public ::testing::Test {
   }
 
   /// Runs every case, each in a folder of its own; returns how many ran.
+  /// With CAIRN_CORPUS_LIST set, lists the cases instead (the corpus's size, quickly).
   int RunAll(const std::vector<Case>& cases) {
+    if (std::getenv("CAIRN_CORPUS_LIST") != nullptr) {
+      for (const Case& c : cases) std::cout << c.name << "\n";
+      std::cout << cases.size() << " malformed inputs\n";
+      return static_cast<int>(cases.size());
+    }
     int index = 0;
     for (const Case& c : cases) {
       const fs::path dir = root_ / ("case" + std::to_string(index++));
