@@ -461,6 +461,10 @@ Expected<TerrainMap> LoadCheckpoint(const std::filesystem::path& dir_or_file,
     return Error{"checkpoint " + file + ": format version " + std::to_string(version) +
                  ", expected " + std::to_string(kCheckpointVersion)};
   }
+  if (reserved != 0) {  // written as 0: anything else is a corrupted header
+    return Error{"checkpoint " + file + ": corrupted header: the reserved field at byte 12 is " +
+                 std::to_string(reserved) + ", expected 0"};
+  }
   const std::size_t actual = bytes.size() - kHeaderBytes;
   if (payload_size != actual) {
     return Error{"checkpoint " + file + ": " + (actual < payload_size ? "truncated" : "corrupted") +

@@ -93,11 +93,29 @@ Status MapConfig::Validate() const {
     return Bad("obstacle_probability", "must lie strictly between cell_min and cell_max",
                obstacle_probability);
   }
-  if (voxel_size_m < 0.001) return Bad("voxel_size", "must be at least 0.001 m", voxel_size_m);
+  if (voxel_size_m < 0.001 || voxel_size_m > 10.0) {
+    return Bad("voxel_size", "must lie in [0.001, 10] m", voxel_size_m);
+  }
+  if (max_range_m > kMaxRangeM) return Bad("max_range", "must be at most 1000 m", max_range_m);
+  if (cell_size_m < 0.001 || cell_size_m > 100.0) {
+    return Bad("cell_size", "must lie in [0.001, 100] m", cell_size_m);
+  }
   if (window_size_m > 0.0) {
     const double cells = window_size_m / cell_size_m;
     if (cells < 4.0) return Bad("window_size", "must be 0 (unbounded) or >= 4 cells", cells);
-    if (cells > 20000.0) return Bad("window_size", "must be at most 20000 cells a side", cells);
+    if (cells > kMaxWindowCells) {
+      return Bad("window_size", "must be at most 4096 cells a side (kMaxWindowCells)", cells);
+    }
+  }
+  // Per-cell neighbourhoods: their cost grows with the square of their radius in cells.
+  if (plane_fit_radius_m / cell_size_m > kMaxRadiusCells) {
+    return Bad("plane_fit_radius", "must be at most 64 cells", plane_fit_radius_m / cell_size_m);
+  }
+  if (inflation_radius_m / cell_size_m > kMaxRadiusCells) {
+    return Bad("inflation_radius", "must be at most 64 cells", inflation_radius_m / cell_size_m);
+  }
+  if (ground_radius_m / cell_size_m > kMaxRadiusCells) {
+    return Bad("ground_radius", "must be at most 64 cells", ground_radius_m / cell_size_m);
   }
   if (ground_max_slope_rad < 0.0 || ground_max_slope_rad >= kPi / 2.0) {
     return Bad("ground_max_slope", "must lie in [0, 90) deg", ground_max_slope_rad, kRadToDeg);

@@ -102,7 +102,10 @@ bool TerrainGrid::Reserve(const CellIndex& lo, const CellIndex& hi) {
   }
   // Grow the buffer (at least doubling, so growth is amortised) and move every cell of the
   // old extent to its slot in the new one.
-  const Eigen::Vector2i new_buffer = new_extent.cwiseMax(2 * buffer_).cwiseMax(64);
+  Eigen::Vector2i new_buffer = new_extent.cwiseMax(2 * buffer_).cwiseMax(64);
+  if (static_cast<double>(new_buffer.x()) * new_buffer.y() > static_cast<double>(kMaxGridCells)) {
+    new_buffer = new_extent;  // near the limit, no room to spare
+  }
   std::vector<Cell> cells(static_cast<std::size_t>(new_buffer.x()) * new_buffer.y());
   for (int j = min_.y(); j < min_.y() + extent_.y(); ++j) {
     for (int i = min_.x(); i < min_.x() + extent_.x(); ++i) {

@@ -262,13 +262,17 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
     }
   }
   if (!T_world_sensor.matrix().allFinite()) return Error{where + "the pose is not finite"};
+  if (T_world_sensor.translation().cwiseAbs().maxCoeff() > kMaxWorldCoordinateM) {
+    return Error{where + "the pose lies more than 1000 km from the map's origin (" +
+                 std::to_string(T_world_sensor.translation().norm()) + " m)"};
+  }
   if (!std::isfinite(stamp_s)) return Error{where + "the time stamp is not finite"};
 
   Scratch& sc = *scratch_;
   FrameSummary summary;
   summary.frame_id = frame_id;
   summary.stamp_s = stamp_s;
-  const std::int64_t stamp = ++frames_;
+  const std::int64_t stamp = frames_ + 1;  // counted once the frame is accepted
   const Eigen::Vector3d origin = T_world_sensor.translation();
   const double s = config_.cell_size_m;
   auto start = std::chrono::steady_clock::now();
@@ -304,8 +308,20 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
     hi = hi.cwiseMax(c);
   }
   if (!grid_.rolling() && summary.valid_points > 0) {
+    CellIndex new_lo = lo, new_hi = hi;
+    if (grid_.extent().x() > 0) {
+      new_lo = new_lo.cwiseMin(grid_.min_index());
+      new_hi = new_hi.cwiseMax(grid_.min_index() + grid_.extent() - CellIndex::Ones());
+    }
+    const double cells = (new_hi.x() - new_lo.x() + 1.0) * (new_hi.y() - new_lo.y() + 1.0);
+    if (cells > static_cast<double>(kMaxGridCells)) {
+      return Error{where + "the unbounded grid would grow to " + std::to_string(cells) +
+                   " cells, more than kMaxGridCells (" + std::to_string(kMaxGridCells) +
+                   "): use a rolling window (map.window_size) or larger cells"};
+    }
     if (grid_.Reserve(lo, hi)) PrepareScratch();
   }
+  frames_ = stamp;
 
   // --- lowest return per cell, then each return's class ---
   sc.touched.clear();

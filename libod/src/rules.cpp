@@ -36,6 +36,14 @@ Status RuleConfig::Validate() const {
                    std::to_string(value) + ")"};
     }
   }
+  const std::pair<const char*, double> angles[] = {{"min_slope_mean", min_slope_mean_rad},
+                                                   {"min_slope_max", min_slope_max_rad}};
+  for (const auto& [name, value] : angles) {
+    if (value > 90.0 / kRadToDeg + 1e-12) {
+      return Error{std::string("rules config: '") + name + "' must lie in [0, 90] deg (got " +
+                   std::to_string(value * kRadToDeg) + ")"};
+    }
+  }
   return Status::Ok();
 }
 

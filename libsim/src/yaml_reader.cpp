@@ -120,11 +120,17 @@ double MapReader::Number(const std::string& key, double fallback) {
   return ScalarNumber(Node(key), Field(key)).value_or(fallback);
 }
 
-double MapReader::Degrees(const std::string& key) { return Number(key) * kDegToRad; }
+// No angle (nor angular rate per metre) of a world file is meaningful beyond a full turn;
+// a larger one is a unit mistake (radians given as degrees read fine; milliradians do not).
+double MapReader::Degrees(const std::string& key) {
+  const double deg = Number(key);
+  Check(!(std::abs(deg) > 360.0), key, "expected an angle in [-360, 360] deg");
+  return deg * kDegToRad;
+}
 
 double MapReader::Degrees(const std::string& key, double fallback_rad) {
   if (!Present(key, false)) return fallback_rad;
-  return Number(key) * kDegToRad;
+  return Degrees(key);
 }
 
 std::int64_t MapReader::Integer(const std::string& key, std::int64_t fallback) {

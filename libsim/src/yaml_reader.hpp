@@ -57,7 +57,7 @@ class MapReader {
   // Required fields record "missing" when absent; the others return their fallback.
   double Number(const std::string& key);
   double Number(const std::string& key, double fallback);
-  /// Degrees in the file, radians returned.
+  /// Degrees in the file, within [-360, 360], radians returned.
   double Degrees(const std::string& key);
   double Degrees(const std::string& key, double fallback_rad);
   std::int64_t Integer(const std::string& key, std::int64_t fallback);

@@ -214,6 +214,20 @@ Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
   if (Status s = settings.detector.Validate(); !s) {
     return Located(reader, "detector", detector, s.message());
   }
+  // Physical ranges beyond DetectorConfig::Validate's consistency checks: obstacles of a
+  // ground vehicle's world, ranges of its sensors.
+  if (settings.detector.max_height_m > 100.0) {
+    return reader.Fail("detector.max_height", "expected a height in (min_height, 100] m, got " +
+                                                  std::to_string(settings.detector.max_height_m));
+  }
+  if (settings.detector.min_range_m > 1000.0) {
+    return reader.Fail("detector.min_range", "expected a range in [0, 1000] m, got " +
+                                                 std::to_string(settings.detector.min_range_m));
+  }
+  if (settings.detector.window_scale > 100.0) {
+    return reader.Fail("detector.window_scale", "expected a factor in (0, 100], got " +
+                                                    std::to_string(settings.detector.window_scale));
+  }
   if (Status s = settings.rules.Validate(); !s) {
     return Located(reader, "rules", rules, s.message());
   }

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "cairn/od/io/atomic_file.hpp"
+#include "cairn/od/io/limits.hpp"
 #include "cairn/od/leveling.hpp"
 #include "yaml_fields.hpp"
 
@@ -18,8 +19,10 @@ Expected<int> PositiveSize(const detail::FieldReader& reader, const YAML::Node& 
   if (!node) return reader.Fail(field, "missing (expected a positive integer [px])");
   Expected<std::int64_t> value = reader.Integer(node, field);
   if (!value) return value.error();
-  if (*value <= 0 || *value > std::numeric_limits<int>::max()) {
-    return reader.Fail(field, "expected a positive integer [px], got " + detail::Describe(node));
+  if (*value <= 0 || *value > kMaxImageSide) {
+    return reader.Fail(field, "expected a positive integer [px] up to " +
+                                  std::to_string(kMaxImageSide) + ", got " +
+                                  detail::Describe(node));
   }
   return static_cast<int>(*value);
 }
@@ -49,6 +52,28 @@ Expected<Eigen::Vector3d> UpVector(const detail::FieldReader& reader, const YAML
     return reader.Fail("up", "must not be the zero vector (it is gravity's up direction)");
   }
   return Eigen::Vector3d(up / norm);
+}
+
+// Focal lengths within (0, 1e6] px; the principal point inside the image, give or take
+// its size (a crop may move it out, a typo by a factor of ten may not).
+Status CheckPinholeRanges(const detail::FieldReader& reader, const PinholeModel& m) {
+  if (!(m.fx > 0.0 && m.fx <= 1e6)) {
+    return reader.Fail("fx", "expected a focal length in (0, 1e6] px, got " + std::to_string(m.fx));
+  }
+  if (!(m.fy > 0.0 && m.fy <= 1e6)) {
+    return reader.Fail("fy", "expected a focal length in (0, 1e6] px, got " + std::to_string(m.fy));
+  }
+  if (!(m.cx >= -m.width && m.cx <= 2.0 * m.width)) {
+    return reader.Fail("cx", "expected a principal point column in [-width, 2 width] = [" +
+                                 std::to_string(-m.width) + ", " + std::to_string(2 * m.width) +
+                                 "] px, got " + std::to_string(m.cx));
+  }
+  if (!(m.cy >= -m.height && m.cy <= 2.0 * m.height)) {
+    return reader.Fail("cy", "expected a principal point row in [-height, 2 height] = [" +
+                                 std::to_string(-m.height) + ", " + std::to_string(2 * m.height) +
+                                 "] px, got " + std::to_string(m.cy));
+  }
+  return Status::Ok();
 }
 
 }  // namespace
@@ -91,10 +116,14 @@ Expected<CameraIntrinsics> ParseIntrinsics(const std::string& yaml_text,
     if (!v) return v.error();
     *f.target = *v;
   }
-  if (!(m.fx > 0.0)) return reader.Fail("fx", "expected a positive focal length [px]");
-  if (!(m.fy > 0.0)) return reader.Fail("fy", "expected a positive focal length [px]");
-  if (!(out.depth_scale_m > 0.0)) {
-    return reader.Fail("depth_scale", "expected a positive number of metres per PNG unit");
+  if (std::int64_t{m.width} * m.height > kMaxImagePixels) {
+    return reader.Fail("height", "width x height is more than the " +
+                                     std::to_string(kMaxImagePixels) + " pixels an image may have");
+  }
+  if (Status s = CheckPinholeRanges(reader, m); !s) return s.error();
+  if (!(out.depth_scale_m > 0.0 && out.depth_scale_m <= 1.0)) {
+    return reader.Fail("depth_scale", "expected metres per PNG unit in (0, 1], got " +
+                                          detail::Describe(node["depth_scale"]));
   }
   if (Status s = m.Validate(); !s) return Error{source + ": " + s.message()};
 
@@ -110,11 +139,11 @@ Expected<CameraIntrinsics> ParseIntrinsics(const std::string& yaml_text,
     if (!up) return up.error();
     out.up = *up;
   } else if (has_pitch) {
-    Expected<double> pitch = reader.Double(node["pitch_deg"], "pitch_deg");
+    Expected<double> pitch = detail::Angle(reader, node["pitch_deg"], "pitch_deg", 90.0);
     if (!pitch) return pitch.error();
     double roll = 0.0;
     if (has_roll) {
-      Expected<double> r = reader.Double(node["roll_deg"], "roll_deg");
+      Expected<double> r = detail::Angle(reader, node["roll_deg"], "roll_deg", 90.0);
       if (!r) return r.error();
       roll = *r;
     }

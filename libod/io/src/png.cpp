@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cairn/od/io/atomic_file.hpp"
+#include "cairn/od/io/limits.hpp"
 #include "yaml_fields.hpp"
 
 namespace cairn::od::io::detail {
@@ -29,6 +30,18 @@ const char* CheckChunks(const std::string& bytes) {
     const std::uint32_t length = BigEndian32(data + at);
     const std::string type(bytes, at + 4, 4);
     if (first && type != "IHDR") return "no IHDR header";
+    if (first && (length < 8 || bytes.size() - at < 20)) return "truncated IHDR header";
+    if (first) {
+      // Refused before decoding: the header's size is what the decoder would allocate.
+      const std::uint32_t width = BigEndian32(data + at + 8);
+      const std::uint32_t height = BigEndian32(data + at + 12);
+      if (width == 0 || height == 0) return "IHDR says the image is empty";
+      if (width > static_cast<std::uint32_t>(kMaxImageSide) ||
+          height > static_cast<std::uint32_t>(kMaxImageSide) ||
+          std::int64_t{width} * height > kMaxImagePixels) {
+        return "IHDR size beyond the limits of 16384 px a side and 64 Mpx (limits.hpp)";
+      }
+    }
     first = false;
     if (length > bytes.size() - at - 12) return "truncated";
     at += 12 + static_cast<std::size_t>(length);

@@ -15,6 +15,7 @@
 #include <string_view>
 
 #include "cairn/od/io/atomic_file.hpp"
+#include "cairn/od/io/limits.hpp"
 #include "png.hpp"
 
 namespace cairn::od::io {
@@ -27,12 +28,19 @@ constexpr double kOrganisedAgreement = 0.9;  // share of neighbour pairs that mu
 // The formats are little-endian; these builds target little-endian hosts only.
 static_assert(sizeof(float) == 4, "float32 expected");
 
-Expected<std::string> ReadBytes(const std::filesystem::path& path, const char* what) {
+// Files larger than `max_bytes` are refused before they are read (limits.hpp).
+Expected<std::string> ReadBytes(const std::filesystem::path& path, const char* what,
+                                std::size_t max_bytes) {
   const std::string name = path.string();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) return Error{name + ": no such file (" + what + ")"};
   if (std::filesystem::is_directory(path, ec)) {
     return Error{name + ": is a directory, expected a " + what + " file"};
+  }
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (!ec && size > max_bytes) {
+    return Error{name + ": " + std::to_string(size) + " bytes, more than the " +
+                 std::to_string(max_bytes) + " a " + what + " may have (limits.hpp)"};
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) return Error{name + ": cannot open for reading (" + what + ")"};
@@ -103,7 +111,7 @@ Status AddPoint(PointCloud& cloud, const double xyz[3], double intensity, const 
 
 Expected<PointCloud> ReadKittiBin(const std::filesystem::path& path) {
   const std::string name = path.string();
-  Expected<std::string> bytes = ReadBytes(path, "KITTI .bin point cloud");
+  Expected<std::string> bytes = ReadBytes(path, "KITTI .bin point cloud", kMaxScanPoints * kBinPointBytes);
   if (!bytes) return bytes.error();
   if (bytes->empty()) {
     return Error{name +
@@ -254,7 +262,7 @@ bool ParseNumber(std::string_view token, double* value) {
 
 Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
   const std::string name = path.string();
-  Expected<std::string> bytes = ReadBytes(path, "PLY point cloud");
+  Expected<std::string> bytes = ReadBytes(path, "PLY point cloud", kMaxScanPoints * 256);
   if (!bytes) return bytes.error();
   if (bytes->empty()) return Error{name + ": the file is empty, expected a PLY header"};
   const std::string& data = *bytes;
@@ -298,6 +306,10 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
       double count = -1.0;
       if (t.size() != 3 || !ParseNumber(t[2], &count) || count < 0 || count != std::floor(count)) {
         return header_error("expected 'element <name> <count>'");
+      }
+      if (count > static_cast<double>(kMaxScanPoints)) {
+        return header_error("element count " + std::string(t[2]) + " is more than the " +
+                            std::to_string(kMaxScanPoints) + " a scan may have (limits.hpp)");
       }
       elements.push_back({std::string(t[1]), static_cast<std::size_t>(count), {}, 0, false});
     } else if (t[0] == "property") {
@@ -343,6 +355,11 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
   if (vertex_index == elements.size()) return Error{name + ": PLY header has no 'element vertex'"};
   const PlyElement& vertex = elements[vertex_index];
   if (vertex.count == 0) return Error{name + ": PLY file has no vertices (element vertex 0)"};
+  if (vertex.count > kMaxScanPoints) {
+    return Error{name + ": PLY header: element vertex " + std::to_string(vertex.count) +
+                 ": more than the " + std::to_string(kMaxScanPoints) +
+                 " points a scan may have (limits.hpp)"};
+  }
   if (vertex.has_list) {
     return Error{name + ": PLY vertex element has a list property; expected scalar properties"};
   }
@@ -485,6 +502,12 @@ Expected<std::string> DecompressBzip2(const std::string& compressed, const std::
       stream.avail_out = sizeof(buffer);
       rc = BZ2_bzDecompress(&stream);
       out.append(buffer, sizeof(buffer) - stream.avail_out);
+      if (out.size() > kMaxDecompressedBytes) {
+        BZ2_bzDecompressEnd(&stream);
+        return Error{name + ": decompresses to more than " +
+                     std::to_string(kMaxDecompressedBytes) +
+                     " bytes, the most a text scan may have (limits.hpp)"};
+      }
       if (rc == BZ_OK && stream.avail_in == 0 && stream.avail_out != 0) break;  // input ended
     }
     const std::size_t at = stream_start + (compressed.size() - stream_start - stream.avail_in);
@@ -511,7 +534,8 @@ Expected<std::string> DecompressBzip2(const std::string& compressed, const std::
 Expected<PointCloud> ReadXyzText(const std::filesystem::path& path) {
   const std::string name = path.string();
   const bool bz2 = EndsWith(Lower(name), ".bz2");
-  Expected<std::string> bytes = ReadBytes(path, bz2 ? "bzip2-compressed text scan" : "text scan");
+  Expected<std::string> bytes = ReadBytes(path, bz2 ? "bzip2-compressed text scan" : "text scan",
+                                             kMaxDecompressedBytes);
   if (!bytes) return bytes.error();
   if (bytes->empty()) return Error{name + ": the file is empty, expected lines of \"x y z\""};
   std::string text;
@@ -547,6 +571,10 @@ Expected<PointCloud> ReadXyzText(const std::filesystem::path& path) {
     }
     const bool all_nan = std::isnan(v[0]) && std::isnan(v[1]) && std::isnan(v[2]);
     if (Status s = AddPoint(cloud, v, all_nan ? 0.0 : v[3], name, where); !s) return s.error();
+    if (cloud.points.size() > kMaxScanPoints) {
+      return Error{name + ": " + where + ": more than the " + std::to_string(kMaxScanPoints) +
+                   " points a scan may have (limits.hpp)"};
+    }
   }
   if (cloud.points.empty()) {
     return Error{name + ": no points (" + std::to_string(line_number) +
@@ -1109,7 +1137,7 @@ Status WriteLabelFile(const std::filesystem::path& path, const std::vector<std::
 }
 
 Expected<std::vector<std::uint32_t>> ReadLabelFile(const std::filesystem::path& path) {
-  Expected<std::string> bytes = ReadBytes(path, "SemanticKITTI .label file");
+  Expected<std::string> bytes = ReadBytes(path, "SemanticKITTI .label file", kMaxScanPoints * 4);
   if (!bytes) return bytes.error();
   if (bytes->size() % 4 != 0) {
     return Error{path.string() + ": size " + std::to_string(bytes->size()) +

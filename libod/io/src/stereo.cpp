@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "cairn/od/io/limits.hpp"
 #include "cairn/od/leveling.hpp"
 #include "png.hpp"
 #include "yaml_fields.hpp"
@@ -42,8 +43,10 @@ Expected<int> RequiredSize(const detail::FieldReader& reader, const YAML::Node& 
   if (!node) return reader.Fail(field, "missing (expected a positive integer [px])");
   Expected<std::int64_t> v = reader.Integer(node, field);
   if (!v) return v.error();
-  if (*v <= 0 || *v > std::numeric_limits<int>::max()) {
-    return reader.Fail(field, "expected a positive integer [px], got " + detail::Describe(node));
+  if (*v <= 0 || *v > kMaxImageSide) {
+    return reader.Fail(field, "expected a positive integer [px] up to " +
+                                  std::to_string(kMaxImageSide) + ", got " +
+                                  detail::Describe(node));
   }
   return static_cast<int>(*v);
 }
@@ -79,11 +82,11 @@ Expected<std::optional<Eigen::Vector3d>> ReadUp(const detail::FieldReader& reade
     return reader.Fail("pitch_deg", "missing: roll_deg is given, pitch_deg must be too");
   }
   if (!has_pitch) return std::optional<Eigen::Vector3d>();
-  Expected<double> pitch = reader.Double(root["pitch_deg"], "pitch_deg");
+  Expected<double> pitch = detail::Angle(reader, root["pitch_deg"], "pitch_deg", 90.0);
   if (!pitch) return pitch.error();
   double roll = 0.0;
   if (has_roll) {
-    Expected<double> r = reader.Double(root["roll_deg"], "roll_deg");
+    Expected<double> r = detail::Angle(reader, root["roll_deg"], "roll_deg", 90.0);
     if (!r) return r.error();
     roll = *r;
   }
@@ -171,7 +174,7 @@ Expected<int> ReadPositiveInt(const cv::FileNode& node, const std::string& sourc
     return Error{source + ": " + field + ": expected a positive integer [px]"};
   }
   const double v = static_cast<double>(node);
-  if (!(v >= 1.0) || v != std::floor(v) || v > 1e6) {
+  if (!(v >= 1.0) || v != std::floor(v) || v > kMaxImageSide) {
     return Error{source + ": " + field + ": expected a positive integer [px], got " + Num(v)};
   }
   return static_cast<int>(v);
@@ -323,8 +326,20 @@ Expected<StereoCalibration> ParseStereoCalibrationYaml(const std::string& yaml_t
   if (!cy) return cy.error();
   m.cx = *cx;
   m.cy = *cy;
-  if (!(m.fx > 0.0)) return reader.Fail("fx", "expected a positive focal length [px]");
-  if (!(m.fy > 0.0)) return reader.Fail("fy", "expected a positive focal length [px]");
+  if (!(m.fx > 0.0 && m.fx <= 1e6)) {
+    return reader.Fail("fx", "expected a focal length in (0, 1e6] px, got " + Num(m.fx));
+  }
+  if (!(m.fy > 0.0 && m.fy <= 1e6)) {
+    return reader.Fail("fy", "expected a focal length in (0, 1e6] px, got " + Num(m.fy));
+  }
+  if (!(m.cx >= -m.width && m.cx <= 2.0 * m.width)) {
+    return reader.Fail("cx", "expected a principal point column in [-width, 2 width] px, got " +
+                                 Num(m.cx));
+  }
+  if (!(m.cy >= -m.height && m.cy <= 2.0 * m.height)) {
+    return reader.Fail("cy", "expected a principal point row in [-height, 2 height] px, got " +
+                                 Num(m.cy));
+  }
   Expected<double> baseline =
       RequiredNumber(reader, node["baseline"], "baseline", "the distance between the cameras [m]");
   if (!baseline) return baseline.error();

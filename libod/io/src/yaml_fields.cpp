@@ -110,6 +110,19 @@ Expected<std::int64_t> FieldReader::Integer(const YAML::Node& node,
   }
 }
 
+Expected<double> Angle(const FieldReader& reader, const YAML::Node& node, const std::string& field,
+                       double max_abs_deg) {
+  Expected<double> value = reader.Double(node, field);
+  if (!value) return value.error();
+  if (std::abs(*value) > max_abs_deg) {
+    std::ostringstream range;
+    range << "expected an angle in [-" << max_abs_deg << ", " << max_abs_deg << "] deg, got "
+          << Describe(node);
+    return reader.Fail(field, range.str());
+  }
+  return value;
+}
+
 Expected<std::string> FieldReader::String(const YAML::Node& node, const std::string& field) const {
   if (!node.IsScalar()) return Fail(field, "expected a name, got " + Describe(node));
   return node.Scalar();

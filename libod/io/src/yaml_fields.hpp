@@ -40,6 +40,11 @@ class FieldReader {
   std::string source_;
 };
 
+/// An angle in degrees within [-max_abs_deg, max_abs_deg], returned in degrees; the error
+/// names the field and the range.
+Expected<double> Angle(const FieldReader& reader, const YAML::Node& node, const std::string& field,
+                       double max_abs_deg);
+
 /// "a scalar 'abc'", "a sequence", "a mapping", "null": what was found, for messages.
 std::string Describe(const YAML::Node& node);
 

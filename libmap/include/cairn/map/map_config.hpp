@@ -10,6 +10,14 @@
 
 namespace cairn::map {
 
+/// Limits that protect memory and time (MapConfig::Validate enforces them): a rolling
+/// window of at most kMaxWindowCells a side (16.7 M cells), neighbourhoods (plane fit,
+/// inflation, ground radius) of at most kMaxRadiusCells, returns up to kMaxRangeM away.
+/// An unbounded grid is limited by TerrainGrid's kMaxGridCells.
+inline constexpr double kMaxWindowCells = 4096.0;
+inline constexpr double kMaxRadiusCells = 64.0;
+inline constexpr double kMaxRangeM = 1000.0;
+
 struct MapConfig {
   // --- 3-D occupancy (OctoMap) ---
   double voxel_size_m = 0.1;  ///< OctoMap leaf size [m]
@@ -64,7 +72,9 @@ struct MapConfig {
 
   /// Names the first bad field by its config-file key ("map config: 'cell_size' ..."):
   /// sizes > 0, probabilities in (0, 1) with miss < 0.5 < hit and min < 0.5 < max,
-  /// robot_radius <= inflation_radius, window_size 0 or at least 4 cells, everything finite.
+  /// robot_radius <= inflation_radius, window_size 0 or 4..kMaxWindowCells cells,
+  /// voxel_size in [0.001, 10] m, cell_size in [0.001, 100] m, max_range <= kMaxRangeM,
+  /// radii <= kMaxRadiusCells cells, angles in [0, 90) deg, everything finite.
   Status Validate() const;
 };
 

@@ -55,6 +55,13 @@ struct Cell {
   bool has_elevation() const { return ground_points > 0; }
 };
 
+/// The most cells an unbounded grid may hold (its extent, x * y): TerrainMap::Integrate
+/// refuses a frame that would grow it further (16.7 M cells, a 820 m square at 0.2 m).
+inline constexpr std::size_t kMaxGridCells = std::size_t{1} << 24;
+/// Poses farther than this from the world origin are refused by Integrate [m] (cell
+/// indices stay far inside int).
+inline constexpr double kMaxWorldCoordinateM = 1e6;
+
 class TerrainGrid {
  public:
   /// `window_cells` > 0: a rolling square window of that many cells a side; 0: unbounded.

@@ -34,7 +34,7 @@ struct RuleConfig {
     return r;
   }
 
-  /// Names the first negative or non-finite threshold.
+  /// Names the first negative or non-finite threshold, or a slope above 90 deg.
   Status Validate() const;
 };
 

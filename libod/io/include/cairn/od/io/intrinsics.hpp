@@ -1,18 +1,18 @@
 // Camera intrinsics and tilt from a YAML file, for z-depth PNG frames.
 //
 // The file (every key required unless marked optional; any other key is an error):
-//   width: 640            # [px]
-//   height: 480           # [px]
-//   fx: 525.0             # focal lengths [px]
+//   width: 640            # [px], 1..16384, width x height at most 64 Mpx (limits.hpp)
+//   height: 480           # [px], 1..16384
+//   fx: 525.0             # focal lengths [px], (0, 1e6]
 //   fy: 525.0
-//   cx: 319.5             # principal point [px], pixel centres at integer coordinates
-//   cy: 239.5
-//   depth_scale: 0.0002   # metres per PNG unit (TUM: 1/5000)
+//   cx: 319.5             # principal point [px], pixel centres at integer coordinates,
+//   cy: 239.5             #   in [-width, 2 width] and [-height, 2 height]
+//   depth_scale: 0.0002   # metres per PNG unit (TUM: 1/5000), (0, 1]
 //   up: [0.0, -0.985, -0.174]  # gravity's up vector in the optical frame (x right, y down,
 //                              # z forward); need not be unit length, must not be zero
 // or, instead of `up`:
-//   pitch_deg: 10.0       # optical axis below the horizontal is positive [deg]
-//   roll_deg: 0.0         # optional, 0 when absent [deg] (see od::CameraUpFromPitchRoll)
+//   pitch_deg: 10.0       # optical axis below the horizontal is positive [deg], [-90, 90]
+//   roll_deg: 0.0         # optional, 0 when absent [deg], [-90, 90] (od::CameraUpFromPitchRoll)
 #pragma once
 
 #include <Eigen/Core>

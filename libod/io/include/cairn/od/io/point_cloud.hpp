@@ -6,7 +6,9 @@
 // sensor frame (x forward, y left, z up). `.label`: one uint32 per point, same order,
 // little-endian; lower 16 bits a class, upper 16 bits an instance (here: segment) id.
 // Readers validate and name the file in every error, with the byte offset or line of the
-// fault and what was expected; writers are atomic.
+// fault and what was expected; writers are atomic. Memory limits (limits.hpp): at most
+// kMaxScanPoints points or labels per file, checked from the file size or the PLY header
+// before anything is allocated, and kMaxDecompressedBytes of text out of a .bz2.
 #pragma once
 
 #include <Eigen/Core>
@@ -20,6 +22,7 @@
 #include "cairn/od/detector.hpp"
 #include "cairn/od/expected.hpp"
 #include "cairn/od/io/detection_files.hpp"
+#include "cairn/od/io/limits.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
 #include "cairn/od/sensor_model.hpp"
