@@ -258,5 +258,185 @@ TEST(SimDrive, BadSpecsNameTheField) {
   EXPECT_NE(drive.error().message.find("drive.odom_sigma_per_m"), std::string::npos);
 }
 
+// ---- raw IMU ------------------------------------------------------------------------------
+
+ImuSpec NoiselessImu() {
+  ImuSpec imu;
+  imu.accel_sigma_mps2 = 0.0;
+  imu.gyro_sigma_radps = 0.0;
+  return imu;
+}
+
+Eigen::Matrix3d ExpSO3(const Eigen::Vector3d& w) {
+  const double angle = w.norm();
+  if (angle == 0.0) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+}
+
+TEST(SimImu, AtRestOnASlopeTheAccelerometerReadsGravityRotatedBySlope) {
+  const Attitude attitude{0.2, -0.3, 1.1};
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = RotationFromAttitude(attitude);
+  T.translation() << 3.0, -2.0, 1.0;
+  const ImuReading r = IdealImuReading([&](double) { return T; }, 5.0, 0.01);
+  const Eigen::Vector3d expected =
+      kGravityMps2 * T.linear().transpose() * Eigen::Vector3d::UnitZ();
+  EXPECT_NEAR((r.specific_force_mps2 - expected).norm(), 0.0, 1e-9);
+  EXPECT_NEAR(r.angular_rate_radps.norm(), 0.0, 1e-12);
+  // Roll alone: the left side up puts gravity's reaction on +y... in the body, up is
+  // (0, sin roll, cos roll) for roll > 0.
+  EXPECT_NEAR(expected.y() / kGravityMps2, std::sin(0.2) * std::cos(-0.3), 1e-12);
+
+  // Driving straight up a 15 deg slope at constant speed: no acceleration, the nose-up
+  // accelerometer reads g (sin 15, 0, cos 15) at every sample.
+  const double slope = 15.0 * kDeg;
+  const Expected<Drive> drive = SimulateDrive(Terrain::Slope(0.0, slope, 0.0),
+                                              NoiselessSpec({{0.0, 0.0}, {10.0, 0.0}}),
+                                              SensorFrame::kLidar, 3, 0, NoiselessImu());
+  ASSERT_TRUE(drive.ok()) << drive.error().message;
+  ASSERT_EQ(drive->imu.size(), 500u);  // 5 s at 100 Hz
+  for (const ImuReading& reading : drive->imu) {
+    const Eigen::Vector3d f(std::sin(slope), 0.0, std::cos(slope));
+    EXPECT_NEAR((reading.specific_force_mps2 - kGravityMps2 * f).norm(), 0.0, 1e-6);
+    EXPECT_NEAR(reading.angular_rate_radps.norm(), 0.0, 1e-9);
+  }
+}
+
+TEST(SimImu, AConstantRateTurnGivesTheCentripetalTerm) {
+  const double radius = 10.0, speed = 3.0, rate = speed / radius;
+  auto pose = [&](double t) {
+    const double a = rate * t;
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() << radius * std::cos(a), radius * std::sin(a), 0.0;
+    T.linear() = Eigen::AngleAxisd(a + 0.5 * kPi, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    return T;
+  };
+  for (double t : {0.0, 1.3, 7.7}) {
+    const ImuReading r = IdealImuReading(pose, t, 0.01);
+    // Left turn: the accelerometer reads v omega towards the centre (body +y).
+    EXPECT_NEAR(r.specific_force_mps2.x(), 0.0, 1e-6);
+    EXPECT_NEAR(r.specific_force_mps2.y(), speed * rate, 1e-5);
+    EXPECT_NEAR(r.specific_force_mps2.z(), kGravityMps2, 1e-9);
+    EXPECT_NEAR((r.angular_rate_radps - Eigen::Vector3d(0.0, 0.0, rate)).norm(), 0.0, 1e-9);
+  }
+}
+
+TEST(SimImu, TheGyroIntegratesToTheTrueRotationBetweenFrames) {
+  const Terrain terrain = Terrain::Hills(0.0, {{0.3, 9.0, 0.4}, {0.2, 5.0, 1.9}});
+  const Expected<Drive> drive = SimulateDrive(terrain, NoiselessSpec(WindingPath()),
+                                              SensorFrame::kLidar, 5, 0, NoiselessImu());
+  ASSERT_TRUE(drive.ok()) << drive.error().message;
+  // 10 Hz frames, 100 Hz IMU: the samples of frame k..k+1 are 10k .. 10k+9.
+  ASSERT_GE(drive->imu.size(), 10 * (drive->samples.size() - 1));
+  double largest_turn = 0.0;
+  for (std::size_t k = 0; k + 5 < drive->samples.size(); k += 5) {
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    for (std::size_t j = 10 * k; j < 10 * (k + 5); ++j) {
+      R = R * ExpSO3(drive->imu[j].angular_rate_radps * 0.01);
+    }
+    const Eigen::Matrix3d truth = drive->samples[k].T_world_body.linear().transpose() *
+                                  drive->samples[k + 5].T_world_body.linear();
+    EXPECT_NEAR((R - truth).norm(), 0.0, 1e-9) << "frame " << k;
+    const double heading = std::remainder(
+        drive->samples[k + 5].attitude.yaw_rad - drive->samples[k].attitude.yaw_rad, 2 * kPi);
+    largest_turn = std::max(largest_turn, std::abs(heading));
+  }
+  EXPECT_GT(largest_turn, 20.0 * kDeg);  // the path turns
+}
+
+TEST(SimImu, ASpeedWaveGivesTheAlongTrackAcceleration) {
+  DriveSpec spec = NoiselessSpec({{0.0, 0.0}, {40.0, 0.0}});
+  spec.speed_mps = 2.0;
+  spec.speed_wave_mps = 0.8;
+  spec.speed_wave_period_s = 4.0;
+  const Expected<Drive> drive =
+      SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 3, 0, NoiselessImu());
+  ASSERT_TRUE(drive.ok()) << drive.error().message;
+  const double w = 2.0 * kPi / spec.speed_wave_period_s;
+  for (std::size_t j = 0; j < drive->imu.size(); j += 37) {
+    const ImuReading& r = drive->imu[j];
+    EXPECT_NEAR(r.specific_force_mps2.x(), spec.speed_wave_mps * w * std::cos(w * r.stamp_s),
+                1e-4);
+    EXPECT_NEAR(r.specific_force_mps2.z(), kGravityMps2, 1e-9);
+  }
+  // Distance is the integral of the speed, and the drive takes as long as it must.
+  const DriveSample& last = drive->samples.back();
+  EXPECT_NEAR(last.distance_m,
+              2.0 * last.stamp_s + 0.8 / w * (1.0 - std::cos(w * last.stamp_s)), 1e-9);
+  EXPECT_LE(last.distance_m, 40.0);
+  EXPECT_GT(last.distance_m, 40.0 - (2.0 + 0.8) / spec.frame_rate_hz);
+}
+
+TEST(SimImu, EachErrorSourceIsSeparate) {
+  const DriveSpec spec = NoiselessSpec({{0.0, 0.0}, {30.0, 0.0}});
+  const Expected<Drive> ideal =
+      SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 9, 0, NoiselessImu());
+  ImuSpec imu = NoiselessImu();
+  imu.accel_bias_mps2 << 0.05, -0.03, 0.1;
+  imu.gyro_bias_radps << 0.001, 0.002, -0.003;
+  const Expected<Drive> biased =
+      SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 9, 0, imu);
+  imu = NoiselessImu();
+  imu.accel_sigma_mps2 = 0.05;
+  imu.gyro_sigma_radps = 0.01;
+  const Expected<Drive> noisy =
+      SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 9, 0, imu);
+  imu = NoiselessImu();
+  imu.misalignment_rad << 2.5 * kDeg, -1.0 * kDeg, 0.0;
+  const Expected<Drive> tilted =
+      SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 9, 0, imu);
+  ASSERT_TRUE(ideal.ok() && biased.ok() && noisy.ok() && tilted.ok());
+  const std::size_t n = ideal->imu.size();
+  ASSERT_EQ(n, 1500u);
+  double sum_sq_f = 0.0, sum_sq_w = 0.0;
+  for (std::size_t j = 0; j < n; ++j) {
+    const ImuReading &a = ideal->imu[j], &b = biased->imu[j], &c = noisy->imu[j];
+    EXPECT_NEAR((b.specific_force_mps2 - a.specific_force_mps2 -
+                 Eigen::Vector3d(0.05, -0.03, 0.1)).norm(), 0.0, 1e-12);
+    EXPECT_NEAR((b.angular_rate_radps - a.angular_rate_radps -
+                 Eigen::Vector3d(0.001, 0.002, -0.003)).norm(), 0.0, 1e-12);
+    sum_sq_f += (c.specific_force_mps2 - a.specific_force_mps2).squaredNorm();
+    sum_sq_w += (c.angular_rate_radps - a.angular_rate_radps).squaredNorm();
+    // A misaligned IMU reads gravity in its own frame.
+    const Eigen::Vector3d up_imu = tilted->R_body_imu.transpose() * Eigen::Vector3d::UnitZ();
+    EXPECT_NEAR((tilted->imu[j].specific_force_mps2 - kGravityMps2 * up_imu).norm(), 0.0, 1e-6);
+  }
+  EXPECT_NEAR(std::sqrt(sum_sq_f / (3.0 * n)), 0.05, 0.003);
+  EXPECT_NEAR(std::sqrt(sum_sq_w / (3.0 * n)), 0.01, 0.0006);
+  // Its attitude output is its own frame's; the frames, odometry and body are untouched.
+  EXPECT_NEAR(tilted->samples[4].imu.roll_rad, 2.5 * kDeg, 1e-9);
+  EXPECT_NEAR(tilted->samples[4].imu.pitch_rad, -1.0 * kDeg, 1e-9);
+  for (std::size_t k = 0; k < ideal->samples.size(); ++k) {
+    for (const Drive* d : {&*biased, &*noisy, &*tilted}) {
+      EXPECT_TRUE(d->samples[k].T_world_sensor.isApprox(ideal->samples[k].T_world_sensor, 0.0));
+      EXPECT_EQ(d->samples[k].odometry.x_m, ideal->samples[k].odometry.x_m);
+    }
+  }
+}
+
+TEST(SimImu, ASensorMisalignmentMovesTheTrueSensorPoseOnly) {
+  DriveSpec spec = NoiselessSpec({{0.0, 0.0}, {10.0, 0.0}});
+  spec.sensor_misalignment_rad << 0.0, 2.5 * kDeg, 0.0;
+  const Expected<Drive> drive = SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 1);
+  ASSERT_TRUE(drive.ok()) << drive.error().message;
+  EXPECT_TRUE(drive->T_body_sensor.isApprox(BodyToSensor(spec, SensorFrame::kLidar)));
+  const Eigen::Matrix3d extra =
+      drive->T_body_sensor.linear().transpose() * drive->T_body_sensor_true.linear();
+  EXPECT_NEAR(Eigen::AngleAxisd(extra).angle(), 2.5 * kDeg, 1e-12);
+  const DriveSample& s = drive->samples[3];
+  EXPECT_TRUE(s.T_world_sensor.isApprox(s.T_world_body * drive->T_body_sensor_true, 1e-12));
+  spec.speed_wave_mps = 3.0;  // faster than the speed: the vehicle would back up
+  const Expected<Drive> bad = SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 1);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("speed_wave_mps"), std::string::npos);
+  ImuSpec imu;
+  imu.rate_hz = 0.0;
+  const Expected<Drive> bad_imu =
+      SimulateDrive(Terrain::Flat(), NoiselessSpec({{0.0, 0.0}, {10.0, 0.0}}),
+                    SensorFrame::kLidar, 1, 0, imu);
+  ASSERT_FALSE(bad_imu.ok());
+  EXPECT_NE(bad_imu.error().message.find("imu.rate_hz"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace cairn::sim

@@ -28,6 +28,7 @@
 #include "cairn/sources/decode.hpp"
 #include "cairn/sources/mrpt_convert.hpp"
 #include "cairn/sources/rawlog_file.hpp"
+#include "cairn/sources/rawlog_source.hpp"
 #include "io/temp_dir.hpp"
 
 namespace cairn::sim {
@@ -555,6 +556,66 @@ TEST(SimSequence, MissingSectionsAreNamedAndLeaveNoRawlog) {
   ASSERT_FALSE(summary.ok());
   EXPECT_NE(summary.error().message.find("drive: missing"), std::string::npos);
   EXPECT_FALSE(fs::exists(dir / "sequence.rawlog"));
+}
+
+TEST(SimRawlog, RawImuSamplesReadBackWithTheFrameThatFollowsThem) {
+  test::TempDir dir;
+  const fs::path path = dir / "imu.rawlog";
+  const Scene scene = MakeScene();
+  ImuSpec imu;
+  imu.misalignment_rad << 0.02, -0.01, 0.3;
+  imu.accel_bias_mps2 << 0.05, 0.0, -0.02;
+  const Expected<Drive> drive =
+      SimulateDrive(scene.terrain(), MakeSpec(), SensorFrame::kCameraOptical, 9, 4, imu);
+  ASSERT_TRUE(drive.ok()) << drive.error().message;
+  ASSERT_EQ(drive->imu.size(), 60u);  // 0.6 s at 100 Hz
+  {
+    Expected<RawlogWriter> writer = RawlogWriter::Create(path);
+    ASSERT_TRUE(writer.ok());
+    std::size_t j = 0;
+    for (const DriveSample& s : drive->samples) {
+      for (; j < drive->imu.size() && drive->imu[j].stamp_s <= s.stamp_s; ++j) {
+        const ImuReading& r = drive->imu[j];
+        ASSERT_TRUE(
+            writer->Write(*MakeRawImu(r, drive->R_body_imu, ToMrptTime(kStart + r.stamp_s))).ok());
+      }
+      const auto stamp = ToMrptTime(kStart + s.stamp_s);
+      ASSERT_TRUE(writer->Write(*MakeImu(s.imu, stamp)).ok());
+      Camera camera;
+      camera.model = PinholeFromFov(40, 30, 1.3);
+      camera.T_world_camera = s.T_world_sensor;
+      RenderOptions options;
+      options.max_range_m = 40.0;
+      Expected<DepthFrame> frame = RenderDepth(scene, camera, options);
+      ASSERT_TRUE(frame.ok());
+      Expected<CObservation3DRangeScan::Ptr> scan =
+          MakeRangeScan(*frame, drive->T_body_sensor, 0.001, 40.0, stamp);
+      ASSERT_TRUE(scan.ok());
+      ASSERT_TRUE(writer->Write(**scan).ok());
+    }
+    ASSERT_TRUE(writer->Commit().ok());
+  }
+  Expected<sources::RawlogSource> source = sources::RawlogSource::Open(path);
+  ASSERT_TRUE(source.ok()) << source.error().message;
+  std::size_t j = 0;
+  for (std::size_t k = 0; k < drive->samples.size(); ++k) {
+    Expected<std::optional<sources::Frame>> frame = source->NextFrame();
+    ASSERT_TRUE(frame.ok() && frame->has_value());
+    const sources::Frame& f = **frame;
+    // Frame k comes with the samples of (t_{k-1}, t_k]: 20 at 100 Hz and 5 frames/s.
+    EXPECT_EQ(f.imu_samples.size(), k == 0 ? 0u : 20u) << "frame " << k;
+    ASSERT_TRUE(f.imu.has_value());  // the attitude observation is not a raw sample
+    for (const sources::ImuSample& got : f.imu_samples) {
+      const ImuReading& want = drive->imu[j++];
+      EXPECT_NEAR(got.stamp_s, kStart + want.stamp_s, 1e-6);
+      ASSERT_TRUE(got.specific_force_mps2 && got.angular_rate_radps);
+      EXPECT_NEAR((*got.specific_force_mps2 - want.specific_force_mps2).norm(), 0.0, 1e-12);
+      EXPECT_NEAR((*got.angular_rate_radps - want.angular_rate_radps).norm(), 0.0, 1e-12);
+      EXPECT_TRUE(got.T_body_imu.linear().isApprox(drive->R_body_imu, 1e-9));
+      EXPECT_EQ(got.label, kImuLabel);
+    }
+  }
+  EXPECT_EQ(j, 60u);
 }
 
 }  // namespace

@@ -66,7 +66,32 @@ Status CheckDrivable(const DriveSpec& spec) {
       return FieldError("waypoints[" + std::to_string(i) + "]", "must be finite");
     }
   }
+  if (!std::isfinite(spec.speed_wave_mps) || spec.speed_wave_mps < 0.0 ||
+      spec.speed_wave_mps >= spec.speed_mps) {
+    return FieldError("speed_wave_mps", "must be in [0, speed_mps), got " +
+                                            std::to_string(spec.speed_wave_mps));
+  }
+  if (Status s = CheckPositive("speed_wave_period_s", spec.speed_wave_period_s); !s) return s;
+  if (!spec.sensor_misalignment_rad.allFinite()) {
+    return FieldError("sensor_misalignment_rad", "must be finite");
+  }
   return {};
+}
+
+// Distance driven at time t [m]: the integral of speed_mps + A sin(2 pi t / T).
+double DistanceAt(const DriveSpec& spec, double t) {
+  const double w = 2.0 * kPi / spec.speed_wave_period_s;
+  return spec.speed_mps * t + spec.speed_wave_mps / w * (1.0 - std::cos(w * t));
+}
+
+// The time at which DistanceAt reaches s (monotone: the speed stays > 0).
+double TimeAtDistance(const DriveSpec& spec, double s) {
+  double lo = 0.0, hi = s / (spec.speed_mps - spec.speed_wave_mps);
+  for (int i = 0; i < 100 && hi - lo > 1e-12; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (DistanceAt(spec, mid) < s ? lo : hi) = mid;
+  }
+  return hi;
 }
 
 // The waypoint polyline by arc length, extended along its first and last segments so that
@@ -112,6 +137,26 @@ Pose2D Compose(const Pose2D& a, double dx, double dy, double dyaw) {
 
 }  // namespace
 
+Status ImuSpec::Validate() const {
+  if (!std::isfinite(rate_hz) || rate_hz <= 0.0) {
+    return Error{"imu.rate_hz: must be a finite number > 0, got " + std::to_string(rate_hz)};
+  }
+  if (!accel_bias_mps2.allFinite()) return Error{"imu.accel_bias_mps2: must be finite"};
+  if (!gyro_bias_radps.allFinite()) return Error{"imu.gyro_bias_radps: must be finite"};
+  if (!misalignment_rad.allFinite()) return Error{"imu.misalignment_rad: must be finite"};
+  if (!std::isfinite(accel_sigma_mps2) || accel_sigma_mps2 < 0.0) {
+    return Error{"imu.accel_sigma_mps2: must be a finite number >= 0"};
+  }
+  if (!std::isfinite(gyro_sigma_radps) || gyro_sigma_radps < 0.0) {
+    return Error{"imu.gyro_sigma_radps: must be a finite number >= 0"};
+  }
+  return {};
+}
+
+Eigen::Matrix3d RotationFromRollPitchYaw(const Eigen::Vector3d& rpy) {
+  return Rz(rpy.z()) * Ry(rpy.y()) * Rx(rpy.x());
+}
+
 Eigen::Matrix3d RotationOpticalFromFlu() {
   Eigen::Matrix3d R;
   R << 0.0, -1.0, 0.0,  // x right = -y left
@@ -154,13 +199,16 @@ int DriveFrameCount(const DriveSpec& spec) {
   if (!CheckDrivable(spec)) return 0;
   const Path path(spec.waypoints);
   if (!path.Drivable()) return 0;
-  const double frames = path.Length() / spec.speed_mps * spec.frame_rate_hz;
+  const double duration_s = spec.speed_wave_mps > 0.0 ? TimeAtDistance(spec, path.Length())
+                                                      : path.Length() / spec.speed_mps;
+  const double frames = duration_s * spec.frame_rate_hz;
   return static_cast<int>(std::floor(frames + 1e-9)) + 1;
 }
 
 Expected<Drive> SimulateDrive(const Terrain& terrain, const DriveSpec& spec, SensorFrame sensor,
-                              std::uint64_t seed, int max_frames) {
+                              std::uint64_t seed, int max_frames, const ImuSpec& imu) {
   if (Status s = CheckDrivable(spec); !s) return s.error();
+  if (Status s = imu.Validate(); !s) return s.error();
   const Path path(spec.waypoints);
   if (!path.Drivable()) {
     return Error{"drive.waypoints: need at least two distinct points, got " +
@@ -172,7 +220,13 @@ Expected<Drive> SimulateDrive(const Terrain& terrain, const DriveSpec& spec, Sen
   Drive drive;
   drive.sensor = sensor;
   drive.T_body_sensor = BodyToSensor(spec, sensor);
+  drive.T_body_sensor_true = drive.T_body_sensor;
+  drive.T_body_sensor_true.linear() =
+      drive.T_body_sensor.linear() * RotationFromRollPitchYaw(spec.sensor_misalignment_rad);
+  drive.R_body_imu = RotationFromRollPitchYaw(imu.misalignment_rad);
   drive.path_length_m = path.Length();
+  drive.errors.accel_bias_mps2 = imu.accel_bias_mps2;
+  drive.errors.gyro_bias_radps = imu.gyro_bias_radps;
 
   // Drawn in a fixed order, once per drive, then per frame.
   Random rng(MixSeed(seed, 0x647269766555ULL));  // "driveU"
@@ -182,15 +236,9 @@ Expected<Drive> SimulateDrive(const Terrain& terrain, const DriveSpec& spec, Sen
   drive.errors.imu_pitch_bias_rad = spec.imu_bias_rad;
 
   const double half_base = 0.5 * spec.wheelbase_m, half_track = 0.5 * spec.track_m;
-  drive.samples.reserve(frames);
-  for (int k = 0; k < frames; ++k) {
-    DriveSample sample;
-    sample.index = k;
-    sample.stamp_s = k / spec.frame_rate_hz;
-    sample.distance_m = std::min(spec.speed_mps * sample.stamp_s, path.Length());
-    const double s = sample.distance_m;
-
-    // Pose on the ground: axles on the path, the plane through the four wheel contacts.
+  // The body's true pose after s metres: axles on the path, the plane through the four
+  // wheel contacts. Sets attitude.
+  auto body_pose = [&](double s, Attitude& attitude) {
     const Eigen::Vector2d xy = path.At(s);
     const Eigen::Vector2d chord = path.At(s + half_base) - path.At(s - half_base);
     const double yaw = std::atan2(chord.y(), chord.x());
@@ -204,13 +252,31 @@ Expected<Drive> SimulateDrive(const Terrain& terrain, const DriveSpec& spec, Sen
     // and tan(roll) = cos(pitch) slope_y.
     const double slope_x = 0.5 * ((h_fl + h_fr) - (h_rl + h_rr)) / spec.wheelbase_m;
     const double slope_y = 0.5 * ((h_fl + h_rl) - (h_fr + h_rr)) / spec.track_m;
-    sample.attitude.yaw_rad = yaw;
-    sample.attitude.pitch_rad = -std::atan(slope_x);
-    sample.attitude.roll_rad = std::atan(std::cos(sample.attitude.pitch_rad) * slope_y);
+    attitude.yaw_rad = yaw;
+    attitude.pitch_rad = -std::atan(slope_x);
+    attitude.roll_rad = std::atan(std::cos(attitude.pitch_rad) * slope_y);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = RotationFromAttitude(attitude);
+    T.translation() << xy, 0.25 * (h_fl + h_fr + h_rl + h_rr);
+    return T;
+  };
+  // Unclamped: the path extends beyond its ends (the IMU's differences look past them).
+  auto distance_at = [&](double t) {
+    return spec.speed_wave_mps > 0.0 ? DistanceAt(spec, t) : spec.speed_mps * t;
+  };
 
-    sample.T_world_body.linear() = RotationFromAttitude(sample.attitude);
-    sample.T_world_body.translation() << xy, 0.25 * (h_fl + h_fr + h_rl + h_rr);
-    sample.T_world_sensor = sample.T_world_body * drive.T_body_sensor;
+  drive.samples.reserve(frames);
+  for (int k = 0; k < frames; ++k) {
+    DriveSample sample;
+    sample.index = k;
+    sample.stamp_s = k / spec.frame_rate_hz;
+    sample.distance_m = std::min(distance_at(sample.stamp_s), path.Length());
+    const double s = sample.distance_m;
+
+    sample.T_world_body = body_pose(s, sample.attitude);
+    const Eigen::Vector2d xy = sample.T_world_body.translation().head<2>();
+    const double yaw = sample.attitude.yaw_rad;
+    sample.T_world_sensor = sample.T_world_body * drive.T_body_sensor_true;
     sample.true_planar = {xy.x(), xy.y(), yaw};
 
     // Odometry: the true planar increment in the previous body frame, with errors.
@@ -232,14 +298,43 @@ Expected<Drive> SimulateDrive(const Terrain& terrain, const DriveSpec& spec, Sen
       sample.odometry = Compose(prev.odometry, dx, dy, dyaw);
     }
 
-    // IMU attitude.
+    // IMU attitude: the IMU frame's (the body's when the IMU is aligned).
+    const Attitude imu_frame = imu.misalignment_rad.isZero()
+                                   ? sample.attitude
+                                   : AttitudeFromRotation(sample.T_world_body.linear() *
+                                                          drive.R_body_imu);
     const double n_roll = Gaussian(rng), n_pitch = Gaussian(rng), n_yaw = Gaussian(rng);
     sample.imu.roll_rad =
-        sample.attitude.roll_rad + drive.errors.imu_roll_bias_rad + spec.imu_sigma_rad * n_roll;
+        imu_frame.roll_rad + drive.errors.imu_roll_bias_rad + spec.imu_sigma_rad * n_roll;
     sample.imu.pitch_rad =
-        sample.attitude.pitch_rad + drive.errors.imu_pitch_bias_rad + spec.imu_sigma_rad * n_pitch;
-    sample.imu.yaw_rad = WrapAngle(sample.attitude.yaw_rad + spec.imu_sigma_rad * n_yaw);
+        imu_frame.pitch_rad + drive.errors.imu_pitch_bias_rad + spec.imu_sigma_rad * n_pitch;
+    sample.imu.yaw_rad = WrapAngle(imu_frame.yaw_rad + spec.imu_sigma_rad * n_yaw);
     drive.samples.push_back(sample);
+  }
+
+  // Raw IMU, from the same pose function, with its own noise stream.
+  Random imu_rng(MixSeed(seed, 0x696d75526177ULL));  // "imuRaw"
+  const double dt = 1.0 / imu.rate_hz;
+  const double end_s = drive.samples.back().stamp_s;
+  auto T_world_imu = [&](double t) {
+    Attitude unused;
+    Eigen::Isometry3d T = body_pose(distance_at(t), unused);
+    T.linear() = T.linear() * drive.R_body_imu;
+    return T;
+  };
+  const int n_imu = static_cast<int>(std::floor(end_s * imu.rate_hz + 1e-9));
+  drive.imu.reserve(static_cast<std::size_t>(std::max(0, n_imu)));
+  for (int j = 0; j < n_imu; ++j) {
+    ImuReading reading = IdealImuReading(T_world_imu, (j + 0.5) * dt, dt);
+    for (int axis = 0; axis < 3; ++axis) {
+      reading.specific_force_mps2[axis] +=
+          imu.accel_bias_mps2[axis] + imu.accel_sigma_mps2 * Gaussian(imu_rng);
+    }
+    for (int axis = 0; axis < 3; ++axis) {
+      reading.angular_rate_radps[axis] +=
+          imu.gyro_bias_radps[axis] + imu.gyro_sigma_radps * Gaussian(imu_rng);
+    }
+    drive.imu.push_back(reading);
   }
   return drive;
 }

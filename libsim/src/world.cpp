@@ -88,6 +88,15 @@ Status DriveSpec::Validate() const {
     }
   }
   if (!Finite(imu_bias_rad)) return FieldError("imu_bias", "must be finite");
+  if (!(Finite(speed_wave_mps) && speed_wave_mps >= 0.0 && speed_wave_mps < speed_mps)) {
+    return FieldError("speed_wave", "must be in [0, speed)");
+  }
+  if (!(Finite(speed_wave_period_s) && speed_wave_period_s > 0.0)) {
+    return FieldError("speed_wave_period", "must be a finite number > 0");
+  }
+  if (!sensor_misalignment_rad.allFinite()) {
+    return FieldError("sensor_misalignment", "must be finite");
+  }
   if (!T_body_sensor_xyz.allFinite()) return FieldError("sensor_xyz", "must be finite");
   if (!(Finite(sensor_pitch_rad) && std::abs(sensor_pitch_rad) < 1.5707963267948966)) {
     return FieldError("sensor_pitch", "must be in (-90, 90) deg");

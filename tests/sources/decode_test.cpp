@@ -510,6 +510,35 @@ TEST(DecodeStereo, RawPairsAreRectifiedWithMrpt) {
 // ---------------------------------------------------------------------------------------
 // IMU and odometry
 
+TEST(DecodeImuAndOdometry, RawSamplesFromTheAccelerometerAndGyroFields) {
+  using namespace ::mrpt::obs;
+  CObservationIMU imu;
+  imu.sensorLabel = "IMU";
+  imu.timestamp = ToMrptTime(7.25);
+  imu.set(IMU_ROLL, 0.05);
+  imu.set(IMU_PITCH, -0.1);
+  EXPECT_FALSE(DecodeImuSample(imu).has_value());  // attitude only
+  imu.set(IMU_X_ACC, 0.3);
+  imu.set(IMU_Y_ACC, -0.2);
+  EXPECT_FALSE(DecodeImuSample(imu).has_value());  // two axes are not a reading
+  imu.set(IMU_Z_ACC, 9.7);
+  std::optional<ImuSample> sample = DecodeImuSample(imu);
+  ASSERT_TRUE(sample);
+  EXPECT_NEAR(sample->stamp_s, 7.25, 1e-9);
+  ASSERT_TRUE(sample->specific_force_mps2);
+  EXPECT_EQ(*sample->specific_force_mps2, Eigen::Vector3d(0.3, -0.2, 9.7));
+  EXPECT_FALSE(sample->angular_rate_radps);
+  imu.set(IMU_WX, 0.01);
+  imu.set(IMU_WY, 0.02);
+  imu.set(IMU_WZ, -0.03);
+  imu.sensorPose = ::mrpt::poses::CPose3D(0, 0, 0, 0.0, 0.1, 0.0);
+  sample = DecodeImuSample(imu);
+  ASSERT_TRUE(sample && sample->angular_rate_radps);
+  EXPECT_EQ(*sample->angular_rate_radps, Eigen::Vector3d(0.01, 0.02, -0.03));
+  EXPECT_TRUE(sample->T_body_imu.isApprox(FromCPose3D(imu.sensorPose), 1e-12));
+  EXPECT_EQ(sample->label, "IMU");
+}
+
 TEST(DecodeImuAndOdometry, AttitudeFromAnglesOrQuaternion) {
   ::mrpt::obs::CObservationIMU imu;
   imu.sensorLabel = "IMU";

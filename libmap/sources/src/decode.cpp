@@ -637,4 +637,23 @@ std::optional<ImuAttitude> DecodeImu(const ::mrpt::obs::CObservationIMU& imu) {
   return attitude;
 }
 
+std::optional<ImuSample> DecodeImuSample(const ::mrpt::obs::CObservationIMU& imu) {
+  using namespace ::mrpt::obs;
+  auto triple = [&](TIMUDataIndex x, TIMUDataIndex y,
+                    TIMUDataIndex z) -> std::optional<Eigen::Vector3d> {
+    if (!imu.has(x) || !imu.has(y) || !imu.has(z)) return std::nullopt;
+    const Eigen::Vector3d v(imu.get(x), imu.get(y), imu.get(z));
+    if (!v.allFinite()) return std::nullopt;
+    return v;
+  };
+  ImuSample sample;
+  sample.stamp_s = FromMrptTime(imu.timestamp);
+  sample.label = imu.sensorLabel;
+  sample.specific_force_mps2 = triple(IMU_X_ACC, IMU_Y_ACC, IMU_Z_ACC);
+  sample.angular_rate_radps = triple(IMU_WX, IMU_WY, IMU_WZ);
+  if (!sample.specific_force_mps2 && !sample.angular_rate_radps) return std::nullopt;
+  sample.T_body_imu = FromCPose3D(imu.sensorPose);
+  return sample;
+}
+
 }  // namespace cairn::sources

@@ -49,6 +49,9 @@ void RawlogSource::Observe(const CObservation& observation) {
     odometry_.push_back(*last_odometry_);
   } else if (const auto* imu = dynamic_cast<const ::mrpt::obs::CObservationIMU*>(&observation)) {
     if (std::optional<ImuAttitude> attitude = DecodeImu(*imu)) last_imu_ = attitude;
+    if (std::optional<ImuSample> sample = DecodeImuSample(*imu)) {
+      imu_samples_.push_back(std::move(*sample));
+    }
   }
 }
 
@@ -136,6 +139,8 @@ Expected<std::optional<SourceEntry>> RawlogSource::NextEntry() {
     frame->index = frames_++;
     frame->odometry = last_odometry_;
     frame->imu = last_imu_;
+    frame->imu_samples = std::move(imu_samples_);
+    imu_samples_.clear();
     entry.frames.push_back(std::move(*frame));
     entry.frame_observation.push_back(static_cast<int>(k));
   }

@@ -92,4 +92,23 @@ Expected<::mrpt::obs::CObservation3DRangeScan::Ptr> MakeRangeScan(
   return obs;
 }
 
+::mrpt::obs::CObservationIMU::Ptr MakeRawImu(const ImuReading& reading,
+                                             const Eigen::Matrix3d& R_body_imu,
+                                             ::mrpt::Clock::time_point stamp) {
+  using namespace ::mrpt::obs;
+  auto obs = std::make_shared<CObservationIMU>();
+  obs->sensorLabel = kImuLabel;
+  obs->timestamp = stamp;
+  obs->set(IMU_X_ACC, reading.specific_force_mps2.x());
+  obs->set(IMU_Y_ACC, reading.specific_force_mps2.y());
+  obs->set(IMU_Z_ACC, reading.specific_force_mps2.z());
+  obs->set(IMU_WX, reading.angular_rate_radps.x());
+  obs->set(IMU_WY, reading.angular_rate_radps.y());
+  obs->set(IMU_WZ, reading.angular_rate_radps.z());
+  Eigen::Isometry3d T_body_imu = Eigen::Isometry3d::Identity();
+  T_body_imu.linear() = R_body_imu;
+  obs->sensorPose = sources::ToCPose3D(T_body_imu);
+  return obs;
+}
+
 }  // namespace cairn::sim

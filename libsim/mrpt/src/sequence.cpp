@@ -126,7 +126,8 @@ Expected<SequenceSummary> WriteDriveSequence(const World& world, const fs::path&
   }
   const DriveSpec& spec = *world.drive;
   Expected<Drive> simulated =
-      SimulateDrive(world.scene.terrain(), spec, options.sensor, world.seed, options.max_frames);
+      SimulateDrive(world.scene.terrain(), spec, options.sensor, world.seed, options.max_frames,
+                    options.imu);
   if (!simulated) return Error{who + ": " + simulated.error().message};
   const Drive& drive = *simulated;
   const int total = static_cast<int>(drive.samples.size());
@@ -168,6 +169,7 @@ Expected<SequenceSummary> WriteDriveSequence(const World& world, const fs::path&
   int launched = 0;
 
   std::vector<StampedPose> body_poses, sensor_poses;
+  std::size_t next_imu = 0;
   const double dt = 1.0 / spec.frame_rate_hz;
   for (int k = 0; k < total; ++k) {
     while (launched < total && static_cast<int>(in_flight.size()) < in_flight_max) {
@@ -185,7 +187,15 @@ Expected<SequenceSummary> WriteDriveSequence(const World& world, const fs::path&
     const Pose2D& to = drive.samples[k == 0 ? std::min(1, total - 1) : k].odometry;
     const Eigen::Vector3d velocity =
         total > 1 ? LocalVelocity(from, to, dt) : Eigen::Vector3d::Zero();
-    Status status = writer->Write(*MakeOdometry(sample.odometry, velocity, stamp));
+    Status status;
+    // Raw IMU samples up to this frame's time, before its observations.
+    while (options.raw_imu && status && next_imu < drive.imu.size() &&
+           drive.imu[next_imu].stamp_s <= sample.stamp_s) {
+      const ImuReading& reading = drive.imu[next_imu++];
+      status = writer->Write(*MakeRawImu(reading, drive.R_body_imu,
+                                         sources::ToMrptTime(options.start_unix_s + reading.stamp_s)));
+    }
+    if (status) status = writer->Write(*MakeOdometry(sample.odometry, velocity, stamp));
     if (status) status = writer->Write(*MakeImu(sample.imu, stamp));
     if (!status) return status.error();
     if (camera) {

@@ -141,6 +141,16 @@ struct DriveSpec {
   double odom_yaw_sigma_rad_per_m = 0.002;  ///< heading drift per metre
   double imu_sigma_rad = 0.005;             ///< attitude noise per sample
   double imu_bias_rad = 0.01;               ///< constant roll/pitch bias
+  /// Speed changes: speed(t) = speed_mps + speed_wave_mps sin(2 pi t / speed_wave_period_s)
+  /// [m/s], so that the accelerometer sees along-track acceleration; 0 keeps the speed
+  /// constant. Must be below speed_mps. Not read from world files yet (C++ only).
+  double speed_wave_mps = 0.0;
+  double speed_wave_period_s = 8.0;  ///< [s], > 0
+  /// The sensor's true mount differs from the nominal one (T_body_sensor_xyz,
+  /// sensor_pitch_rad) by Rz(yaw) Ry(pitch) Rx(roll) of these (roll, pitch, yaw) [rad],
+  /// applied on the sensor side: T_body_sensor_true = T_body_sensor_nominal * R. A mapper
+  /// knows only the nominal mount. C++ only.
+  Eigen::Vector3d sensor_misalignment_rad = Eigen::Vector3d::Zero();
   /// Names the first bad field: at least two waypoints, finite, not all the same; speed,
   /// frame_rate, wheelbase, track > 0; sigmas >= 0; everything finite.
   Status Validate() const;

@@ -90,6 +90,10 @@ OdometrySample DecodeOdometry(const ::mrpt::obs::CObservationOdometry& odometry)
 /// quaternion IMU_ORI_QUAT_*; nullopt when the IMU gives neither (rates only).
 std::optional<ImuAttitude> DecodeImu(const ::mrpt::obs::CObservationIMU& imu);
 
+/// The raw accelerometer (IMU_X_ACC, IMU_Y_ACC, IMU_Z_ACC, all three present and finite) and
+/// gyro (IMU_WX, IMU_WY, IMU_WZ) readings; nullopt when it has neither (attitude only).
+std::optional<ImuSample> DecodeImuSample(const ::mrpt::obs::CObservationIMU& imu);
+
 /// The elevations [rad] of a Velodyne calibration's lasers, indexed by laser id.
 std::vector<double> LaserElevations(const ::mrpt::obs::VelodyneCalibration& calibration);
 

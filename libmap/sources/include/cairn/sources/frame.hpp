@@ -88,6 +88,18 @@ struct ImuAttitude {
   std::string label;
 };
 
+/// One raw inertial sample, in the IMU's own frame (MRPT's IMU_X_ACC.. and IMU_WX..):
+/// specific force (gravity included, +9.8 m/s^2 along up at rest) [m/s^2] and angular rate
+/// [rad/s]; either may be absent. T_body_imu places the IMU on the body (the
+/// observation's sensorPose; identity when the source gives none).
+struct ImuSample {
+  double stamp_s = kNoStamp;
+  std::optional<Eigen::Vector3d> specific_force_mps2;
+  std::optional<Eigen::Vector3d> angular_rate_radps;
+  Eigen::Isometry3d T_body_imu = Eigen::Isometry3d::Identity();
+  std::string label;
+};
+
 struct Frame {
   std::string label;       ///< the observation's sensorLabel
   std::string mrpt_class;  ///< e.g. "CObservation3DRangeScan"
@@ -101,6 +113,8 @@ struct Frame {
   /// stamps say how old they are); empty when the file has none so far.
   std::optional<OdometrySample> odometry;
   std::optional<ImuAttitude> imu;
+  /// The raw IMU samples read since the previous frame of this source (file order).
+  std::vector<ImuSample> imu_samples;
 
   const DepthImage* depth() const { return std::get_if<DepthImage>(&data); }
   const PointScan* points() const { return std::get_if<PointScan>(&data); }

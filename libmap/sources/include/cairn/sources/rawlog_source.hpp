@@ -88,6 +88,7 @@ class RawlogSource {
   std::vector<SkippedObservation> skipped_;
   std::optional<OdometrySample> last_odometry_;
   std::optional<ImuAttitude> last_imu_;
+  std::vector<ImuSample> imu_samples_;  ///< raw samples since the last frame
   // Actions: the composed pose, and the last one while it waits for its frame's stamp.
   Eigen::Isometry3d T_odom_body_actions_ = Eigen::Isometry3d::Identity();
   bool actions_started_ = false;

@@ -7,6 +7,10 @@
 //               velocityLocal = (vx, vy, omega) of the body [m/s, rad/s].
 //   "IMU"       CObservationIMU: IMU_YAW, IMU_PITCH, IMU_ROLL present [rad], MRPT's Z-Y-X
 //               convention (as CPose3D: pitch > 0 nose down, roll > 0 left side up).
+//               With raw samples (SequenceOptions::raw_imu), more "IMU" observations at the
+//               IMU rate carry IMU_X_ACC, IMU_Y_ACC, IMU_Z_ACC (specific force, gravity
+//               included: +9.8 m/s^2 up at rest) [m/s^2] and IMU_WX, IMU_WY, IMU_WZ [rad/s]
+//               in the IMU frame, whose pose on the body is sensorPose (rotation only).
 //   "CAMERA"    CObservation3DRangeScan: rangeImage = z-depth in units of rangeUnits [m]
 //               (range_is_depth = true), 0 = no return; cameraParams (= cameraParamsIntensity)
 //               the pinhole, no distortion; maxRange; no point cloud, no intensity image.
@@ -55,5 +59,9 @@ Expected<::mrpt::obs::CObservation3DRangeScan::Ptr> MakeRangeScan(
                                                     ::mrpt::Clock::time_point stamp);
 ::mrpt::obs::CObservationIMU::Ptr MakeImu(const Attitude& attitude,
                                           ::mrpt::Clock::time_point stamp);
+/// One raw sample (accelerometer and gyro, IMU frame); `R_body_imu` becomes sensorPose.
+::mrpt::obs::CObservationIMU::Ptr MakeRawImu(const ImuReading& reading,
+                                             const Eigen::Matrix3d& R_body_imu,
+                                             ::mrpt::Clock::time_point stamp);
 
 }  // namespace cairn::sim

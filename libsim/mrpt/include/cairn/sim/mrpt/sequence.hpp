@@ -37,6 +37,11 @@ struct SequenceOptions {
   /// Frames rendered at once, ahead of the writer (each render is parallel inside already);
   /// the output does not depend on it.
   int frames_in_flight = 2;
+  /// Also write the raw IMU samples (MakeRawImu, label "IMU"), each before the frame that
+  /// follows it in time; `imu` sets their rate and errors. Off: the rawlog holds three
+  /// observations per frame, as before.
+  bool raw_imu = false;
+  ImuSpec imu;
 };
 
 struct SequenceSummary {

@@ -1,0 +1,190 @@
+// Gravity observed, not assumed: a Ceres estimator over a sliding window of frames that
+// recovers each frame's roll, pitch (and height) from cues that see gravity, with the slowly
+// varying states they need (accelerometer and gyro biases, the sensor mount's tilt).
+//
+// Cues, each a residual weighted by its stated noise (gravity_terms.hpp has the formulas):
+//   - accelerometer: the specific force averaged around each frame against gravity plus the
+//     motion acceleration the odometry implies (along-track from the change of speed,
+//     lateral from speed x yaw rate, vertical from the pitch along the way) or a known
+//     velocity gives; Huber-robust (bumps);
+//   - gyro: the rotation integrated between consecutive frames;
+//   - vertical structure: tall segments' axes are vertical, walls' normals horizontal
+//     (measured in the sensor frame; Cauchy-robust, because trees lean);
+//   - heights: the height step implied by the pitch over the distance driven, and an
+//     optional frame-to-map ground height; Huber-robust;
+//   - priors: the IMU's attitude output (roll, pitch), the measured heading (yaw).
+// Frames that leave the window are marginalised into a Gaussian prior on what remains
+// (Schur complement), so the biases and the mount learned earlier are kept.
+//
+// What it cannot see, it says: a straight drive on even ground cannot tell an accelerometer
+// bias from a tilt (a turn or a change of attitude separates them, through the gyro); a
+// sensor mount's tilt needs vertical structure in view. Such a state keeps (about) its prior
+// uncertainty and is flagged with the reason, rather than corrected from nothing.
+//
+// Frames: world z up; body x forward, y left, z up, defined by the IMU (R_body_imu, known);
+// sensor frames as od:: has them, on the body by R_body_sensor_nominal. Attitudes Z-Y-X as
+// sim::RotationFromAttitude: pitch > 0 nose down, roll > 0 left side up. Radians, metres,
+// seconds. Biases are constant over a run (no random walk modelled).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cairn/od/expected.hpp"
+
+namespace cairn::map {
+
+struct GravityEstimatorConfig {
+  int window_frames = 12;  ///< frames solved together (>= 2 accel_half_span_frames + 2)
+  double gravity_mps2 = 9.80665;   ///< local gravity [m/s^2]
+  // Noises (the stated sigma of each residual).
+  double accel_sigma_mps2 = 0.02;   ///< accelerometer white noise per sample [m/s^2]
+  double motion_sigma_mps2 = 0.05;  ///< motion the odometry misses, per span average [m/s^2]
+  /// The accelerometer term spans this many frames on each side of its centre (m): one
+  /// term per 2m frames, spans end to end. Longer spans average the odometry's
+  /// displacement noise down (it enters as odometry_sigma_m / (dt * span)).
+  int accel_half_span_frames = 3;
+  double odometry_sigma_m = 0.005;  ///< odometry displacement noise per frame and axis [m]
+  double accel_huber = 3.0;         ///< Huber threshold of the accelerometer term [sigma]
+  double gyro_sigma_radps = 0.002;  ///< gyro white noise per sample [rad/s]
+  double rotation_floor_rad = 1e-4; ///< added to the integrated gyro noise [rad]
+  double attitude_prior_sigma_rad = 0.01;  ///< IMU attitude output, per frame (roll, pitch) [rad]
+  /// The IMU attitude output's constant bias, a priori (a slow state) [rad].
+  double attitude_bias_sigma_rad = 0.05;
+  double yaw_sigma_rad = 0.05;             ///< measured heading [rad]
+  double vertical_sigma_rad = 0.035;       ///< a trunk's or pole's lean (2 deg) [rad]
+  double vertical_cauchy = 1.0;            ///< Cauchy scale of the vertical term [sigma]
+  double wall_sigma_rad = 0.02;            ///< a wall normal's tilt [rad]
+  double height_step_sigma_m = 0.01;       ///< height step, per frame [m]
+  double height_step_sigma_per_m = 0.01;   ///< plus this per metre driven [m/m]
+  double ground_height_huber = 2.0;        ///< Huber threshold of the ground term [sigma]
+  // Slow states: prior sigma at the start, and whether they are estimated at all.
+  double accel_bias_sigma_mps2 = 0.1;    ///< [m/s^2]
+  double gyro_bias_sigma_radps = 0.01;   ///< [rad/s]
+  double mount_sigma_rad = 0.05;         ///< the mount's roll and pitch (3 deg) [rad]
+  bool estimate_accel_bias = true;
+  bool estimate_gyro_bias = true;
+  bool estimate_mount = true;
+  /// A slow state whose posterior sigma stays above this fraction of its prior sigma is
+  /// flagged as not observable.
+  double observable_ratio = 0.5;
+  int max_iterations = 20;  ///< Ceres iterations per frame
+  bool covariance = true;   ///< compute the per-frame covariance (ceres::Covariance)
+
+  /// Fails naming the first field out of range ("gravity.window_frames: ...").
+  Status Validate() const;
+};
+
+/// One raw IMU sample in the IMU frame (sources::ImuSample without the optionals).
+struct GravityImuSample {
+  double stamp_s = 0.0;
+  Eigen::Vector3d specific_force_mps2 = Eigen::Vector3d::Zero();  ///< gravity included
+  Eigen::Vector3d angular_rate_radps = Eigen::Vector3d::Zero();
+};
+
+/// A vertical cue seen by the sensor: a tall segment's axis, or a wall's horizontal normal.
+struct VerticalCue {
+  Eigen::Vector3d direction_sensor = Eigen::Vector3d::UnitZ();  ///< unit, sensor frame
+  bool wall_normal = false;
+};
+
+/// What one frame brings.
+struct GravityFrame {
+  double stamp_s = 0.0;  ///< strictly after the previous frame's [s]
+  /// Raw IMU samples since the previous frame (stamps in (previous stamp, stamp]).
+  std::vector<GravityImuSample> imu;
+  /// Odometry: the planar pose T_odom_body (x, y [m], yaw [rad]). Its displacements give
+  /// the velocities (along the nose, for a ground vehicle) and its yaw the heading prior.
+  Eigen::Vector3d odometry_xy_yaw = Eigen::Vector3d::Zero();
+  /// A known world velocity (z up) [m/s] instead of the odometry's displacements (a
+  /// reference, VIO): the accelerometer term then uses it, vertical part included.
+  std::optional<Eigen::Vector3d> velocity_world_mps;
+  /// The IMU's attitude output for the body (roll, pitch) [rad]; none: no prior.
+  std::optional<Eigen::Vector2d> attitude_prior_rad;
+  std::vector<VerticalCue> verticals;
+  /// A frame-to-map ground height of the body [m] and its sigma [m].
+  std::optional<double> ground_height_m;
+  double ground_height_sigma_m = 0.05;
+};
+
+/// A state that the data in the window do not determine.
+struct GravityDegeneracy {
+  enum class State { kAccelBias, kGyroBias, kMount, kCovariance };
+  State state = State::kAccelBias;
+  std::string reason;
+};
+
+/// Which cues the window used (the newest frame's own in the last fields).
+struct GravityCues {
+  int accel_terms = 0;         ///< frames with an accelerometer term (all but the ends)
+  int accel_outliers = 0;      ///< beyond the Huber threshold at the solution
+  int gyro_terms = 0;          ///< frame-to-frame gyro rotations
+  int attitude_priors = 0;
+  int verticals = 0;           ///< vertical cues in the window
+  int vertical_outliers = 0;   ///< beyond 3 sigma at the solution (leaning, wrong)
+  int ground_heights = 0;
+  int frame_imu_samples = 0;   ///< raw samples the newest frame brought
+  int frame_verticals = 0;     ///< vertical cues the newest frame brought
+  double heading_change_rad = 0.0;  ///< largest heading change seen so far from the start
+};
+
+/// The estimate for the newest frame, with diagnostics (in the manner of
+/// ceres::Solver::Summary).
+struct GravityEstimate {
+  double stamp_s = 0.0;
+  double roll_rad = 0.0, pitch_rad = 0.0, yaw_rad = 0.0;  ///< body attitude
+  double height_m = 0.0;                                  ///< body height [m]
+  /// Covariance of (roll, pitch, yaw) [rad^2] and of the height [m^2]; NaN when not computed.
+  Eigen::Matrix3d attitude_covariance = Eigen::Matrix3d::Constant(NAN);
+  double height_variance = NAN;
+  Eigen::Vector3d accel_bias_mps2 = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d accel_bias_covariance = Eigen::Matrix3d::Constant(NAN);
+  Eigen::Vector3d gyro_bias_radps = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d gyro_bias_covariance = Eigen::Matrix3d::Constant(NAN);
+  Eigen::Vector2d attitude_bias_rad = Eigen::Vector2d::Zero();  ///< the IMU output's bias
+  Eigen::Vector2d mount_rad = Eigen::Vector2d::Zero();  ///< roll, pitch of the mount's tilt
+  Eigen::Matrix2d mount_covariance = Eigen::Matrix2d::Constant(NAN);
+  Eigen::Vector3d up_body = Eigen::Vector3d::UnitZ();    ///< gravity's up in the body frame
+  Eigen::Vector3d up_sensor = Eigen::Vector3d::UnitZ();  ///< and in the sensor frame
+  GravityCues cues;
+  std::vector<GravityDegeneracy> degeneracies;  ///< empty: every state observed
+  // Solver.
+  int iterations = 0;
+  double initial_cost = 0.0, final_cost = 0.0;
+  bool converged = false;
+  std::string solver_report;  ///< Ceres' BriefReport
+
+  bool IsSolutionUsable() const { return converged && std::isfinite(roll_rad); }
+  bool Degenerate(GravityDegeneracy::State state) const;
+  /// One line: attitude, biases, mount, cues, flags.
+  std::string BriefReport() const;
+};
+
+class GravityEstimator {
+ public:
+  /// Fails on an invalid config.
+  static Expected<GravityEstimator> Create(const GravityEstimatorConfig& config,
+                                           const Eigen::Matrix3d& R_body_imu,
+                                           const Eigen::Matrix3d& R_body_sensor_nominal);
+  GravityEstimator(GravityEstimator&&) noexcept;
+  GravityEstimator& operator=(GravityEstimator&&) noexcept;
+  ~GravityEstimator();
+
+  /// Adds a frame, solves the window and returns the newest frame's estimate. Fails on a
+  /// stamp not after the previous frame's or non-finite input, naming the field.
+  Expected<GravityEstimate> AddFrame(const GravityFrame& frame);
+
+  int frames_added() const;
+
+ private:
+  struct State;
+  explicit GravityEstimator(std::unique_ptr<State> state);
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace cairn::map

@@ -1,0 +1,717 @@
+#include "cairn/map/gravity_estimator.hpp"
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <memory>
+#include <map>
+#include <set>
+#include <utility>
+
+#include "gravity_terms.hpp"
+
+namespace cairn::map {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+
+double Wrap(double a) { return std::remainder(a, 2.0 * kPi); }
+
+Error FieldError(const std::string& field, const std::string& what) {
+  return Error{"gravity." + field + ": " + what};
+}
+
+// The raw samples as integration pieces: sample j covers [stamp - dt/2, stamp + dt/2].
+struct Sample {
+  GravityImuSample raw;
+  double dt_s = 0.0;
+};
+
+// One frame of the window and its states.
+struct WindowFrame {
+  GravityFrame input;
+  int id = 0;
+  double rpy[3] = {0.0, 0.0, 0.0};
+  double h[1] = {0.0};
+  std::vector<Sample> samples;  // those that arrived with it
+  // Its velocity (odometry frame, z 0) from the neighbours' odometry, once the next frame
+  // is in (central difference; one-sided at the start); a known velocity as given.
+  std::optional<Eigen::Vector3d> velocity;
+};
+
+// A Gaussian prior on parameter blocks (the slow states' start, or what the frames that
+// left the window said about the ones that remain).
+struct Prior {
+  Eigen::MatrixXd L;
+  Eigen::VectorXd x0, e0;
+  std::vector<double*> blocks;
+  std::vector<int> sizes;
+};
+
+enum class Kind { kAccel, kGyro, kAttitude, kYaw, kVertical, kHeightStep, kGround, kAnchor, kPrior };
+
+struct Residual {
+  ceres::ResidualBlockId id = nullptr;
+  std::vector<double*> blocks;
+  Kind kind = Kind::kPrior;
+  int frame = -1;  // window index of the frame it belongs to (centre, or first of a pair)
+};
+
+}  // namespace
+
+struct GravityEstimator::State {
+  GravityEstimatorConfig config;
+  Eigen::Matrix3d R_body_imu = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d R_body_sensor = Eigen::Matrix3d::Identity();
+  std::deque<std::unique_ptr<WindowFrame>> window;
+  double ba[3] = {0.0, 0.0, 0.0};
+  double bg[3] = {0.0, 0.0, 0.0};
+  double mount[2] = {0.0, 0.0};
+  double prior_bias[2] = {0.0, 0.0};
+  std::vector<Prior> priors;
+  int added = 0;
+  bool anchored = false;  // the first frame's height anchor has been marginalised
+  double last_sample_stamp_s = NAN;
+  double last_dt_s = NAN;
+  // Heading: unwrapped odometry yaw, its range so far; verticals seen so far.
+  double heading_unwrapped = 0.0, heading_min = 0.0, heading_max = 0.0;
+  double last_heading = NAN;
+  int verticals_seen = 0;
+
+  void Build(ceres::Problem& problem, std::vector<Residual>& residuals) const;
+  void Marginalise();
+};
+
+namespace {
+using gravity::ImuSegment;
+
+// Pieces of the window's samples within [a, b], in time order (forward) or reverse.
+std::vector<gravity::ImuSegment> SegmentsOf(const std::deque<std::unique_ptr<WindowFrame>>& w,
+                                            double a, double b, bool forward) {
+  std::vector<ImuSegment> out;
+  for (const auto& frame : w) {
+    for (const Sample& s : frame->samples) {
+      const double lo = std::max(s.raw.stamp_s - 0.5 * s.dt_s, a);
+      const double hi = std::min(s.raw.stamp_s + 0.5 * s.dt_s, b);
+      if (!(hi > lo)) continue;
+      ImuSegment seg;
+      seg.omega_imu = s.raw.angular_rate_radps;
+      seg.force_imu = s.raw.specific_force_mps2;
+      const double mid = std::clamp(s.raw.stamp_s, lo, hi);
+      seg.before_s = mid - lo;
+      seg.after_s = hi - mid;
+      seg.use_force = s.raw.stamp_s > a && s.raw.stamp_s <= b;
+      out.push_back(seg);
+    }
+  }
+  if (!forward) std::reverse(out.begin(), out.end());
+  return out;
+}
+
+}  // namespace
+
+void GravityEstimator::State::Build(ceres::Problem& problem,
+                                    std::vector<Residual>& residuals) const {
+  const GravityEstimatorConfig& c = config;
+  auto add = [&](ceres::CostFunction* cost, ceres::LossFunction* loss,
+                 std::vector<double*> blocks, Kind kind, int frame) {
+    Residual r;
+    r.id = problem.AddResidualBlock(cost, loss, blocks);
+    r.blocks = std::move(blocks);
+    r.kind = kind;
+    r.frame = frame;
+    residuals.push_back(std::move(r));
+  };
+  double* ba_ = const_cast<double*>(ba);
+  double* bg_ = const_cast<double*>(bg);
+  double* mount_ = const_cast<double*>(mount);
+  double* prior_bias_ = const_cast<double*>(prior_bias);
+  problem.AddParameterBlock(prior_bias_, 2);
+  problem.AddParameterBlock(ba_, 3);
+  problem.AddParameterBlock(bg_, 3);
+  problem.AddParameterBlock(mount_, 2);
+  const int n = static_cast<int>(window.size());
+  for (int i = 0; i < n; ++i) {
+    WindowFrame& f = *window[i];
+    problem.AddParameterBlock(f.rpy, 3);
+    problem.AddParameterBlock(f.h, 1);
+  }
+  for (int i = 0; i < n; ++i) {
+    WindowFrame& f = *window[i];
+    const GravityFrame& in = f.input;
+    if (in.attitude_prior_rad) {
+      auto* t = new gravity::AttitudePriorTerm{(*in.attitude_prior_rad)[0],
+                                               (*in.attitude_prior_rad)[1],
+                                               c.attitude_prior_sigma_rad};
+      add(new ceres::AutoDiffCostFunction<gravity::AttitudePriorTerm, 2, 3, 2>(t), nullptr,
+          {f.rpy, prior_bias_}, Kind::kAttitude, i);
+    }
+    auto* yaw = new gravity::YawPriorTerm{in.odometry_xy_yaw.z(), c.yaw_sigma_rad};
+    add(new ceres::AutoDiffCostFunction<gravity::YawPriorTerm, 1, 3>(yaw), nullptr, {f.rpy},
+        Kind::kYaw, i);
+    for (const VerticalCue& v : in.verticals) {
+      auto* t = new gravity::VerticalTerm;
+      t->direction_sensor = v.direction_sensor.normalized();
+      t->R_body_sensor = R_body_sensor;
+      t->wall_normal = v.wall_normal;
+      t->sigma_rad = v.wall_normal ? c.wall_sigma_rad : c.vertical_sigma_rad;
+      ceres::CostFunction* cost =
+          v.wall_normal
+              ? static_cast<ceres::CostFunction*>(
+                    new ceres::AutoDiffCostFunction<gravity::VerticalTerm, 1, 3, 2>(t))
+              : new ceres::AutoDiffCostFunction<gravity::VerticalTerm, 2, 3, 2>(t);
+      add(cost, new ceres::CauchyLoss(c.vertical_cauchy), {f.rpy, mount_}, Kind::kVertical, i);
+    }
+    if (in.ground_height_m) {
+      auto* t = new gravity::HeightTerm{*in.ground_height_m, in.ground_height_sigma_m};
+      add(new ceres::AutoDiffCostFunction<gravity::HeightTerm, 1, 1>(t),
+          new ceres::HuberLoss(c.ground_height_huber), {f.h}, Kind::kGround, i);
+    }
+    if (f.id == 0) {
+      // The start's anchor: heights are relative to it.
+      auto* t = new gravity::HeightTerm{in.ground_height_m.value_or(0.0), 0.01};
+      add(new ceres::AutoDiffCostFunction<gravity::HeightTerm, 1, 1>(t), nullptr, {f.h},
+          Kind::kAnchor, i);
+    }
+    if (i + 1 < n) {
+      WindowFrame& g = *window[i + 1];
+      const double t0 = in.stamp_s, t1 = g.input.stamp_s;
+      auto* gyro = new gravity::GyroTerm;
+      gyro->segments = SegmentsOf(window, t0, t1, true);
+      gyro->R_body_imu = R_body_imu;
+      double sum_sq = 0.0;
+      for (const ImuSegment& s : gyro->segments) {
+        sum_sq += (s.before_s + s.after_s) * (s.before_s + s.after_s);
+      }
+      gyro->sigma_rad = std::sqrt(c.gyro_sigma_radps * c.gyro_sigma_radps * sum_sq +
+                                  c.rotation_floor_rad * c.rotation_floor_rad);
+      if (!gyro->segments.empty()) {
+        add(new ceres::AutoDiffCostFunction<gravity::GyroTerm, 3, 3, 3, 3>(gyro), nullptr,
+            {f.rpy, g.rpy, bg_}, Kind::kGyro, i);
+      } else {
+        delete gyro;
+      }
+      auto* step = new gravity::HeightStepTerm;
+      if (in.velocity_world_mps && g.input.velocity_world_mps) {
+        step->from_pitch = false;
+        step->known_dh_m =
+            0.5 * (in.velocity_world_mps->z() + g.input.velocity_world_mps->z()) * (t1 - t0);
+        step->sigma_m = c.height_step_sigma_m;
+      } else {
+        step->distance_m = (g.input.odometry_xy_yaw.head<2>() - in.odometry_xy_yaw.head<2>()).norm();
+        step->sigma_m = c.height_step_sigma_m + c.height_step_sigma_per_m * step->distance_m;
+      }
+      add(new ceres::AutoDiffCostFunction<gravity::HeightStepTerm, 1, 1, 1, 3, 3>(step), nullptr,
+          {f.h, g.h, f.rpy, g.rpy}, Kind::kHeightStep, i);
+    }
+    const int m = c.accel_half_span_frames;
+    if (f.id % (2 * m) == 0 && i - m >= 0 && i + m < n && window[i - m]->velocity &&
+        window[i + m]->velocity) {
+      WindowFrame& fa = *window[i - m];
+      WindowFrame& fb = *window[i + m];
+      const double ta = fa.input.stamp_s, tb = fb.input.stamp_s;
+      auto* acc = new gravity::AccelTerm;
+      acc->forward = SegmentsOf(window, in.stamp_s, tb, true);
+      acc->backward = SegmentsOf(window, ta, in.stamp_s, false);
+      acc->R_body_imu = R_body_imu;
+      acc->span_s = tb - ta;
+      acc->gravity_mps2 = c.gravity_mps2;
+      const Eigen::Matrix3d R_level_world =
+          Eigen::AngleAxisd(-in.odometry_xy_yaw.z(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      double odometry_part = 0.0;
+      acc->v_minus = R_level_world * *fa.velocity;
+      acc->v_plus = R_level_world * *fb.velocity;
+      if (fa.input.velocity_world_mps && fb.input.velocity_world_mps) {
+        acc->vertical_from_pitch = false;
+      } else {
+        const double dt = acc->span_s / (2.0 * m);
+        odometry_part = c.odometry_sigma_m / (dt * acc->span_s);
+      }
+      int count = 0;
+      for (const ImuSegment& s : acc->forward) count += s.use_force ? 1 : 0;
+      for (const ImuSegment& s : acc->backward) count += s.use_force ? 1 : 0;
+      if (count > 0) {
+        acc->sigma_mps2 = std::sqrt(c.accel_sigma_mps2 * c.accel_sigma_mps2 / count +
+                                    c.motion_sigma_mps2 * c.motion_sigma_mps2 +
+                                    odometry_part * odometry_part);
+        add(new ceres::AutoDiffCostFunction<gravity::AccelTerm, 3, 3, 3, 3, 3, 3>(acc),
+            new ceres::HuberLoss(c.accel_huber), {fa.rpy, f.rpy, fb.rpy, ba_, bg_}, Kind::kAccel,
+            i);
+      } else {
+        delete acc;
+      }
+    }
+  }
+  for (const Prior& prior : priors) {
+    add(new gravity::LinearPrior(prior.L, prior.x0, prior.e0, prior.sizes), nullptr,
+        prior.blocks, Kind::kPrior, -1);
+  }
+}
+
+// Marginalises the oldest frame: the residuals that involve it become a Gaussian prior on
+// the other blocks they involve (Schur complement of its states), at the current values.
+void GravityEstimator::State::Marginalise() {
+  WindowFrame& old = *window.front();
+  ceres::Problem problem;
+  std::vector<Residual> residuals;
+  Build(problem, residuals);
+  std::vector<ceres::ResidualBlockId> leaving;
+  std::vector<double*> order = {old.rpy, old.h};
+  std::map<double*, int> size_of = {{old.rpy, 3}, {old.h, 1}};
+  std::set<double*> seen = {old.rpy, old.h};
+  for (const Residual& r : residuals) {
+    const bool involves = std::find(r.blocks.begin(), r.blocks.end(), old.rpy) != r.blocks.end() ||
+                          std::find(r.blocks.begin(), r.blocks.end(), old.h) != r.blocks.end();
+    if (!involves) continue;
+    leaving.push_back(r.id);
+    for (double* b : r.blocks) {
+      if (seen.insert(b).second) {
+        order.push_back(b);
+        size_of[b] = problem.ParameterBlockSize(b);
+      }
+    }
+  }
+  ceres::Problem::EvaluateOptions options;
+  options.residual_blocks = leaving;
+  options.parameter_blocks = order;
+  std::vector<double> residual_values;
+  ceres::CRSMatrix crs;
+  double cost = 0.0;
+  problem.Evaluate(options, &cost, &residual_values, nullptr, &crs);
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+  for (int row = 0; row < crs.num_rows; ++row) {
+    for (int k = crs.rows[row]; k < crs.rows[row + 1]; ++k) J(row, crs.cols[k]) = crs.values[k];
+  }
+  const Eigen::VectorXd r = Eigen::Map<Eigen::VectorXd>(residual_values.data(),
+                                                        static_cast<Eigen::Index>(residual_values.size()));
+  const Eigen::MatrixXd H = J.transpose() * J;
+  const Eigen::VectorXd g = J.transpose() * r;
+  const int m = 4;
+  // Slow states not estimated are held at their values (conditioned on), not kept.
+  std::vector<int> offsets;
+  int offset = 0;
+  for (std::size_t b = 0; b < order.size(); ++b) {
+    offsets.push_back(offset);
+    offset += size_of[order[b]];
+  }
+  Prior prior;
+  std::vector<int> keep_index;
+  for (std::size_t b = 2; b < order.size(); ++b) {
+    double* block = order[b];
+    const bool fixed = (block == ba && !config.estimate_accel_bias) ||
+                       (block == bg && !config.estimate_gyro_bias) ||
+                       (block == mount && !config.estimate_mount);
+    if (fixed) continue;
+    prior.blocks.push_back(block);
+    prior.sizes.push_back(size_of[block]);
+    for (int i = 0; i < size_of[block]; ++i) keep_index.push_back(offsets[b] + i);
+  }
+  const int k = static_cast<int>(keep_index.size());
+  if (k > 0) {
+    Eigen::MatrixXd Hmm = H.topLeftCorner(m, m);
+    Hmm.diagonal().array() += 1e-12;
+    Eigen::MatrixXd Hrm(k, m), Hrr(k, k);
+    Eigen::VectorXd gr(k);
+    for (int i = 0; i < k; ++i) {
+      Hrm.row(i) = H.block(keep_index[i], 0, 1, m);
+      gr[i] = g[keep_index[i]];
+      for (int j = 0; j < k; ++j) Hrr(i, j) = H(keep_index[i], keep_index[j]);
+    }
+    const Eigen::LDLT<Eigen::MatrixXd> solve(Hmm);
+    const Eigen::MatrixXd Hm = Hrr - Hrm * solve.solve(Hrm.transpose());
+    const Eigen::VectorXd gm = gr - Hrm * solve.solve(g.head(m));
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(0.5 * (Hm + Hm.transpose()));
+    const double floor = 1e-10 * std::max(1.0, eig.eigenvalues().maxCoeff());
+    const Eigen::VectorXd s = eig.eigenvalues().array().max(floor);
+    prior.L = s.array().sqrt().matrix().asDiagonal() * eig.eigenvectors().transpose();
+    prior.e0 = (s.array().rsqrt().matrix().asDiagonal() * eig.eigenvectors().transpose()) * gm;
+    prior.x0.resize(k);
+    int at = 0;
+    for (std::size_t b = 0; b < prior.blocks.size(); ++b) {
+      for (int i = 0; i < prior.sizes[b]; ++i) prior.x0[at++] = prior.blocks[b][i];
+    }
+  }
+  // The priors that involved the old frame are in the new one now.
+  std::vector<Prior> remaining;
+  for (Prior& p : priors) {
+    const bool involves = std::find(p.blocks.begin(), p.blocks.end(), old.rpy) != p.blocks.end() ||
+                          std::find(p.blocks.begin(), p.blocks.end(), old.h) != p.blocks.end();
+    if (!involves) remaining.push_back(std::move(p));
+  }
+  if (k > 0) remaining.push_back(std::move(prior));
+  priors = std::move(remaining);
+  window.pop_front();
+}
+
+Status GravityEstimatorConfig::Validate() const {
+  if (accel_half_span_frames < 1) {
+    return FieldError("accel_half_span_frames",
+                      "must be >= 1, got " + std::to_string(accel_half_span_frames));
+  }
+  if (window_frames < 2 * accel_half_span_frames + 2) {
+    return FieldError("window_frames", "must be >= 2 accel_half_span_frames + 2 = " +
+                                           std::to_string(2 * accel_half_span_frames + 2) +
+                                           ", got " + std::to_string(window_frames));
+  }
+  if (!(std::isfinite(odometry_sigma_m) && odometry_sigma_m >= 0.0)) {
+    return FieldError("odometry_sigma_m", "must be a finite number >= 0");
+  }
+  const struct {
+    const char* name;
+    double value;
+  } positive[] = {{"gravity_mps2", gravity_mps2},
+                  {"accel_sigma_mps2", accel_sigma_mps2},
+                  {"motion_sigma_mps2", motion_sigma_mps2},
+                  {"accel_huber", accel_huber},
+                  {"gyro_sigma_radps", gyro_sigma_radps},
+                  {"rotation_floor_rad", rotation_floor_rad},
+                  {"attitude_prior_sigma_rad", attitude_prior_sigma_rad},
+                  {"attitude_bias_sigma_rad", attitude_bias_sigma_rad},
+                  {"yaw_sigma_rad", yaw_sigma_rad},
+                  {"vertical_sigma_rad", vertical_sigma_rad},
+                  {"vertical_cauchy", vertical_cauchy},
+                  {"wall_sigma_rad", wall_sigma_rad},
+                  {"height_step_sigma_m", height_step_sigma_m},
+                  {"ground_height_huber", ground_height_huber},
+                  {"accel_bias_sigma_mps2", accel_bias_sigma_mps2},
+                  {"gyro_bias_sigma_radps", gyro_bias_sigma_radps},
+                  {"mount_sigma_rad", mount_sigma_rad},
+                  {"observable_ratio", observable_ratio}};
+  for (const auto& p : positive) {
+    if (!(std::isfinite(p.value) && p.value > 0.0)) {
+      return FieldError(p.name, "must be a finite number > 0, got " + std::to_string(p.value));
+    }
+  }
+  if (!(std::isfinite(height_step_sigma_per_m) && height_step_sigma_per_m >= 0.0)) {
+    return FieldError("height_step_sigma_per_m", "must be a finite number >= 0");
+  }
+  if (max_iterations < 1) return FieldError("max_iterations", "must be >= 1");
+  return {};
+}
+
+bool GravityEstimate::Degenerate(GravityDegeneracy::State state) const {
+  return std::any_of(degeneracies.begin(), degeneracies.end(),
+                     [&](const GravityDegeneracy& d) { return d.state == state; });
+}
+
+std::string GravityEstimate::BriefReport() const {
+  char line[512];
+  std::snprintf(line, sizeof(line),
+                "roll %.3f pitch %.3f deg (sigma %.3f %.3f), ba (%.3f %.3f %.3f) m/s^2, "
+                "mount (%.3f %.3f) deg; cues: %d accel (%d out), %d gyro, %d verticals (%d out), "
+                "%d priors; %d iterations, cost %.3g -> %.3g",
+                roll_rad / kDeg, pitch_rad / kDeg, std::sqrt(attitude_covariance(0, 0)) / kDeg,
+                std::sqrt(attitude_covariance(1, 1)) / kDeg, accel_bias_mps2.x(),
+                accel_bias_mps2.y(), accel_bias_mps2.z(), mount_rad.x() / kDeg,
+                mount_rad.y() / kDeg, cues.accel_terms, cues.accel_outliers, cues.gyro_terms,
+                cues.verticals, cues.vertical_outliers, cues.attitude_priors, iterations,
+                initial_cost, final_cost);
+  std::string out = line;
+  for (const GravityDegeneracy& d : degeneracies) out += "; not observable: " + d.reason;
+  return out;
+}
+
+GravityEstimator::GravityEstimator(std::unique_ptr<State> state) : state_(std::move(state)) {}
+GravityEstimator::GravityEstimator(GravityEstimator&&) noexcept = default;
+GravityEstimator& GravityEstimator::operator=(GravityEstimator&&) noexcept = default;
+GravityEstimator::~GravityEstimator() = default;
+
+int GravityEstimator::frames_added() const { return state_->added; }
+
+Expected<GravityEstimator> GravityEstimator::Create(const GravityEstimatorConfig& config,
+                                                    const Eigen::Matrix3d& R_body_imu,
+                                                    const Eigen::Matrix3d& R_body_sensor_nominal) {
+  if (Status s = config.Validate(); !s) return s.error();
+  auto state = std::make_unique<State>();
+  state->config = config;
+  state->R_body_imu = R_body_imu;
+  state->R_body_sensor = R_body_sensor_nominal;
+  // The slow states' prior (a fixed state gets none: it stays at zero).
+  Prior prior;
+  std::vector<double> info;
+  prior.blocks.push_back(state->prior_bias);
+  prior.sizes.push_back(2);
+  info.insert(info.end(), 2, 1.0 / config.attitude_bias_sigma_rad);
+  if (config.estimate_accel_bias) {
+    prior.blocks.push_back(state->ba);
+    prior.sizes.push_back(3);
+    info.insert(info.end(), 3, 1.0 / config.accel_bias_sigma_mps2);
+  }
+  if (config.estimate_gyro_bias) {
+    prior.blocks.push_back(state->bg);
+    prior.sizes.push_back(3);
+    info.insert(info.end(), 3, 1.0 / config.gyro_bias_sigma_radps);
+  }
+  if (config.estimate_mount) {
+    prior.blocks.push_back(state->mount);
+    prior.sizes.push_back(2);
+    info.insert(info.end(), 2, 1.0 / config.mount_sigma_rad);
+  }
+  if (!info.empty()) {
+    const int n = static_cast<int>(info.size());
+    prior.L = Eigen::Map<Eigen::VectorXd>(info.data(), n).asDiagonal();
+    prior.x0 = Eigen::VectorXd::Zero(n);
+    prior.e0 = Eigen::VectorXd::Zero(n);
+    state->priors.push_back(std::move(prior));
+  }
+  return GravityEstimator(std::move(state));
+}
+
+Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) {
+  State& st = *state_;
+  const GravityEstimatorConfig& c = st.config;
+  if (!std::isfinite(frame.stamp_s)) return FieldError("frame.stamp_s", "must be finite");
+  if (!st.window.empty() && !(frame.stamp_s > st.window.back()->input.stamp_s)) {
+    return FieldError("frame.stamp_s", "must be after the previous frame's (" +
+                                           std::to_string(st.window.back()->input.stamp_s) +
+                                           " s), got " + std::to_string(frame.stamp_s));
+  }
+  if (!frame.odometry_xy_yaw.allFinite()) {
+    return FieldError("frame.odometry_xy_yaw", "must be finite");
+  }
+  if (frame.velocity_world_mps && !frame.velocity_world_mps->allFinite()) {
+    return FieldError("frame.velocity_world_mps", "must be finite");
+  }
+  if (frame.attitude_prior_rad && !frame.attitude_prior_rad->allFinite()) {
+    return FieldError("frame.attitude_prior_rad", "must be finite");
+  }
+  for (std::size_t i = 0; i < frame.verticals.size(); ++i) {
+    if (!(frame.verticals[i].direction_sensor.allFinite() &&
+          frame.verticals[i].direction_sensor.norm() > 0.0)) {
+      return FieldError("frame.verticals[" + std::to_string(i) + "]",
+                        "must be a finite, non-zero direction");
+    }
+  }
+  if (frame.ground_height_m &&
+      !(std::isfinite(*frame.ground_height_m) && frame.ground_height_sigma_m > 0.0)) {
+    return FieldError("frame.ground_height_m", "must be finite, with a sigma > 0");
+  }
+
+  auto wf = std::make_unique<WindowFrame>();
+  wf->input = frame;
+  wf->id = st.added;
+  for (std::size_t j = 0; j < frame.imu.size(); ++j) {
+    const GravityImuSample& s = frame.imu[j];
+    if (!(std::isfinite(s.stamp_s) && s.specific_force_mps2.allFinite() &&
+          s.angular_rate_radps.allFinite())) {
+      return FieldError("frame.imu[" + std::to_string(j) + "]", "must be finite");
+    }
+    if (std::isfinite(st.last_sample_stamp_s) && !(s.stamp_s > st.last_sample_stamp_s)) {
+      return FieldError("frame.imu[" + std::to_string(j) + "].stamp_s",
+                        "must increase, got " + std::to_string(s.stamp_s) + " after " +
+                            std::to_string(st.last_sample_stamp_s));
+    }
+    Sample sample;
+    sample.raw = s;
+    if (std::isfinite(st.last_sample_stamp_s)) {
+      sample.dt_s = s.stamp_s - st.last_sample_stamp_s;
+    } else if (j + 1 < frame.imu.size()) {
+      sample.dt_s = frame.imu[j + 1].stamp_s - s.stamp_s;
+    } else {
+      sample.dt_s = 0.0;
+    }
+    st.last_sample_stamp_s = s.stamp_s;
+    wf->samples.push_back(sample);
+  }
+
+  // Initial values: the previous frame turned by the gyro; the first from its prior or the
+  // accelerometer.
+  if (st.window.empty()) {
+    if (frame.attitude_prior_rad) {
+      wf->rpy[0] = (*frame.attitude_prior_rad)[0];
+      wf->rpy[1] = (*frame.attitude_prior_rad)[1];
+    } else if (!frame.imu.empty()) {
+      Eigen::Vector3d f = Eigen::Vector3d::Zero();
+      for (const GravityImuSample& s : frame.imu) f += st.R_body_imu * s.specific_force_mps2;
+      wf->rpy[0] = std::atan2(f.y(), f.z());
+      wf->rpy[1] = std::atan2(-f.x(), std::hypot(f.y(), f.z()));
+    }
+    wf->rpy[2] = frame.odometry_xy_yaw.z();
+    wf->h[0] = frame.ground_height_m.value_or(0.0);
+  } else {
+    const WindowFrame& prev = *st.window.back();
+    Eigen::Matrix3d R = gravity::WorldFromBody(prev.rpy);
+    const Eigen::Vector3d bias(st.bg[0], st.bg[1], st.bg[2]);
+    for (const Sample& s : wf->samples) {
+      const Eigen::Vector3d w = st.R_body_imu * (s.raw.angular_rate_radps - bias) * s.dt_s;
+      if (w.norm() > 0.0) R = R * Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+    }
+    const Eigen::Matrix3d& Rm = R;
+    wf->rpy[1] = std::atan2(-Rm(2, 0), std::hypot(Rm(0, 0), Rm(1, 0)));
+    wf->rpy[0] = std::atan2(Rm(2, 1), Rm(2, 2));
+    wf->rpy[2] = prev.rpy[2] + Wrap(frame.odometry_xy_yaw.z() - prev.input.odometry_xy_yaw.z());
+    const double d = (frame.odometry_xy_yaw.head<2>() - prev.input.odometry_xy_yaw.head<2>()).norm();
+    wf->h[0] = prev.h[0] - d * std::tan(wf->rpy[1]);
+  }
+  // Heading range and structure seen so far, for the reasons given with a flag.
+  if (std::isfinite(st.last_heading)) {
+    st.heading_unwrapped += Wrap(frame.odometry_xy_yaw.z() - st.last_heading);
+  }
+  st.last_heading = frame.odometry_xy_yaw.z();
+  st.heading_min = std::min(st.heading_min, st.heading_unwrapped);
+  st.heading_max = std::max(st.heading_max, st.heading_unwrapped);
+  st.verticals_seen += static_cast<int>(frame.verticals.size());
+
+  if (frame.velocity_world_mps) wf->velocity = *frame.velocity_world_mps;
+  st.window.push_back(std::move(wf));
+  ++st.added;
+  if (st.window.size() >= 2) {
+    const std::size_t j = st.window.size() - 2;
+    WindowFrame& middle = *st.window[j];
+    if (!middle.velocity) {
+      const GravityFrame& before = st.window[j > 0 ? j - 1 : j]->input;
+      const GravityFrame& after = st.window[j + 1]->input;
+      Eigen::Vector3d v = Eigen::Vector3d::Zero();
+      v.head<2>() = (after.odometry_xy_yaw.head<2>() - before.odometry_xy_yaw.head<2>()) /
+                    (after.stamp_s - before.stamp_s);
+      middle.velocity = v;
+    }
+  }
+  while (static_cast<int>(st.window.size()) > c.window_frames) st.Marginalise();
+
+  // Solve.
+  ceres::Problem problem;
+  std::vector<Residual> residuals;
+  st.Build(problem, residuals);
+  if (!c.estimate_accel_bias) problem.SetParameterBlockConstant(st.ba);
+  if (!c.estimate_gyro_bias) problem.SetParameterBlockConstant(st.bg);
+  if (!c.estimate_mount) problem.SetParameterBlockConstant(st.mount);
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.max_num_iterations = c.max_iterations;
+  options.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+
+  WindowFrame& newest = *st.window.back();
+  GravityEstimate est;
+  est.stamp_s = frame.stamp_s;
+  est.roll_rad = Wrap(newest.rpy[0]);
+  est.pitch_rad = newest.rpy[1];
+  est.yaw_rad = Wrap(newest.rpy[2]);
+  est.height_m = newest.h[0];
+  est.accel_bias_mps2 = Eigen::Vector3d(st.ba[0], st.ba[1], st.ba[2]);
+  est.gyro_bias_radps = Eigen::Vector3d(st.bg[0], st.bg[1], st.bg[2]);
+  est.mount_rad = Eigen::Vector2d(st.mount[0], st.mount[1]);
+  est.attitude_bias_rad = Eigen::Vector2d(st.prior_bias[0], st.prior_bias[1]);
+  const Eigen::Matrix3d R_level_body = gravity::LevelFromBody(newest.rpy);
+  est.up_body = R_level_body.transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Matrix3d R_mount = gravity::RotY(st.mount[1]) * gravity::RotX(st.mount[0]);
+  est.up_sensor = (R_mount * st.R_body_sensor).transpose() * est.up_body;
+  est.iterations = static_cast<int>(summary.iterations.size());
+  est.initial_cost = summary.initial_cost;
+  est.final_cost = summary.final_cost;
+  est.converged = summary.IsSolutionUsable();
+  est.solver_report = summary.BriefReport();
+
+  // Cues.
+  GravityCues& cues = est.cues;
+  for (const Residual& r : residuals) {
+    switch (r.kind) {
+      case Kind::kAccel:
+      case Kind::kVertical: {
+        const ceres::CostFunction* cost = problem.GetCostFunctionForResidualBlock(r.id);
+        std::vector<double> values(cost->num_residuals());
+        std::vector<const double*> params(r.blocks.begin(), r.blocks.end());
+        cost->Evaluate(params.data(), values.data(), nullptr);
+        double sq = 0.0;
+        for (double v : values) sq += v * v;
+        const bool outlier = std::sqrt(sq) > (r.kind == Kind::kAccel ? c.accel_huber : 3.0);
+        if (r.kind == Kind::kAccel) {
+          ++cues.accel_terms;
+          cues.accel_outliers += outlier ? 1 : 0;
+        } else {
+          ++cues.verticals;
+          cues.vertical_outliers += outlier ? 1 : 0;
+        }
+        break;
+      }
+      case Kind::kGyro: ++cues.gyro_terms; break;
+      case Kind::kAttitude: ++cues.attitude_priors; break;
+      case Kind::kGround: ++cues.ground_heights; break;
+      default: break;
+    }
+  }
+  cues.frame_imu_samples = static_cast<int>(frame.imu.size());
+  cues.frame_verticals = static_cast<int>(frame.verticals.size());
+  cues.heading_change_rad = st.heading_max - st.heading_min;
+
+  // Covariance and what it says about observability.
+  if (c.covariance) {
+    ceres::Covariance::Options cov_options;
+    cov_options.algorithm_type = ceres::DENSE_SVD;
+    cov_options.null_space_rank = -1;
+    ceres::Covariance covariance(cov_options);
+    std::vector<std::pair<const double*, const double*>> blocks = {{newest.rpy, newest.rpy},
+                                                                   {newest.h, newest.h}};
+    if (c.estimate_accel_bias) blocks.emplace_back(st.ba, st.ba);
+    if (c.estimate_gyro_bias) blocks.emplace_back(st.bg, st.bg);
+    if (c.estimate_mount) blocks.emplace_back(st.mount, st.mount);
+    if (covariance.Compute(blocks, &problem)) {
+      Eigen::Matrix<double, 3, 3, Eigen::RowMajor> m3;
+      covariance.GetCovarianceBlock(newest.rpy, newest.rpy, m3.data());
+      est.attitude_covariance = m3;
+      covariance.GetCovarianceBlock(newest.h, newest.h, &est.height_variance);
+      if (c.estimate_accel_bias) {
+        covariance.GetCovarianceBlock(st.ba, st.ba, m3.data());
+        est.accel_bias_covariance = m3;
+      }
+      if (c.estimate_gyro_bias) {
+        covariance.GetCovarianceBlock(st.bg, st.bg, m3.data());
+        est.gyro_bias_covariance = m3;
+      }
+      if (c.estimate_mount) {
+        Eigen::Matrix<double, 2, 2, Eigen::RowMajor> m2;
+        covariance.GetCovarianceBlock(st.mount, st.mount, m2.data());
+        est.mount_covariance = m2;
+      }
+      char why[256];
+      const double limit = c.observable_ratio;
+      if (c.estimate_accel_bias) {
+        // Along the body's horizontal axes (the IMU's may point anywhere).
+        const Eigen::Matrix3d P =
+            st.R_body_imu * est.accel_bias_covariance * st.R_body_imu.transpose();
+        const double sx = std::sqrt(P(0, 0)), sy = std::sqrt(P(1, 1));
+        if (std::max(sx, sy) > limit * c.accel_bias_sigma_mps2) {
+          std::snprintf(why, sizeof(why),
+                        "accelerometer bias (sigma %.3f %.3f m/s^2 of %.3f a priori): the heading "
+                        "changed %.0f deg so far; on a straight drive a bias and a tilt look "
+                        "alike, a turn or a change of attitude tells them apart (tilt uncertain by "
+                        "up to %.2f deg)",
+                        sx, sy, c.accel_bias_sigma_mps2, cues.heading_change_rad / kDeg,
+                        std::max(sx, sy) / c.gravity_mps2 / kDeg);
+          est.degeneracies.push_back({GravityDegeneracy::State::kAccelBias, why});
+        }
+      }
+      if (c.estimate_gyro_bias) {
+        const double s = std::sqrt(est.gyro_bias_covariance.diagonal().maxCoeff());
+        if (s > limit * c.gyro_bias_sigma_radps) {
+          std::snprintf(why, sizeof(why), "gyro bias (sigma %.4f rad/s of %.4f a priori)", s,
+                        c.gyro_bias_sigma_radps);
+          est.degeneracies.push_back({GravityDegeneracy::State::kGyroBias, why});
+        }
+      }
+      if (c.estimate_mount) {
+        const double s = std::sqrt(est.mount_covariance.diagonal().maxCoeff());
+        if (s > limit * c.mount_sigma_rad) {
+          std::snprintf(why, sizeof(why),
+                        "sensor mount tilt (sigma %.2f deg of %.2f a priori): %d vertical cues seen "
+                        "so far; the mount needs trunks, poles or walls in view",
+                        s / kDeg, c.mount_sigma_rad / kDeg, st.verticals_seen);
+          est.degeneracies.push_back({GravityDegeneracy::State::kMount, why});
+        }
+      }
+    } else {
+      est.degeneracies.push_back(
+          {GravityDegeneracy::State::kCovariance, "covariance: the window's problem is rank deficient"});
+    }
+  }
+  return est;
+}
+
+}  // namespace cairn::map

@@ -1,0 +1,398 @@
+// GravityEstimator on synthetic drives with exact truth: a known tilt recovered on a side
+// slope from a biased IMU attitude; an accelerometer bias observed when the vehicle turns and
+// flagged when it drives straight; a sensor mount misalignment recovered from trunks and
+// flagged in an open field; the error terms' derivatives against numeric ones.
+#include <gtest/gtest.h>
+
+#include <ceres/gradient_checker.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <random>
+#include <vector>
+
+#include "cairn/map/gravity_estimator.hpp"
+#include "cairn/sim/drive.hpp"
+#include "cairn/sim/terrain.hpp"
+#include "gravity_terms.hpp"
+
+namespace cairn::map {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+
+// A drive's frames as the estimator takes them, and the truth beside them.
+struct Truth {
+  Eigen::Matrix3d R_world_body;
+  Eigen::Matrix3d R_world_sensor;
+};
+
+struct Cues {
+  bool trunks = true;         // four trunks per frame, leaning N(0, 1 deg), one in ten 12 deg
+  double attitude_bias_rad = 2.5 * kDeg;  // the IMU attitude output's bias (roll and pitch)
+  double attitude_sigma_rad = 0.4 * kDeg;
+  std::uint64_t seed = 1;
+};
+
+struct DriveRun {
+  std::vector<GravityEstimate> estimates;
+  std::vector<double> body_error_deg;    // angle between true and estimated up (body)
+  std::vector<double> sensor_error_deg;  // (sensor)
+  std::vector<double> prior_error_deg;   // the IMU attitude output's
+};
+
+// Tilt of `est_up` against the true up in the same frame [deg].
+double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b)) / kDeg;
+}
+
+double Percentile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  const std::size_t i = std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5));
+  return v[i];
+}
+
+// The figures libmap/README.md quotes.
+void Print(const char* what, const std::vector<double>& errors_deg) {
+  std::printf("[ figures  ] %s: median %.3f deg, 95th percentile %.3f deg (%zu frames)\n", what,
+              Percentile(errors_deg, 0.5), Percentile(errors_deg, 0.95), errors_deg.size());
+}
+
+// Feeds frames (truth poses at stamps, odometry, IMU samples) to an estimator.
+DriveRun Estimate(const GravityEstimatorConfig& config, const Eigen::Matrix3d& R_body_sensor_nominal,
+             const std::vector<double>& stamps, const std::vector<Truth>& truth,
+             const std::vector<Eigen::Vector3d>& odometry, const std::vector<sim::ImuReading>& imu,
+             const Cues& cues, int skip) {
+  Expected<GravityEstimator> estimator =
+      GravityEstimator::Create(config, Eigen::Matrix3d::Identity(), R_body_sensor_nominal);
+  EXPECT_TRUE(estimator.ok()) << estimator.error().message;
+  std::mt19937_64 rng(cues.seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 2.0 * kPi);
+  DriveRun run;
+  std::size_t j = 0;
+  for (std::size_t k = 0; k < stamps.size(); ++k) {
+    GravityFrame frame;
+    frame.stamp_s = stamps[k];
+    for (; j < imu.size() && imu[j].stamp_s <= stamps[k] + 1e-9; ++j) {
+      frame.imu.push_back({imu[j].stamp_s, imu[j].specific_force_mps2, imu[j].angular_rate_radps});
+    }
+    frame.odometry_xy_yaw = odometry[k];
+    const sim::Attitude a = sim::AttitudeFromRotation(truth[k].R_world_body);
+    const Eigen::Vector2d prior(a.roll_rad + cues.attitude_bias_rad + cues.attitude_sigma_rad * normal(rng),
+                                a.pitch_rad + cues.attitude_bias_rad + cues.attitude_sigma_rad * normal(rng));
+    frame.attitude_prior_rad = prior;
+    if (cues.trunks) {
+      for (int t = 0; t < 4; ++t) {
+        const double lean = (k * 4 + t) % 10 == 3 ? 12.0 * kDeg : 1.0 * kDeg * normal(rng);
+        const double towards = uniform(rng);
+        const Eigen::Vector3d axis(std::sin(lean) * std::cos(towards),
+                                   std::sin(lean) * std::sin(towards), std::cos(lean));
+        frame.verticals.push_back({truth[k].R_world_sensor.transpose() * axis, false});
+      }
+    }
+    Expected<GravityEstimate> est = estimator->AddFrame(frame);
+    EXPECT_TRUE(est.ok()) << est.error().message;
+    if (!est.ok()) return run;
+    const Eigen::Vector3d up_body = truth[k].R_world_body.transpose() * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d up_sensor =
+        truth[k].R_world_sensor.transpose() * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d prior_up =
+        sim::RotationFromAttitude({prior[0], prior[1], 0.0}).transpose() * Eigen::Vector3d::UnitZ();
+    if (static_cast<int>(k) >= skip) {
+      run.body_error_deg.push_back(AngleDeg(est->up_body, up_body));
+      run.sensor_error_deg.push_back(AngleDeg(est->up_sensor, up_sensor));
+      run.prior_error_deg.push_back(AngleDeg(prior_up, up_body));
+    }
+    run.estimates.push_back(*est);
+  }
+  return run;
+}
+
+// A simulated drive (libsim's IMU model) through the estimator.
+DriveRun EstimateDrive(const GravityEstimatorConfig& config, const sim::Terrain& terrain,
+                  const sim::DriveSpec& spec, const sim::ImuSpec& imu, const Cues& cues,
+                  int skip) {
+  Expected<sim::Drive> drive =
+      sim::SimulateDrive(terrain, spec, sim::SensorFrame::kCameraOptical, 7, 0, imu);
+  EXPECT_TRUE(drive.ok()) << drive.error().message;
+  std::vector<double> stamps;
+  std::vector<Truth> truth;
+  std::vector<Eigen::Vector3d> odometry;
+  for (const sim::DriveSample& s : drive->samples) {
+    stamps.push_back(s.stamp_s);
+    truth.push_back({s.T_world_body.linear(), s.T_world_sensor.linear()});
+    odometry.emplace_back(s.odometry.x_m, s.odometry.y_m, s.odometry.yaw_rad);
+  }
+  return Estimate(config, drive->T_body_sensor.linear(), stamps, truth, odometry, drive->imu,
+                  cues, skip);
+}
+
+// A smooth drive on flat ground (the simulated drive follows a polyline, whose corners
+// are velocity jumps): speed v, yaw rate omega0 (1 - cos(2 pi t / P)) / 2, from straight to
+// turning and back (a constant-rate circle would let a gyro bias stand in for a tilt),
+// frames at 10 Hz, IMU at 100 Hz with an accelerometer bias.
+DriveRun EstimateTurning(const GravityEstimatorConfig& config, const Eigen::Vector3d& accel_bias,
+                         double duration, const Cues& cues, int skip) {
+  const double v = 2.0, omega0 = 0.5, period = 20.0, h = 1e-4;
+  auto heading = [&](double t) {
+    return 0.5 * omega0 * (t - period / (2.0 * kPi) * std::sin(2.0 * kPi * t / period));
+  };
+  std::vector<Eigen::Vector2d> table(static_cast<std::size_t>((duration + 1.0) / h) + 2);
+  table[0].setZero();
+  for (std::size_t i = 1; i < table.size(); ++i) {
+    const double mid = heading((i - 0.5) * h);
+    table[i] = table[i - 1] + v * h * Eigen::Vector2d(std::cos(mid), std::sin(mid));
+  }
+  auto pose = [&](double t) {
+    Eigen::Vector2d xy;
+    if (t <= 0.0) {
+      xy = Eigen::Vector2d(v * t, 0.0);
+    } else {
+      const double u = t / h;
+      const std::size_t i = static_cast<std::size_t>(u);
+      xy = table[i] + (u - i) * (table[i + 1] - table[i]);
+    }
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() << xy, 0.0;
+    T.linear() = Eigen::AngleAxisd(heading(t), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    return T;
+  };
+  const Eigen::Matrix3d R_body_sensor = sim::BodyToSensor(sim::DriveSpec{},
+                                                          sim::SensorFrame::kCameraOptical).linear();
+  std::vector<double> stamps;
+  std::vector<Truth> truth;
+  std::vector<Eigen::Vector3d> odometry;
+  for (int k = 0; k * 0.1 <= duration; ++k) {
+    const double t = k * 0.1;
+    const Eigen::Isometry3d T = pose(t);
+    stamps.push_back(t);
+    truth.push_back({T.linear(), T.linear() * R_body_sensor});
+    odometry.emplace_back(T.translation().x(), T.translation().y(), heading(t));
+  }
+  std::mt19937_64 rng(cues.seed + 100);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::vector<sim::ImuReading> imu;
+  for (int j = 0; (j + 0.5) * 0.01 <= stamps.back(); ++j) {
+    sim::ImuReading reading = sim::IdealImuReading(pose, (j + 0.5) * 0.01, 0.01);
+    for (int i = 0; i < 3; ++i) {
+      reading.specific_force_mps2[i] += accel_bias[i] + 0.02 * normal(rng);
+      reading.angular_rate_radps[i] += 0.002 * normal(rng);
+    }
+    imu.push_back(reading);
+  }
+  return Estimate(config, R_body_sensor, stamps, truth, odometry, imu, cues, skip);
+}
+
+sim::DriveSpec SideSlopeDrive(double length_m) {
+  sim::DriveSpec spec;
+  spec.waypoints = {{0.0, 0.0}, {length_m, 0.0}};
+  spec.speed_mps = 2.0;
+  spec.frame_rate_hz = 10.0;
+  spec.odom_sigma_per_m = 0.01;
+  spec.imu_sigma_rad = 0.0;  // the attitude output's errors come from Cues
+  spec.imu_bias_rad = 0.0;
+  return spec;
+}
+
+TEST(GravityEstimator, RecoversAKnownTiltOnASideSlopeFromABiasedPrior) {
+  // 8 deg side slope (uphill to the left), speed changes, the IMU's attitude output 2.5 deg
+  // off in roll and pitch, an accelerometer bias, trunks in view and a calibrated mount:
+  // the trunks see the tilt itself, so even driving straight the bias is told from a tilt.
+  const sim::Terrain terrain = sim::Terrain::Slope(0.0, 8.0 * kDeg, 90.0 * kDeg);
+  sim::DriveSpec spec = SideSlopeDrive(40.0);
+  spec.speed_wave_mps = 0.5;
+  sim::ImuSpec imu;
+  imu.accel_bias_mps2 << 0.05, -0.05, 0.0;
+  GravityEstimatorConfig config;
+  config.estimate_mount = false;
+  const DriveRun run = EstimateDrive(config, terrain, spec, imu, Cues{}, 20);
+  ASSERT_GT(run.body_error_deg.size(), 150u);
+  Print("side slope, IMU attitude output (prior)", run.prior_error_deg);
+  Print("side slope, estimated body tilt", run.body_error_deg);
+  EXPECT_GT(Percentile(run.prior_error_deg, 0.5), 3.0);  // 2.5 deg in roll and in pitch
+  EXPECT_LT(Percentile(run.body_error_deg, 0.5), 0.2);
+  EXPECT_LT(Percentile(run.body_error_deg, 0.95), 0.5);
+  const GravityEstimate& last = run.estimates.back();
+  EXPECT_TRUE(last.IsSolutionUsable()) << last.solver_report;
+  EXPECT_GE(last.cues.accel_terms, 1);
+  EXPECT_GT(last.cues.verticals, 20);
+  EXPECT_GT(last.cues.vertical_outliers, 0);  // the 12 deg leaners
+  EXPECT_FALSE(last.Degenerate(GravityDegeneracy::State::kAccelBias)) << last.BriefReport();
+  EXPECT_NEAR(last.accel_bias_mps2.x(), 0.05, 0.02) << last.BriefReport();
+  EXPECT_NEAR(last.accel_bias_mps2.y(), -0.05, 0.02) << last.BriefReport();
+  // The attitude output's bias is found too (it is what the prior got wrong).
+  EXPECT_NEAR(last.attitude_bias_rad.x(), 2.5 * kDeg, 0.3 * kDeg);
+  EXPECT_NEAR(last.attitude_bias_rad.y(), 2.5 * kDeg, 0.3 * kDeg);
+  ASSERT_TRUE(std::isfinite(last.attitude_covariance(0, 0)));
+  EXPECT_LT(std::sqrt(last.attitude_covariance(0, 0)), 0.3 * kDeg);
+}
+
+TEST(GravityEstimator, AnAccelerometerBiasIsObservedWhenTurningAndFlaggedWhenStraight) {
+  const Eigen::Vector3d bias(0.08, -0.06, 0.03);
+  Cues cues;
+  cues.trunks = false;
+  const DriveRun turning = EstimateTurning(GravityEstimatorConfig{}, bias, 25.0, cues, 10);
+  const GravityEstimate& after = turning.estimates.back();
+  Print("turning, accelerometer bias, estimated body tilt", turning.body_error_deg);
+  EXPECT_NEAR(after.accel_bias_mps2.x(), bias.x(), 0.02) << after.BriefReport();
+  EXPECT_NEAR(after.accel_bias_mps2.y(), bias.y(), 0.02) << after.BriefReport();
+  EXPECT_FALSE(after.Degenerate(GravityDegeneracy::State::kAccelBias)) << after.BriefReport();
+  EXPECT_LT(Percentile(turning.body_error_deg, 0.5), 0.2);
+  // The first frames, before the turn, had it flagged.
+  EXPECT_TRUE(turning.estimates[5].Degenerate(GravityDegeneracy::State::kAccelBias));
+
+  // Straight on flat ground with the same bias: flagged, with the reason, and not learned.
+  sim::ImuSpec imu;
+  imu.accel_bias_mps2 = bias;
+  const DriveRun straight =
+      EstimateDrive(GravityEstimatorConfig{}, sim::Terrain::Flat(), SideSlopeDrive(30.0), imu, cues, 10);
+  const GravityEstimate& last = straight.estimates.back();
+  Print("straight, accelerometer bias (flagged), estimated body tilt", straight.body_error_deg);
+  ASSERT_TRUE(last.Degenerate(GravityDegeneracy::State::kAccelBias)) << last.BriefReport();
+  EXPECT_NE(last.BriefReport().find("straight drive"), std::string::npos);
+  EXPECT_GT(std::abs(last.accel_bias_mps2.x() - bias.x()), 0.03);  // not learned
+}
+
+TEST(GravityEstimator, AMountMisalignmentIsRecoveredFromTrunksAndFlaggedInAnOpenField) {
+  const sim::Terrain terrain = sim::Terrain::Slope(0.0, 6.0 * kDeg, 45.0 * kDeg);
+  sim::DriveSpec spec = SideSlopeDrive(30.0);
+  // About the camera's x axis (right): the camera pitches 2.5 deg more than its nominal mount.
+  spec.sensor_misalignment_rad << 2.5 * kDeg, 0.0, 0.0;
+  const DriveRun trees = EstimateDrive(GravityEstimatorConfig{}, terrain, spec, sim::ImuSpec{}, Cues{}, 20);
+  const GravityEstimate& seen = trees.estimates.back();
+  Print("mount misaligned 2.5 deg, trunks, estimated sensor tilt", trees.sensor_error_deg);
+  EXPECT_FALSE(seen.Degenerate(GravityDegeneracy::State::kMount)) << seen.BriefReport();
+  EXPECT_GT(seen.mount_rad.norm(), 2.0 * kDeg);
+  EXPECT_LT(Percentile(trees.sensor_error_deg, 0.5), 0.2);
+  EXPECT_LT(Percentile(trees.sensor_error_deg, 0.95), 0.5);
+
+  Cues open;
+  open.trunks = false;
+  const DriveRun field = EstimateDrive(GravityEstimatorConfig{}, terrain, spec, sim::ImuSpec{}, open, 20);
+  const GravityEstimate& blind = field.estimates.back();
+  Print("mount misaligned 2.5 deg, open field (flagged), sensor tilt", field.sensor_error_deg);
+  Print("mount misaligned 2.5 deg, open field, body tilt", field.body_error_deg);
+  ASSERT_TRUE(blind.Degenerate(GravityDegeneracy::State::kMount)) << blind.BriefReport();
+  EXPECT_NE(blind.BriefReport().find("0 vertical cues"), std::string::npos);
+  EXPECT_LT(blind.mount_rad.norm(), 0.5 * kDeg);  // no correction invented
+  EXPECT_GT(Percentile(field.sensor_error_deg, 0.5), 2.0);  // the misalignment remains
+  EXPECT_LT(Percentile(field.body_error_deg, 0.5), 0.2);    // the body tilt is still right
+}
+
+// ---- derivatives ------------------------------------------------------------------------
+
+void ExpectDerivativesMatchNumeric(const ceres::CostFunction& cost,
+                                   std::vector<std::vector<double>> values) {
+  std::vector<double*> parameters;
+  for (auto& v : values) parameters.push_back(v.data());
+  ceres::NumericDiffOptions numeric;
+  const std::vector<const ceres::Manifold*>* no_manifolds = nullptr;
+  ceres::GradientChecker checker(&cost, no_manifolds, numeric);
+  ceres::GradientChecker::ProbeResults results;
+  EXPECT_TRUE(checker.Probe(parameters.data(), 1e-6, &results)) << results.error_log;
+}
+
+std::vector<gravity::ImuSegment> SomeSegments(int n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::vector<gravity::ImuSegment> out;
+  for (int i = 0; i < n; ++i) {
+    gravity::ImuSegment s;
+    s.omega_imu << 0.3 * normal(rng), 0.3 * normal(rng), 0.5 * normal(rng);
+    s.force_imu << normal(rng), normal(rng), 9.8 + normal(rng);
+    s.before_s = 0.005;
+    s.after_s = 0.005;
+    out.push_back(s);
+  }
+  return out;
+}
+
+TEST(GravityTerms, DerivativesMatchNumericOnes) {
+  const std::vector<double> rpy0 = {0.05, -0.12, 0.7}, rpy1 = {0.06, -0.1, 0.75},
+                            rpy2 = {0.08, -0.09, 0.8};
+  const std::vector<double> bias3 = {0.02, -0.01, 0.03}, gyro3 = {0.001, -0.002, 0.0015};
+  const std::vector<double> mount = {0.01, -0.02}, bias2 = {0.03, -0.01};
+
+  auto* gyro = new gravity::GyroTerm;
+  gyro->segments = SomeSegments(10, 1);
+  gyro->R_body_imu = Eigen::AngleAxisd(0.2, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  ceres::AutoDiffCostFunction<gravity::GyroTerm, 3, 3, 3, 3> gyro_cost(gyro);
+  ExpectDerivativesMatchNumeric(gyro_cost, {rpy0, rpy1, gyro3});
+
+  for (bool from_pitch : {true, false}) {
+    auto* acc = new gravity::AccelTerm;
+    acc->forward = SomeSegments(5, 2);
+    acc->backward = SomeSegments(5, 3);
+    acc->v_minus << 1.9, 0.1, 0.05;
+    acc->v_plus << 2.1, 0.3, -0.02;
+    acc->vertical_from_pitch = from_pitch;
+    ceres::AutoDiffCostFunction<gravity::AccelTerm, 3, 3, 3, 3, 3, 3> acc_cost(acc);
+    ExpectDerivativesMatchNumeric(acc_cost, {rpy0, rpy1, rpy2, bias3, gyro3});
+  }
+
+  ceres::AutoDiffCostFunction<gravity::AttitudePriorTerm, 2, 3, 2> prior_cost(
+      new gravity::AttitudePriorTerm{0.1, -0.05, 0.01});
+  ExpectDerivativesMatchNumeric(prior_cost, {rpy0, bias2});
+
+  for (bool wall : {false, true}) {
+    auto* vertical = new gravity::VerticalTerm;
+    vertical->direction_sensor = Eigen::Vector3d(0.1, -0.98, 0.05).normalized();
+    vertical->R_body_sensor =
+        sim::BodyToSensor(sim::DriveSpec{}, sim::SensorFrame::kCameraOptical).linear();
+    vertical->wall_normal = wall;
+    if (wall) {
+      vertical->direction_sensor = Eigen::Vector3d(0.9, 0.05, 0.4).normalized();
+      ceres::AutoDiffCostFunction<gravity::VerticalTerm, 1, 3, 2> cost(vertical);
+      ExpectDerivativesMatchNumeric(cost, {rpy0, mount});
+    } else {
+      ceres::AutoDiffCostFunction<gravity::VerticalTerm, 2, 3, 2> cost(vertical);
+      ExpectDerivativesMatchNumeric(cost, {rpy0, mount});
+    }
+  }
+
+  ceres::AutoDiffCostFunction<gravity::HeightStepTerm, 1, 1, 1, 3, 3> step(
+      new gravity::HeightStepTerm{0.2, true, 0.0, 0.02});
+  ExpectDerivativesMatchNumeric(step, {{0.1}, {0.12}, rpy0, rpy1});
+
+  // The marginal prior's Jacobian is written by hand.
+  Eigen::MatrixXd L(4, 4);
+  L << 2, 0.1, 0, 0.3, 0, 1, 0.2, 0, 0, 0, 3, 0.1, 0, 0, 0, 0.5;
+  gravity::LinearPrior linear(L, Eigen::Vector4d(0.1, 0.2, 0.3, 0.4),
+                              Eigen::Vector4d(0.01, 0.0, -0.02, 0.0), {2, 2});
+  ExpectDerivativesMatchNumeric(linear, {{0.5, 0.1}, {-0.2, 0.7}});
+}
+
+TEST(GravityEstimator, ConfigAndInputErrorsNameTheField) {
+  GravityEstimatorConfig config;
+  config.window_frames = 2;
+  Status s = config.Validate();
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("gravity.window_frames"), std::string::npos);
+  config = {};
+  config.vertical_sigma_rad = -1.0;
+  s = config.Validate();
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("gravity.vertical_sigma_rad"), std::string::npos);
+
+  Expected<GravityEstimator> estimator = GravityEstimator::Create(
+      GravityEstimatorConfig{}, Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity());
+  ASSERT_TRUE(estimator.ok());
+  GravityFrame frame;
+  frame.stamp_s = 1.0;
+  ASSERT_TRUE(estimator->AddFrame(frame).ok());
+  Expected<GravityEstimate> again = estimator->AddFrame(frame);
+  ASSERT_FALSE(again.ok());
+  EXPECT_NE(again.error().message.find("gravity.frame.stamp_s"), std::string::npos);
+  frame.stamp_s = 2.0;
+  frame.verticals.push_back({Eigen::Vector3d::Zero(), false});
+  again = estimator->AddFrame(frame);
+  ASSERT_FALSE(again.ok());
+  EXPECT_NE(again.error().message.find("gravity.frame.verticals[0]"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace cairn::map
