@@ -471,7 +471,7 @@ TEST_F(Corpus, SettingsYaml) {
       {"rules.min_volume", "-0.1"},     {"rules.min_perimeter", "-2"},
       {"rules.min_slope_mean", "-5"},   {"rules.min_slope_mean", "120"},
       {"rules.min_slope_max", "400"},   {"rules.min_height_mean", "-1"},
-      {"rules.min_height_max", ".nan"}, {"rules.min_pairs", "-4"},
+      {"rules.min_height_max", ".nan"}, {"rules.min_raised", "-4"},
       {"column.min_blob_pixels", "-1"}, {"stereo.min_depth", "-1"},
       {"stereo.num_disparities", "7"},  {"stereo.block_size", "4"},
       {"stereo.block_size", "0"},       {"stereo.uniqueness", "-5"},
@@ -487,7 +487,7 @@ TEST_F(Corpus, SettingsYaml) {
        {"detector.min_height", "detector.max_height", "detector.min_slope",
         "detector.window_scale", "detector.region_slabs", "detector.threads",
         "detector.min_range", "rules.min_points", "rules.min_volume", "rules.min_slope_mean",
-        "rules.min_pairs", "column.min_blob_pixels", "stereo.min_depth", "stereo.p1"}) {
+        "rules.min_raised", "column.min_blob_pixels", "stereo.min_depth", "stereo.p1"}) {
     const std::string f = field;
     const std::string section = f.substr(0, f.find('.'));
     const std::string key = f.substr(f.find('.') + 1);
