@@ -80,6 +80,25 @@ RunResult Cairn(const std::vector<std::string>& args, const fs::path& scratch) {
   return run;
 }
 
+/// Runs `cairn <args>` and interrupts it (SIGINT, as Ctrl-C does) as soon as `watched`
+/// exists: a run stopped part-way.
+RunResult CairnInterruptedOnceThere(const std::vector<std::string>& args, const fs::path& watched,
+                                    const fs::path& scratch) {
+  std::string command = ShellQuote(CAIRN_EXE);
+  for (const std::string& a : args) command += " " + ShellQuote(a);
+  const fs::path out = scratch / "output.txt";
+  const std::string script = command + " >" + ShellQuote(out.string()) + " 2>&1 & pid=$!; " +
+                             "while kill -0 $pid 2>/dev/null && [ ! -e " +
+                             ShellQuote(watched.string()) + " ]; do sleep 0.01; done; " +
+                             "kill -INT $pid 2>/dev/null; wait $pid";
+  const int raw = std::system(("timeout -s KILL 120 bash -c " + ShellQuote(script)).c_str());
+  RunResult run;
+  if (WIFEXITED(raw)) run.status = WEXITSTATUS(raw);
+  if (WIFSIGNALED(raw)) run.signal = WTERMSIG(raw);
+  run.output = ReadFile(out);
+  return run;
+}
+
 /// One malformed input: the files to write (relative to the case's folder; "@" in a name
 /// or a value is the folder), the command line, and what the message must contain.
 struct Case {
@@ -987,11 +1006,11 @@ TEST_F(Corpus, Checkpoints) {
   const std::string rawlog =
       (kSource / "datasets" / "sequences" / "hill_drive" / "sequence.rawlog").string();
   const fs::path made = root_ / "made";
-  const RunResult cut = Cairn({"map", "--rawlog", rawlog, "--config",
-                         (kSource / "datasets" / "sequences" / "hill_drive" / "map.yaml").string(),
-                         "--max-frames", "3", "--checkpoint-every", "1", "--interrupt-after", "2",
-                         "--out", made.string()},
-                        root_);
+  const RunResult cut = CairnInterruptedOnceThere(
+      {"map", "--rawlog", rawlog, "--config",
+       (kSource / "datasets" / "sequences" / "hill_drive" / "map.yaml").string(),
+       "--checkpoint-every", "1", "--out", made.string()},
+      made / "map.checkpoint", root_);
   ASSERT_EQ(cut.status, 130) << cut.output;
   const std::string good = ReadFile(made / "map.checkpoint");
   ASSERT_GT(good.size(), 64u) << cut.output;
