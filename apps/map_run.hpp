@@ -68,6 +68,7 @@ struct FrameRecord {
   double rms_before_m = 0.0, rms_after_m = 0.0;
   int refine_points = 0;
   double read_s = 0.0, detect_s = 0.0, refine_s = 0.0, fuse_s = 0.0;
+  double rss_mb = 0.0;  ///< the process's resident memory once the frame was fused [MiB]
 };
 
 /// A frame that was not fused.

@@ -8,6 +8,7 @@
 #include "cairn/map/map_files.hpp"
 #include "cairn/od/io/atomic_file.hpp"
 #include "map_run.hpp"
+#include "process_memory.hpp"
 
 namespace cairn::apps {
 namespace {
@@ -93,7 +94,7 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
   std::ostringstream csv;
   csv << "frame,stamp_s,valid_points,segments,kept,obstacle_points,obstacles_created,"
          "lethal_cells,tilt_refined,d_roll_deg,d_pitch_deg,dz_m,rms_before_m,rms_after_m,"
-         "read_ms,detect_ms,refine_ms,fuse_ms\n";
+         "read_ms,detect_ms,refine_ms,fuse_ms,rss_mb\n";
   double distance_m = 0.0;
   for (std::size_t k = 0; k < records.size(); ++k) {
     const FrameRecord& r = records[k];
@@ -108,7 +109,8 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
         << Fixed(r.d_roll_rad / kMapDeg, 3) << "," << Fixed(r.d_pitch_rad / kMapDeg, 3) << ","
         << Fixed(r.dz_m, 3) << "," << Fixed(r.rms_before_m, 4) << "," << Fixed(r.rms_after_m, 4)
         << "," << Fixed(r.read_s * 1e3, 1) << "," << Fixed(r.detect_s * 1e3, 1) << ","
-        << Fixed(r.refine_s * 1e3, 1) << "," << Fixed(r.fuse_s * 1e3, 1) << "\n";
+        << Fixed(r.refine_s * 1e3, 1) << "," << Fixed(r.fuse_s * 1e3, 1) << ","
+        << Fixed(r.rss_mb, 1) << "\n";
   }
   if (Status s = od::io::WriteFileAtomic(dir / "poses.tum", tum); !s) return s.error();
   if (Status s = od::io::WriteFileAtomic(dir / "frames.csv", csv.str()); !s) return s.error();
@@ -185,6 +187,8 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
                        {"write", times.write_s},   {"checkpoint", times.checkpoint_s},
                        {"total", wall_s}};
   summary["frames_per_s"] = wall_s > 0 ? n / wall_s : 0.0;
+  // Of this process: a resumed run's peak is its own, not the interrupted run's.
+  summary["peak_rss_mb"] = ReadProcessMemory().peak_rss_mb;
   if (run.truth) summary["truth"] = TruthJson(*run.truth);
 
   std::ostringstream text;
@@ -219,7 +223,8 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
   text << "  time: read " << Fixed(times.read_s, 2) << " s, detect " << Fixed(times.detect_s, 2)
        << " s, refine " << Fixed(times.refine_s, 2) << " s, fuse " << Fixed(times.fuse_s, 2)
        << " s, write " << Fixed(times.write_s, 2) << " s; " << Fixed(wall_s, 2) << " s in all, "
-       << Fixed(n / wall_s, 2) << " frames/s\n";
+       << Fixed(n / wall_s, 2) << " frames/s; peak memory "
+       << Fixed(summary["peak_rss_mb"].get<double>(), 0) << " MiB\n";
   if (run.truth) TruthText(*run.truth, text);
   if (Status s = od::io::WriteFileAtomic(dir / "summary.json", summary.dump(2) + "\n"); !s) {
     return s.error();

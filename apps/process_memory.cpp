@@ -1,0 +1,25 @@
+#include "process_memory.hpp"
+
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace cairn::apps {
+
+ProcessMemory ReadProcessMemory() {
+  ProcessMemory m;
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    double* field = line.rfind("VmRSS:", 0) == 0   ? &m.rss_mb
+                    : line.rfind("VmHWM:", 0) == 0 ? &m.peak_rss_mb
+                                                   : nullptr;
+    if (field == nullptr) continue;
+    std::istringstream value(line.substr(6));
+    double kib = 0.0;
+    if (value >> kib) *field = kib / 1024.0;  // the kernel reports kB (KiB)
+  }
+  return m;
+}
+
+}  // namespace cairn::apps
