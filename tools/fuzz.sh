@@ -31,7 +31,7 @@ CXX=clang++ CC=clang cmake -S "$root" -B "$build" "${generator[@]}" -DCMAKE_BUIL
 targets=("$@")
 if [[ ${#targets[@]} -eq 0 ]]; then
   targets=(fuzz_intrinsics fuzz_settings fuzz_stereo_calib fuzz_depth_image fuzz_point_file
-           fuzz_kitti_text fuzz_world fuzz_checkpoint fuzz_rawlog fuzz_detector)
+           fuzz_kitti_text fuzz_world fuzz_checkpoint fuzz_rawlog fuzz_detector fuzz_map)
 fi
 cmake --build "$build" --parallel "$(nproc)" --target "${targets[@]}"
 
@@ -67,7 +67,7 @@ prefixed fuzz_kitti_text 00 "$shared"/kitti-seq00-0-10/calib.txt
 prefixed fuzz_kitti_text 01 "$shared"/kitti-seq00-0-10/poses.txt
 prefixed fuzz_kitti_text 02 "$shared"/kitti-seq00-0-10/times.txt
 seed fuzz_rawlog /usr/share/mrpt/datasets/tests_rgbd.rawlog
-mkdir -p "$build/seeds/fuzz_checkpoint" "$build/seeds/fuzz_detector"
+mkdir -p "$build/seeds/fuzz_checkpoint" "$build/seeds/fuzz_detector" "$build/seeds/fuzz_map"
 # A small valid point scan and PLY for the point reader, made here.
 python3 - "$build/seeds/fuzz_point_file" <<'PY'
 import math, struct, sys, os
@@ -83,17 +83,33 @@ PY
 python3 -c "import sys; sys.stdout.buffer.write(bytes([15, 11, 150, 60, 70, 100]) + bytes(range(256)) * 2)" \
   >"$build/seeds/fuzz_detector/ramp"
 
-# A real checkpoint: the first frames of the bundled drive, interrupted (needs the cairn
-# command of a normal build; skipped when there is none).
+# A real checkpoint: the bundled drive, interrupted (SIGINT) once its first checkpoint is
+# written (needs the cairn command of a normal build; skipped when there is none).
 cairn=${CAIRN_EXE:-$root/build/apps/cairn}
 if [[ -x $cairn && ! -f $build/seeds/fuzz_checkpoint/map.checkpoint ]]; then
   tmp=$(mktemp -d)
-  "$cairn" map --rawlog "$root/datasets/sequences/hill_drive/sequence.rawlog" --max-frames 2 \
-    --checkpoint-every 1 --interrupt-after 1 --out "$tmp/out" >/dev/null 2>&1 || true
+  "$cairn" map --rawlog "$root/datasets/sequences/hill_drive/sequence.rawlog" \
+    --checkpoint-every 1 --out "$tmp/out" >/dev/null 2>&1 &
+  pid=$!
+  for _ in $(seq 300); do
+    [[ -f $tmp/out/map.checkpoint ]] && break
+    sleep 0.1
+  done
+  kill -INT "$pid" 2>/dev/null || true
+  wait "$pid" 2>/dev/null || true
   [[ -f $tmp/out/map.checkpoint ]] && { printf '\x01'; cat "$tmp/out/map.checkpoint"; } \
     >"$build/seeds/fuzz_checkpoint/map.checkpoint"
   rm -rf "$tmp"
 fi
+# The map's seed: three frames of a wall 3 m ahead of a camera moving forward.
+python3 - "$build/seeds/fuzz_map/wall" <<'PY'
+import struct, sys
+out = bytes([2])
+for f in range(3):
+    out += bytes([128 + f, 128, 128, 128, 128, 128, 10, 128])
+    out += b''.join(struct.pack('<H', 3000 if r < 8 else 1500 + 100 * r) for r in range(12) for c in range(12))
+open(sys.argv[1], 'wb').write(out)
+PY
 
 export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:allocator_may_return_null=1"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
