@@ -109,23 +109,31 @@ class FlatKeySet {
                               static_cast<octomap::key_type>((packed >> 16) & 0xffff),
                               static_cast<octomap::key_type>((packed >> 32) & 0xffff));
   }
+  // Morton codes by spreading each 16-bit key to every third bit with shifts and masks
+  // (x at bits 3b, y at 3b + 1, z at 3b + 2), and back.
+  static std::uint64_t Spread3(std::uint64_t v) {
+    v &= 0xffff;
+    v = (v | v << 32) & 0x1f00000000ffffULL;
+    v = (v | v << 16) & 0x1f0000ff0000ffULL;
+    v = (v | v << 8) & 0x100f00f00f00f00fULL;
+    v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+    v = (v | v << 2) & 0x1249249249249249ULL;
+    return v;
+  }
+  static std::uint64_t Compact3(std::uint64_t v) {
+    v &= 0x1249249249249249ULL;
+    v = (v ^ (v >> 2)) & 0x10c30c30c30c30c3ULL;
+    v = (v ^ (v >> 4)) & 0x100f00f00f00f00fULL;
+    v = (v ^ (v >> 8)) & 0x1f0000ff0000ffULL;
+    v = (v ^ (v >> 16)) & 0x1f00000000ffffULL;
+    v = (v ^ (v >> 32)) & 0x1fffffULL;
+    return v;
+  }
   static std::uint64_t Morton(std::uint64_t packed) {
-    std::uint64_t code = 0;
-    for (int b = 0; b < 16; ++b) {
-      code |= ((packed >> b) & 1u) << (3 * b);
-      code |= ((packed >> (16 + b)) & 1u) << (3 * b + 1);
-      code |= ((packed >> (32 + b)) & 1u) << (3 * b + 2);
-    }
-    return code;
+    return Spread3(packed) | Spread3(packed >> 16) << 1 | Spread3(packed >> 32) << 2;
   }
   static std::uint64_t Unmorton(std::uint64_t code) {
-    std::uint64_t packed = 0;
-    for (int b = 0; b < 16; ++b) {
-      packed |= ((code >> (3 * b)) & 1u) << b;
-      packed |= ((code >> (3 * b + 1)) & 1u) << (16 + b);
-      packed |= ((code >> (3 * b + 2)) & 1u) << (32 + b);
-    }
-    return packed;
+    return Compact3(code) | Compact3(code >> 1) << 16 | Compact3(code >> 2) << 32;
   }
   static std::size_t Hash(std::uint64_t x) {  // splitmix64's finaliser
     x ^= x >> 30;

@@ -13,20 +13,26 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test) {
   const int n = static_cast<int>(level.z.size());
   Candidates c{std::vector<std::uint8_t>(n, 0), std::vector<std::uint8_t>(n, 0)};
   float x_lo = kInf, x_hi = -kInf, y_lo = kInf, y_hi = -kInf;
+  int valid = 0;
   for (int i = 0; i < n; ++i) {
     if (std::isnan(level.z[i])) continue;
+    ++valid;
     x_lo = std::min(x_lo, level.x[i]);
     x_hi = std::max(x_hi, level.x[i]);
     y_lo = std::min(y_lo, level.y[i]);
     y_hi = std::max(y_hi, level.y[i]);
   }
   if (!(x_lo <= x_hi)) return c;
-  // Cells of a quarter of the reach, at most 256 a side; rings of cells around a point's
-  // cell up to the reach.
+  // Cells of a quarter of the reach, at most 256 a side and at most about 2 sqrt(points) a
+  // side (so that a small cloud spread wide does not pay for a grid far larger than itself);
+  // rings of cells around a point's cell up to the reach. Any side keeps the filter exact:
+  // coarser cells only keep more candidates.
   const double tan_theta = std::sqrt(static_cast<double>(test.tan2_theta));
   const double reach = test.max_height / tan_theta;
   const double extent = std::max<double>(x_hi - x_lo, y_hi - y_lo);
-  const double side = std::max(reach / 4.0, extent / 255.0) * (1.0 + 1e-6);
+  const double per_side =
+      std::min(255.0, std::max(1.0, 2.0 * std::sqrt(static_cast<double>(valid))));
+  const double side = std::max(reach / 4.0, extent / per_side) * (1.0 + 1e-6);
   const int nx = static_cast<int>((x_hi - x_lo) / side) + 1;
   const int ny = static_cast<int>((y_hi - y_lo) / side) + 1;
   const int rings = std::max(1, static_cast<int>(std::ceil(reach / side)));
