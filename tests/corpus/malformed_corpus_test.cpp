@@ -1083,6 +1083,9 @@ TEST_F(Corpus, FuzzerFindings) {
                          {"detect", "--left", "@/left.png", "--right", "@/right.png",
                           "--stereo-calib", "@/rig.yaml", "--out", "@/out"},
                          {"@/rig.yaml"}});
+      } else if (kind == "rawlog") {
+        cases.push_back({name, {{"@/log.rawlog", bytes}}, {"info", "@/log.rawlog"},
+                         {"@/log.rawlog"}});
       } else if (kind == "kitti_poses") {
         cases.push_back({name,
                          {{"@/seq/velodyne/000000.bin", Scan()},

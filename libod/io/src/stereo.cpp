@@ -1,5 +1,6 @@
 #include "cairn/od/io/stereo.hpp"
 
+#include <exception>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -416,6 +417,11 @@ Expected<StereoCalibration> ParseOpenCvStereoCalibration(const std::string& text
   } catch (const cv::Exception& e) {
     return Error{source + ": not a readable OpenCV calibration file (cv::FileStorage: " + e.err +
                  ")"};
+  } catch (const std::exception& e) {
+    // OpenCV 4.6's YAML parser lets std::length_error and the like escape on some malformed
+    // text (found by fuzz_stereo_calib).
+    return Error{source + ": not a readable OpenCV calibration file (cv::FileStorage: " +
+                 e.what() + ")"};
   }
   if (!fs.isOpened()) return Error{source + ": not a readable OpenCV calibration file"};
 

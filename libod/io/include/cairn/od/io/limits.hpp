@@ -18,5 +18,11 @@ inline constexpr std::int64_t kMaxImagePixels = std::int64_t{1} << 26;
 inline constexpr std::size_t kMaxScanPoints = std::size_t{1} << 24;
 /// Bytes of one text scan after bzip2 decompression (1 GiB).
 inline constexpr std::size_t kMaxDecompressedBytes = std::size_t{1} << 30;
+/// One allocation of the cairn command (2 GiB; apps/allocation_guard.cpp): above every
+/// buffer the limits above allow (64 Mpx of double xyz is 1.5 GiB), so that a corrupt file
+/// whose header claims billions of elements, which a third-party reader (MRPT's rawlog
+/// deserialisation) allocates before it reads them, is refused as std::bad_alloc instead of
+/// taking the machine's memory.
+inline constexpr std::size_t kMaxAllocationBytes = std::size_t{1} << 31;
 
 }  // namespace cairn::od::io
