@@ -68,7 +68,8 @@ struct FrameRecord {
   double rms_before_m = 0.0, rms_after_m = 0.0;
   int refine_points = 0;
   double read_s = 0.0, detect_s = 0.0, refine_s = 0.0, fuse_s = 0.0;
-  double rss_mb = 0.0;  ///< the process's resident memory once the frame was fused [MiB]
+  double rss_mb = 0.0;   ///< the process's resident memory once the frame was fused [MiB]
+  double heap_mb = 0.0;  ///< of which malloc'd and not freed (ProcessMemory::heap_mb) [MiB]
 };
 
 /// A frame that was not fused.

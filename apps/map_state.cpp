@@ -49,7 +49,7 @@ constexpr const char* kFormat = "cairn map resume state 3";
 #define CAIRN_RECORD_FIELDS(X)                                                              \
   X(index) X(stamp_s) X(valid_points) X(segments) X(kept) X(tilt_from_imu) X(refined)       \
   X(d_roll_rad) X(d_pitch_rad) X(dz_m) X(rms_before_m) X(rms_after_m) X(refine_points)      \
-  X(read_s) X(detect_s) X(refine_s) X(fuse_s) X(rss_mb)
+  X(read_s) X(detect_s) X(refine_s) X(fuse_s) X(rss_mb) X(heap_mb)
 #define CAIRN_SUMMARY_FIELDS(X)                                                             \
   X(frame_id) X(stamp_s) X(valid_points) X(points_in_range) X(obstacle_points)              \
   X(ground_points) X(kept_segments) X(obstacles_created) X(obstacles_updated)               \
@@ -181,7 +181,9 @@ FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecor
   r.read_s = read_s;
   r.detect_s = m.detect_s;
   r.fuse_s = m.fuse_s;
-  r.rss_mb = ReadProcessMemory().rss_mb;
+  const ProcessMemory memory = ReadProcessMemory();
+  r.rss_mb = memory.rss_mb;
+  r.heap_mb = memory.heap_mb;
   return r;
 }
 

@@ -94,7 +94,7 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
   std::ostringstream csv;
   csv << "frame,stamp_s,valid_points,segments,kept,obstacle_points,obstacles_created,"
          "lethal_cells,tilt_refined,d_roll_deg,d_pitch_deg,dz_m,rms_before_m,rms_after_m,"
-         "read_ms,detect_ms,refine_ms,fuse_ms,rss_mb\n";
+         "read_ms,detect_ms,refine_ms,fuse_ms,rss_mb,heap_mb\n";
   double distance_m = 0.0;
   for (std::size_t k = 0; k < records.size(); ++k) {
     const FrameRecord& r = records[k];
@@ -110,7 +110,7 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
         << Fixed(r.dz_m, 3) << "," << Fixed(r.rms_before_m, 4) << "," << Fixed(r.rms_after_m, 4)
         << "," << Fixed(r.read_s * 1e3, 1) << "," << Fixed(r.detect_s * 1e3, 1) << ","
         << Fixed(r.refine_s * 1e3, 1) << "," << Fixed(r.fuse_s * 1e3, 1) << ","
-        << Fixed(r.rss_mb, 1) << "\n";
+        << Fixed(r.rss_mb, 1) << "," << Fixed(r.heap_mb, 1) << "\n";
   }
   if (Status s = od::io::WriteFileAtomic(dir / "poses.tum", tum); !s) return s.error();
   if (Status s = od::io::WriteFileAtomic(dir / "frames.csv", csv.str()); !s) return s.error();

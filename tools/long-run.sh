@@ -83,16 +83,17 @@ def ms(r):
 lines = ['# Long run: %d frames mapped online (`tools/long-run.sh %s`)' % (n, sys.argv[4]), '',
          '%.0f m driven; rolling window 40 m; %.2f frames/s end to end; peak resident memory %.1f MiB.'
          % (summary['distance_driven_m'], summary['frames_per_s'], summary['peak_rss_mb']), '',
-         '| frames | resident memory, MiB (min / max) | time per frame, ms (median / 95th pct) |',
-         '| --- | --- | --- |']
+         '| frames | resident memory, MiB (min / max) | of it in use (malloc), MiB | time per frame, ms (median / 95th pct) |',
+         '| --- | --- | --- | --- |']
 for b in range(0, n, block):
     part = rows[b:b + block]
     rss = [float(r['rss_mb']) for r in part]
+    heap = [float(r['heap_mb']) for r in part]
     t = sorted(ms(r) for r in part)
     p95 = t[min(len(t) - 1, int(0.95 * len(t)))]
-    lines.append('| %d-%d | %.1f / %.1f | %.1f / %.1f |'
+    lines.append('| %d-%d | %.1f / %.1f | %.1f / %.1f | %.1f / %.1f |'
                  % (int(part[0]['frame']), int(part[-1]['frame']), min(rss), max(rss),
-                    statistics.median(t), p95))
+                    min(heap), max(heap), statistics.median(t), p95))
 # Growth once the window is full: the least-squares slope of memory over the second half.
 half = rows[n // 2:]
 xs = [float(r['frame']) for r in half]
