@@ -58,7 +58,7 @@ def main():
                    rasterized=True)
     ax.plot([0], [0], "k^", markersize=6)
     h = args.half_extent
-    ax.set(xlim=(-h, h), ylim=(-h, h), aspect="equal", xlabel="-y (right) [m]",
+    ax.set(xlim=(-h, h), ylim=(-h, h), aspect="equal", xlabel="right (-y) [m]",
            ylabel="x (forward) [m]",
            title=f"{pathlib.Path(args.scan).name}: {det.kept} obstacles kept")
     ax.legend(loc="lower right", markerscale=12, fontsize=8)
