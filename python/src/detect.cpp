@@ -22,6 +22,13 @@ od::io::DetectRunOptions RunOptions(const std::string& method, bool rules, bool 
   return options;
 }
 
+od::io::OrganisedMode ParseOrganised(const std::string& text) {
+  if (text == "auto") return od::io::OrganisedMode::kAuto;
+  if (text == "yes") return od::io::OrganisedMode::kYes;
+  if (text == "no") return od::io::OrganisedMode::kNo;
+  throw CairnError("organised: expected auto, yes or no, got '" + text + "'");
+}
+
 DetectionResult DetectOn(od::RangeImage image, const Settings& settings,
                          const od::io::DetectRunOptions& options, od::io::RunDescription run) {
   od::io::DetectRun done = Unwrap(od::io::DetectAndClassify(image, settings.detect, options));
@@ -74,13 +81,6 @@ Settings ParseSettings(const std::string& text, const std::string& source) {
   s.detect = Unwrap(od::io::ParseDetectSettings(text, source));
   s.map = Unwrap(map::ParseMapperSettings(text, source));
   return s;
-}
-
-od::io::OrganisedMode ParseOrganised(const std::string& text) {
-  if (text == "auto") return od::io::OrganisedMode::kAuto;
-  if (text == "yes") return od::io::OrganisedMode::kYes;
-  if (text == "no") return od::io::OrganisedMode::kNo;
-  throw CairnError("organised: expected auto, yes or no, got '" + text + "'");
 }
 
 std::shared_ptr<DetectionResult> DetectPoints(const InArray<float>& points,

@@ -79,14 +79,9 @@ py::dict AddPoints(PyMapper& self, const InArray<float>& points, const InArray<d
   }
   const Eigen::Isometry3d T_world_sensor = ReadPose(pose, "T_world_sensor");
   od::io::LayoutOptions layout;
+  if (columns < 0) throw CairnError("columns: expected 0 (the sensor's) or a positive count");
   layout.columns = columns;
-  if (organised == "yes") {
-    layout.organised = od::io::OrganisedMode::kYes;
-  } else if (organised == "no") {
-    layout.organised = od::io::OrganisedMode::kNo;
-  } else if (organised != "auto") {
-    throw CairnError("organised: expected auto, yes or no, got '" + organised + "'");
-  }
+  layout.organised = ParseOrganised(organised);
   map::MapperRecord record;
   {
     py::gil_scoped_release release;

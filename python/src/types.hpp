@@ -9,6 +9,7 @@
 #include "cairn/map/mapper_config_file.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/io/detect_run.hpp"
+#include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/range_image.hpp"
 #include "common.hpp"
 
@@ -42,6 +43,9 @@ struct DetectionResult {
 
 /// What the command line's --method, --no-rules and --no-feet choose, checked.
 od::io::DetectRunOptions RunOptions(const std::string& method, bool rules, bool feet);
+
+/// "auto" | "yes" | "no" (--organised); anything else fails.
+od::io::OrganisedMode ParseOrganised(const std::string& text);
 
 /// Detection (and classes, segments.json text and, for scans, point labels) on `image`.
 /// Runs without the GIL; the caller must hold no Python object inside.
