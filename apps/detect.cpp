@@ -10,10 +10,10 @@
 #include <sstream>
 #include <string>
 
-#include "cairn/od/column_detector.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/detect_config.hpp"
+#include "cairn/od/io/detect_run.hpp"
 #include "cairn/od/io/detection_files.hpp"
 #include "cairn/od/io/intrinsics.hpp"
 #include "cairn/od/io/point_cloud.hpp"
@@ -41,25 +41,17 @@ Expected<od::io::DetectSettings> LoadDetectSettingsOrDefaults(const DetectOption
 Expected<DetectResult> DetectAndClassify(const od::RangeImage& image,
                                          const od::io::DetectSettings& settings,
                                          const DetectOptions& options) {
-  const DetectClock::time_point detect_start = DetectClock::now();
-  Expected<od::Detection> detection = Error{"no method"};
-  if (options.method == "column") {
-    od::ColumnConfig column = od::ColumnConfig::From(settings.detector);
-    column.min_blob_pixels = settings.min_blob_pixels;
-    detection = od::DetectColumns(image, column);
-  } else {
-    detection = od::Detect(image, settings.detector);
-  }
-  if (!detection) return detection.error();
-  if (options.no_feet) detection = od::WithoutFeet(std::move(*detection));
+  od::io::DetectRunOptions run_options;
+  run_options.method =
+      options.method == "column" ? od::io::DetectMethod::kColumn : od::io::DetectMethod::kCone;
+  run_options.apply_rules = !options.no_rules;
+  run_options.keep_feet = !options.no_feet;
+  Expected<od::io::DetectRun> run = od::io::DetectAndClassify(image, settings, run_options);
+  if (!run) return run.error();
   DetectResult result;
-  result.detect_ms = MillisecondsSince(detect_start);
-  Expected<od::Classification> classification =
-      options.no_rules ? Expected<od::Classification>(od::KeepAll(*detection))
-                       : od::Classify(*detection, settings.rules);
-  if (!classification) return classification.error();
-  result.detection = std::move(*detection);
-  result.classification = std::move(*classification);
+  result.detect_ms = run->detect_s * 1000.0;
+  result.detection = std::move(run->detection);
+  result.classification = std::move(run->classification);
   return result;
 }
 
@@ -99,12 +91,9 @@ Expected<LoadedScan> LoadScan(const DetectOptions& options) {
   }
   Expected<io::PointCloud> cloud = io::ReadPointFile(options.points);
   if (!cloud) return cloud.error();
-  Expected<io::FoundLayout> layout = io::FindLayout(*cloud, layout_options, options.points);
-  if (!layout) return layout.error();
-  Expected<od::RangeImage> image =
-      od::RangeImage::FromPoints(cloud->points, layout->model, *up, layout->rows, layout->cols);
-  if (!image) return Error{options.points + ": " + image.error().message};
-  return LoadedScan{std::move(*cloud), std::move(*layout), std::move(*image)};
+  Expected<io::PlacedScan> placed = io::PlaceScan(*cloud, layout_options, *up, options.points);
+  if (!placed) return placed.error();
+  return LoadedScan{std::move(*cloud), std::move(placed->layout), std::move(placed->image)};
 }
 
 Expected<LoadedDepth> LoadDepth(const DetectOptions& options) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -110,6 +111,32 @@ Expected<CellBox> ExportBounds(const TerrainMap& map) {
   const std::optional<CellBox> observed = map.ObservedBounds();
   if (!observed) return Error{"the map has observed nothing yet: no grid to write"};
   return *observed;
+}
+
+Expected<GridExport> ExportGrid(const TerrainMap& map) {
+  Expected<CellBox> box = ExportBounds(map);
+  if (!box) return box.error();
+  GridExport out;
+  out.box = *box;
+  out.width = box->size().x();
+  out.height = box->size().y();
+  out.resolution_m = map.config().cell_size_m;
+  out.origin_m = box->min.cast<double>() * out.resolution_m;
+  const std::size_t cells = static_cast<std::size_t>(out.width) * out.height;
+  out.cost.resize(cells);
+  out.elevation_m.resize(cells);
+  // The same cell for each pixel as GridImage, so that the arrays equal the files.
+  for (int r = 0; r < out.height; ++r) {
+    for (int c = 0; c < out.width; ++c) {
+      const Cell* cell = map.grid().Find(CellIndex(box->min.x() + c, box->max.y() - r));
+      const std::size_t i = static_cast<std::size_t>(r) * out.width + c;
+      out.cost[i] = cell != nullptr ? cell->cost : kUnknownCost;
+      out.elevation_m[i] = cell != nullptr && cell->has_elevation()
+                               ? cell->elevation_mean_m
+                               : std::numeric_limits<float>::quiet_NaN();
+    }
+  }
+  return out;
 }
 
 std::unique_ptr<octomap::OcTree> ToOcTree(const TerrainOcTree& tree) {

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -58,6 +59,25 @@ Grid<float> SmallDepth() {
   Grid<float> depth{5, 4, {}};
   for (int i = 0; i < 20; ++i) depth.data.push_back(i == 0 ? 0.0f : 1.0f + 0.1f * i);
   return depth;
+}
+
+TEST(SegmentsJson, TextIsWhatTheFileHolds) {
+  const test::TempDir dir;
+  RunDescription run;
+  run.method = "column";
+  const Expected<std::string> text =
+      SegmentsJsonText("here", SmallDetection(), SmallClassification(), run);
+  ASSERT_TRUE(text.ok()) << text.error().message;
+  ASSERT_TRUE(
+      WriteSegmentsJson(dir / "segments.json", SmallDetection(), SmallClassification(), run).ok());
+  std::ifstream in(dir / "segments.json");
+  const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(*text, file);
+  Classification short_of_one = SmallClassification();
+  short_of_one.verdicts.pop_back();
+  const Expected<std::string> bad = SegmentsJsonText("here", SmallDetection(), short_of_one, run);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.error().message.rfind("here: ", 0), 0u) << bad.error().message;
 }
 
 TEST(SegmentsPng, RoundTripsTheLabels) {

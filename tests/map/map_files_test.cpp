@@ -147,6 +147,36 @@ TEST(MapFiles, CostGridReadsBackAsMapServerReadsIt) {
   }
 }
 
+// ExportGrid holds what the files hold: each cell's cost (its occupancy is what map_server
+// reads back from cost.pgm, top row first) and elevation, with the YAML's origin.
+TEST(MapFiles, ExportedGridEqualsTheCostAndElevationFiles) {
+  const Expected<GridExport> grid = ExportGrid(Map());
+  ASSERT_TRUE(grid.ok()) << grid.error().message;
+  const Expected<OccupancyGrid> expected = ExpectedOccupancy(Map(), PgmMode::kRaw);
+  ASSERT_TRUE(expected.ok());
+  ASSERT_EQ(grid->width, expected->width);
+  ASSERT_EQ(grid->height, expected->height);
+  EXPECT_DOUBLE_EQ(grid->resolution_m, 0.2);
+  EXPECT_NEAR(grid->origin_m.x(), expected->origin.x(), 1e-12);
+  EXPECT_NEAR(grid->origin_m.y(), expected->origin.y(), 1e-12);
+  const test::TempDir dir;
+  ASSERT_TRUE(WriteElevationTiff(Map(), dir / "elevation.tiff").ok());
+  const cv::Mat tiff = cv::imread((dir / "elevation.tiff").string(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(tiff.rows, grid->height);
+  int lethal = 0;
+  for (int row = 0; row < grid->height; ++row) {
+    for (int col = 0; col < grid->width; ++col) {
+      const std::size_t i = static_cast<std::size_t>(row) * grid->width + col;
+      // Row 0 of the export is the top; row 0 of an OccupancyGrid is the bottom.
+      ASSERT_EQ(OccupancyFromCost(grid->cost[i]), expected->at(col, grid->height - 1 - row));
+      const float e = tiff.at<float>(row, col);
+      ASSERT_TRUE(std::isnan(e) ? std::isnan(grid->elevation_m[i]) : e == grid->elevation_m[i]);
+      lethal += grid->cost[i] == kLethalCost;
+    }
+  }
+  EXPECT_GT(lethal, 0);
+}
+
 // The reader follows map_server's rules for every mode, on pixels written by hand.
 TEST(MapFiles, MapServerReaderFollowsMapIo) {
   const test::TempDir dir;

@@ -243,10 +243,11 @@ Status WriteClassesPng(const std::filesystem::path& path, const Detection& detec
   return detail::WritePngAtomic(path, image);
 }
 
-Status WriteSegmentsJson(const std::filesystem::path& path, const Detection& detection,
-                         const Classification& classification, const RunDescription& run) {
-  if (Status s = CheckDetection(path.string(), detection); !s) return s;
-  if (Status s = CheckClassification(path.string(), detection, classification); !s) return s;
+Expected<std::string> SegmentsJsonText(const std::string& where, const Detection& detection,
+                                       const Classification& classification,
+                                       const RunDescription& run) {
+  if (Status s = CheckDetection(where, detection); !s) return s.error();
+  if (Status s = CheckClassification(where, detection, classification); !s) return s.error();
   Json segments = Json::array();
   for (std::size_t i = 0; i < detection.segments.size(); ++i) {
     segments.push_back(SegmentJson(detection.segments[i], classification.verdicts[i]));
@@ -272,7 +273,14 @@ Status WriteSegmentsJson(const std::filesystem::path& path, const Detection& det
         {"rejected", classification.rejected}}},
       {"segments", std::move(segments)}};
   // Non-finite measures are written as null (JSON has no NaN).
-  return WriteFileAtomic(path, doc.dump(2) + "\n");
+  return doc.dump(2) + "\n";
+}
+
+Status WriteSegmentsJson(const std::filesystem::path& path, const Detection& detection,
+                         const Classification& classification, const RunDescription& run) {
+  Expected<std::string> text = SegmentsJsonText(path.string(), detection, classification, run);
+  if (!text) return text.error();
+  return WriteFileAtomic(path, *text);
 }
 
 Expected<RgbImage> RenderOverlay(const Grid<float>& depth_m, const Detection& detection,

@@ -1112,6 +1112,16 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
   return finish(RingSource::kUniformBins, std::move(*bins), {});
 }
 
+Expected<PlacedScan> PlaceScan(const PointCloud& cloud, const LayoutOptions& options,
+                               const Eigen::Vector3d& up_sensor, const std::string& source) {
+  Expected<FoundLayout> layout = FindLayout(cloud, options, source);
+  if (!layout) return layout.error();
+  Expected<RangeImage> image =
+      RangeImage::FromPoints(cloud.points, layout->model, up_sensor, layout->rows, layout->cols);
+  if (!image) return Error{source + ": " + image.error().message};
+  return PlacedScan{std::move(*layout), std::move(*image)};
+}
+
 Expected<std::vector<std::uint32_t>> PointLabels(const RangeImage& image,
                                                  const Detection& detection,
                                                  const Classification& classification) {

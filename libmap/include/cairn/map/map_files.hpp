@@ -51,6 +51,21 @@ std::unique_ptr<octomap::OcTree> ToOcTree(const TerrainOcTree& tree);
 /// (255, 0, 0), other voxels coloured by height from blue-green (low) to yellow (high).
 std::unique_ptr<octomap::ColorOcTree> ToColorOcTree(const TerrainOcTree& tree);
 
+/// The grid of the image files, in memory: ExportBounds, map_server's orientation (row 0
+/// the top, highest y), row-major.
+struct GridExport {
+  CellBox box;
+  int width = 0;   ///< columns, along world x
+  int height = 0;  ///< rows, along world -y
+  double resolution_m = 0.0;
+  /// World xy of the lower-left cell's outer corner, as the YAMLs' origin [m].
+  Eigen::Vector2d origin_m = Eigen::Vector2d::Zero();
+  std::vector<Cost> cost;          ///< nav2 costmap values: 0 free .. 254 lethal, 255 unknown
+  std::vector<float> elevation_m;  ///< ground elevation, what elevation.tiff holds, NaN unknown
+};
+/// Fails like ExportBounds.
+Expected<GridExport> ExportGrid(const TerrainMap& map);
+
 /// OctoMap binary (.bt): the maximum-likelihood occupancy of ToOcTree (OcTree::writeBinary).
 Status WriteOctomapBinary(const TerrainMap& map, const std::filesystem::path& path);
 /// OctoMap full file (.ot) of ToOcTree: occupancy probabilities (OcTree::write).

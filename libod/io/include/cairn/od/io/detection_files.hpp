@@ -60,6 +60,12 @@ Status WriteOverlayPng(const std::filesystem::path& path, const Grid<float>& dep
 Status WriteSegmentsColorPng(const std::filesystem::path& path, const Grid<float>& depth_m,
                              const Detection& detection);
 
+/// What WriteSegmentsJson writes, as text (for callers that keep it in memory, as the
+/// Python module does). Fails, naming `where`, when the sizes disagree.
+Expected<std::string> SegmentsJsonText(const std::string& where, const Detection& detection,
+                                       const Classification& classification,
+                                       const RunDescription& run);
+
 /// Readers for evaluation and tests: segment ids and classes back from their PNGs.
 Expected<Grid<std::int32_t>> ReadSegmentsPng(const std::filesystem::path& path);
 Expected<Grid<std::uint8_t>> ReadClassesPng(const std::filesystem::path& path);

@@ -168,6 +168,16 @@ struct FoundLayout {
 Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& options,
                                  const std::string& source);
 
+/// A scan in its range image: the layout FindLayout finds and the image FromPoints makes
+/// of it with gravity's `up_sensor` (LiDAR frame). What `cairn detect --points` and the
+/// Python module do with a scan once it is read; `source` names the cloud in errors.
+struct PlacedScan {
+  FoundLayout layout;
+  RangeImage image;
+};
+Expected<PlacedScan> PlaceScan(const PointCloud& cloud, const LayoutOptions& options,
+                               const Eigen::Vector3d& up_sensor, const std::string& source);
+
 /// Per-point labels in SemanticKITTI layout: lower 16 bits the SegmentClass of the point's
 /// cell (0 none, 1 kept, 2 rejected; 0 for no return), upper 16 bits its segment id (0
 /// none). `image` must come from FromPoints and `detection` be made on it. Fails when a
