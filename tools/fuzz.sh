@@ -27,7 +27,7 @@ generator=()
 command -v ninja >/dev/null && [[ ! -f "$build/Makefile" ]] && generator=(-G Ninja)
 CXX=clang++ CC=clang cmake -S "$root" -B "$build" "${generator[@]}" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCAIRN_SANITIZE=address,undefined -DCAIRN_BUILD_FUZZERS=ON -DCAIRN_BUILD_TESTS=OFF \
-  -DCAIRN_BUILD_APPS=OFF >/dev/null
+  -DCAIRN_BUILD_APPS=OFF -DCAIRN_BUILD_PYTHON=OFF >/dev/null
 targets=("$@")
 if [[ ${#targets[@]} -eq 0 ]]; then
   targets=(fuzz_intrinsics fuzz_settings fuzz_stereo_calib fuzz_depth_image fuzz_point_file
