@@ -19,6 +19,8 @@
 #include <vector>
 
 #include "cairn/od/expected.hpp"
+#include "cairn/od/range_image.hpp"
+#include "cairn/od/sensor_model.hpp"
 
 namespace cairn::python {
 
@@ -62,7 +64,6 @@ Eigen::Isometry3d ReadPose(const InArray<double>& array, const std::string& name
 /// A unit-free 3-vector from a sequence of three numbers.
 Eigen::Vector3d ReadVector3(const std::vector<double>& values, const std::string& name);
 
-/// A numpy array over a vector's storage, owned by `owner` (zero-copy).
 /// A read-only numpy array over a vector's storage, kept alive by `owner` (zero-copy).
 template <typename T>
 py::array_t<T> View(const std::vector<T>& data, std::vector<py::ssize_t> shape, py::handle owner) {
@@ -79,6 +80,13 @@ py::array_t<T> Take(std::vector<T>&& data, std::vector<py::ssize_t> shape) {
   py::capsule free(owned, [](void* p) { delete static_cast<std::vector<T>*>(p); });
   return py::array_t<T>(shape, owned->data(), free);
 }
+
+/// The pinhole model of an (H, W) depth array [px].
+od::PinholeModel PinholeOf(const InArray<float>& depth_m, double fx, double fy, double cx,
+                           double cy);
+
+/// A range image's points as an (H, W, 3) float32 array, sensor frame [m].
+py::array_t<float> ImageXyz(const od::RangeImage& image);
 
 void RegisterDetect(py::module_& m);
 void RegisterMap(py::module_& m);

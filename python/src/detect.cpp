@@ -128,13 +128,7 @@ std::shared_ptr<DetectionResult> DetectDepth(const InArray<float>& depth_m, doub
     throw CairnError(source + ": expected an (H, W) array of z-depth [m], got " +
                      std::to_string(depth_m.ndim()) + " dimensions");
   }
-  od::PinholeModel model;
-  model.height = static_cast<int>(depth_m.shape(0));
-  model.width = static_cast<int>(depth_m.shape(1));
-  model.fx = fx;
-  model.fy = fy;
-  model.cx = cx;
-  model.cy = cy;
+  const od::PinholeModel model = PinholeOf(depth_m, fx, fy, cx, cy);
   const Eigen::Vector3d up_sensor = ReadVector3(up, "up");
   std::vector<float> depth(depth_m.data(), depth_m.data() + depth_m.size());
   const od::io::DetectRunOptions options = RunOptions(method, rules, feet);
@@ -256,16 +250,7 @@ void RegisterDetect(py::module_& m) {
           "(N,) int32 per input point: its cell (row * cols + col), -1 for no return.")
       .def_property_readonly(
           "xyz",
-          [](const DetectionResult& d) {
-            const od::RangeImage& im = d.image;
-            std::vector<float> xyz(static_cast<std::size_t>(im.size()) * 3);
-            for (int i = 0; i < im.size(); ++i) {
-              xyz[3 * i] = im.x()[i];
-              xyz[3 * i + 1] = im.y()[i];
-              xyz[3 * i + 2] = im.z()[i];
-            }
-            return Take(std::move(xyz), {im.height(), im.width(), 3});
-          },
+          [](const DetectionResult& d) { return ImageXyz(d.image); },
           "(rows, cols, 3) float32: each cell's point in the sensor frame [m], NaN where no "
           "return.")
       .def_property_readonly(

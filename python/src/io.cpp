@@ -219,16 +219,7 @@ void RegisterIo(py::module_& m) {
       .def_property_readonly("height", [](const Frame& f) { return f.image.height(); })
       .def_property_readonly(
           "xyz",
-          [](const Frame& f) {
-            const od::RangeImage& im = f.image;
-            std::vector<float> xyz(static_cast<std::size_t>(im.size()) * 3);
-            for (int i = 0; i < im.size(); ++i) {
-              xyz[3 * i] = im.x()[i];
-              xyz[3 * i + 1] = im.y()[i];
-              xyz[3 * i + 2] = im.z()[i];
-            }
-            return Take(std::move(xyz), {im.height(), im.width(), 3});
-          },
+          [](const Frame& f) { return ImageXyz(f.image); },
           "(rows, cols, 3) float32 range image in the sensor frame [m], NaN where no return.")
       .def("__repr__", [](const Frame& f) {
         return "cairn.Frame(" + std::to_string(f.index) + ", '" + f.name + "'" +

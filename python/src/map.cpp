@@ -98,13 +98,7 @@ py::dict AddPoints(PyMapper& self, const InArray<float>& points, const InArray<d
 py::dict AddDepth(PyMapper& self, const InArray<float>& depth_m, const InArray<double>& pose,
                   double stamp_s, double fx, double fy, double cx, double cy) {
   if (depth_m.ndim() != 2) throw CairnError("depth_m: expected an (H, W) array of z-depth [m]");
-  od::PinholeModel model;
-  model.height = static_cast<int>(depth_m.shape(0));
-  model.width = static_cast<int>(depth_m.shape(1));
-  model.fx = fx;
-  model.fy = fy;
-  model.cx = cx;
-  model.cy = cy;
+  const od::PinholeModel model = PinholeOf(depth_m, fx, fy, cx, cy);
   const Eigen::Isometry3d T_world_sensor = ReadPose(pose, "T_world_sensor");
   std::vector<float> depth(depth_m.data(), depth_m.data() + depth_m.size());
   map::MapperRecord record;

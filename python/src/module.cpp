@@ -92,6 +92,28 @@ Eigen::Vector3d ReadVector3(const std::vector<double>& values, const std::string
   return {values[0], values[1], values[2]};
 }
 
+od::PinholeModel PinholeOf(const InArray<float>& depth_m, double fx, double fy, double cx,
+                           double cy) {
+  od::PinholeModel model;
+  model.height = static_cast<int>(depth_m.shape(0));
+  model.width = static_cast<int>(depth_m.shape(1));
+  model.fx = fx;
+  model.fy = fy;
+  model.cx = cx;
+  model.cy = cy;
+  return model;
+}
+
+py::array_t<float> ImageXyz(const od::RangeImage& image) {
+  std::vector<float> xyz(static_cast<std::size_t>(image.size()) * 3);
+  for (int i = 0; i < image.size(); ++i) {
+    xyz[3 * i] = image.x()[i];
+    xyz[3 * i + 1] = image.y()[i];
+    xyz[3 * i + 2] = image.z()[i];
+  }
+  return Take(std::move(xyz), {image.height(), image.width(), 3});
+}
+
 }  // namespace cairn::python
 
 PYBIND11_MODULE(_cairn, m) {
