@@ -1154,7 +1154,9 @@ Expected<std::vector<std::uint32_t>> ReadLabelFile(const std::filesystem::path& 
                  " bytes is not a multiple of 4 (one uint32 per point): the file is truncated"};
   }
   std::vector<std::uint32_t> labels(bytes->size() / 4);
-  std::memcpy(labels.data(), bytes->data(), bytes->size());
+  // An empty file gives no labels; memcpy must not see the empty vector's null data()
+  // (found by the corpus under UBSan).
+  if (!labels.empty()) std::memcpy(labels.data(), bytes->data(), bytes->size());
   return labels;
 }
 
