@@ -35,9 +35,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-/// Frames between two ReleaseFreeMemory calls: a few milliseconds each, on a map of 60 MiB.
-constexpr int kTrimEveryFrames = 50;
-
 int Fail(const std::string& message) {
   std::cerr << "cairn map: error: " << message << "\n";
   return kExitFailure;
@@ -268,8 +265,7 @@ int RunMap(const MapOptions& options) {
       state.skipped.push_back({frame.name, reason, detail});
     }
     progress.Update(state.frames_read);
-    // A long online run keeps its resident memory level (process_memory.hpp).
-    if (state.frames_read % kTrimEveryFrames == 0) ReleaseFreeMemory();
+    ReleaseFreeMemoryEvery(state.frames_read);  // level memory on long runs
     if (options.checkpoint_every > 0 && state.frames_read % options.checkpoint_every == 0 &&
         state.frames_read < total) {
       if (Status s = save_checkpoint(); !s) return Fail(s.message());
