@@ -9,7 +9,7 @@ packages=(
   libspdlog-dev libfmt-dev libtbb-dev libbz2-dev
   liboctomap-dev octomap-tools libceres-dev libmrpt-dev mrpt-common
   libgtest-dev libgmock-dev libbenchmark-dev
-  pybind11-dev python3-dev python3-numpy python3-pytest python3-matplotlib
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-matplotlib python3-pil
 )
 
 missing=()

@@ -19,6 +19,13 @@ ValueError and RuntimeError, with the library's message.
 """
 
 from ._cairn import (  # noqa: F401
+    OUTCOME_FN,
+    OUTCOME_FP,
+    OUTCOME_IGNORED,
+    OUTCOME_NO_RETURN,
+    OUTCOME_TN,
+    OUTCOME_TP,
+    ClassMap,
     CostGrid,
     Detection,
     Error,
@@ -26,6 +33,7 @@ from ._cairn import (  # noqa: F401
     FrameSource,
     Intrinsics,
     KittiScan,
+    LabelScore,
     Mapper,
     Settings,
     __version__,
@@ -34,6 +42,7 @@ from ._cairn import (  # noqa: F401
     detect_frame,
     detect_points,
     kitti_frames,
+    load_class_map,
     load_intrinsics,
     load_settings,
     open_kitti,
@@ -44,6 +53,7 @@ from ._cairn import (  # noqa: F401
     read_labels,
     read_points,
     read_segments_png,
+    score_labels,
     write_labels,
 )
 

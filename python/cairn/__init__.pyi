@@ -282,3 +282,63 @@ def rawlog_frames(
 def depth_frames(folder: str, poses: str, intrinsics: str = "") -> FrameSource: ...
 def label_class(point_labels: npt.NDArray[np.uint32]) -> npt.NDArray[np.uint32]: ...
 def label_segment(point_labels: npt.NDArray[np.uint32]) -> npt.NDArray[np.uint32]: ...
+
+# Evaluation against real labels (`cairn eval --labels`).
+OUTCOME_NO_RETURN: int
+OUTCOME_IGNORED: int
+OUTCOME_TP: int
+OUTCOME_FP: int
+OUTCOME_FN: int
+OUTCOME_TN: int
+
+class ClassMap:
+    """Which dataset classes are obstacles, ground or ignored (config/classes/*.yaml)."""
+    @property
+    def source(self) -> str: ...
+    @property
+    def dataset(self) -> str: ...
+    @property
+    def classes(self) -> List[Dict[str, Any]]:
+        """One dict per class: id, name, role ("obstacle" | "ground" | "ignored"), color."""
+
+def load_class_map(path: str) -> ClassMap: ...
+
+class LabelScore:
+    """Per-point obstacle score against true labels, as results.csv of `cairn eval`."""
+    @property
+    def tp(self) -> int: ...
+    @property
+    def fp(self) -> int: ...
+    @property
+    def fn(self) -> int: ...
+    @property
+    def tn(self) -> int: ...
+    @property
+    def ignored(self) -> int: ...
+    @property
+    def no_return(self) -> int: ...
+    @property
+    def precision(self) -> float: ...
+    @property
+    def recall(self) -> float: ...
+    @property
+    def f1(self) -> float: ...
+    @property
+    def iou(self) -> float: ...
+    @property
+    def outcome(self) -> npt.NDArray[np.uint8]:
+        """(N,) per point: one of the OUTCOME_* values."""
+    @property
+    def per_class(self) -> List[Dict[str, Any]]:
+        """One dict per class of the map: id, name, role, returns, detected, rejected."""
+
+def score_labels(
+    class_map: ClassMap,
+    truth: npt.ArrayLike,
+    point_labels: npt.ArrayLike,
+    *,
+    has_return: Optional[npt.ArrayLike] = None,
+    truth_source: str = "truth",
+) -> LabelScore:
+    """Scores cairn's per-point labels (Detection.point_labels) against .label entries;
+    has_return: non-zero where the point is a return (Detection.cell_of_point >= 0)."""

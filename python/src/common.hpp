@@ -91,5 +91,6 @@ py::array_t<float> ImageXyz(const od::RangeImage& image);
 void RegisterDetect(py::module_& m);
 void RegisterMap(py::module_& m);
 void RegisterIo(py::module_& m);
+void RegisterEval(py::module_& m);
 
 }  // namespace cairn::python

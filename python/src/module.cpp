@@ -125,4 +125,5 @@ PYBIND11_MODULE(_cairn, m) {
   cairn::python::RegisterDetect(m);
   cairn::python::RegisterMap(m);
   cairn::python::RegisterIo(m);
+  cairn::python::RegisterEval(m);
 }
