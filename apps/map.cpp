@@ -64,19 +64,6 @@ Expected<std::unique_ptr<sources::FrameSource>> OpenSource(const MapOptions& o,
   return sources::OpenDepthFolderFrames(o.frames, o.poses, o.intrinsics);
 }
 
-std::vector<map::ImuSample> ImuSamples(const std::vector<sources::ImuAttitude>& attitudes) {
-  std::vector<map::ImuSample> samples;
-  for (const sources::ImuAttitude& a : attitudes) {
-    map::ImuSample s;
-    s.stamp_s = a.stamp_s;
-    s.roll_rad = a.roll_rad;
-    s.pitch_rad = a.pitch_rad;
-    s.has_attitude = true;
-    samples.push_back(s);
-  }
-  return samples;
-}
-
 Expected<std::string> ReadWholeFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return Error{path + ": cannot read"};
@@ -122,6 +109,11 @@ int RunMap(const MapOptions& options) {
   if (options.window_m >= 0.0) config.map.window_size_m = options.window_m;
   if (options.refine_tilt) config.tilt.mode = map::TiltMode::kRefineToMap;
   if (options.no_refine_tilt) config.tilt.mode = map::TiltMode::kPrior;
+  if (!options.tilt.empty()) {
+    Expected<map::TiltMode> mode = map::ParseTiltMode(options.tilt);
+    if (!mode) return Fail("--tilt: " + mode.error().message);
+    config.tilt.mode = *mode;
+  }
   if (Status s = config.map.Validate(); !s) return Fail("--window: " + s.message());
   Expected<map::Mapper> created = map::Mapper::Create(config);
   if (!created) return Fail(created.error().message);
@@ -164,8 +156,7 @@ int RunMap(const MapOptions& options) {
   RunState state;
   state.input = SourceJson(source.Describe());
   state.config_text = *config_text;
-  state.options = RunOptions(options, config.tilt.mode != map::TiltMode::kPrior,
-                             config.map.window_size_m);
+  state.options = RunOptions(options, config.tilt.mode, config.map.window_size_m);
   double earlier_wall_s = 0.0;
   if (!options.resume && fs::exists(checkpoint)) {
     return Fail(checkpoint.string() +
@@ -182,7 +173,7 @@ int RunMap(const MapOptions& options) {
     Expected<map::Mapper> loaded = map::Mapper::FromCheckpoint(checkpoint, config, &app_data);
     if (!loaded) {
       return Fail(loaded.error().message +
-                  " (--resume needs the same input, --config, --refine-tilt and --window)");
+                  " (--resume needs the same input, --config, --tilt and --window)");
     }
     Expected<RunState> saved = ResumeStateFromJson(app_data, checkpoint.string());
     if (!saved) return Fail(saved.error().message);
@@ -240,8 +231,12 @@ int RunMap(const MapOptions& options) {
     std::string reason = frame.used() ? "" : sources::SourceSkipName(frame.skip);
     std::string detail = frame.skip_detail;
     if (frame.used()) {
-      Expected<map::MapperRecord> r = mapper.Process(std::move(frame.image), frame.T_world_sensor,
-                                                     frame.stamp_s, ImuSamples(frame.imu));
+      if (Status st = mapper.SetSensorMount(frame.T_body_sensor()); !st) {
+        return Fail(frame.name + ": " + st.message());
+      }
+      Expected<map::MapperRecord> r =
+          mapper.Process(std::move(frame.image), frame.T_world_sensor, frame.stamp_s,
+                         sources::MapperImuSamples(frame));
       if (!r) return Fail(frame.name + ": " + r.error().message);
       if (r->used()) {
         const FrameRecord record = RecordOf(frame, *r, read_s);
@@ -295,8 +290,15 @@ int RunMap(const MapOptions& options) {
       !s) {
     return Fail(s.message());
   }
-  const RunReport report{source, mapper, state, truth, earlier_wall_s + SecondsSince(run_start),
-                         write_start};
+  std::optional<PoseTruth> poses;
+  if (!options.truth_poses.empty()) {
+    Expected<PoseTruth> scored = ScorePoses(options.truth_poses, state.records);
+    if (!scored) return Fail(scored.error().message);
+    poses = std::move(*scored);
+  }
+  RunReport report{source, mapper, state, truth, earlier_wall_s + SecondsSince(run_start),
+                   write_start};
+  report.poses = poses ? &*poses : nullptr;
   Expected<std::string> text = WriteRunFiles(report, staging, times);
   if (!text) return Fail(text.error().message);
 
@@ -365,8 +367,17 @@ Subcommand AddMapCommand(CLI::App& parent) {
   CLI::Option* refine = app->add_flag("--refine-tilt", options->refine_tilt,
                                       "refine each frame's roll, pitch and height with Ceres "
                                       "against the terrain fused so far (tilt.refine)");
-  app->add_flag("--no-refine-tilt", options->no_refine_tilt, "do not (overrides the config)")
-      ->excludes(refine);
+  CLI::Option* no_refine =
+      app->add_flag("--no-refine-tilt", options->no_refine_tilt, "do not (overrides the config)")
+          ->excludes(refine);
+  app->add_option("--tilt", options->tilt,
+                  "how each frame's roll, pitch and height are found (tilt.mode): prior (the "
+                  "odometry pose), refine_to_map (Ceres against the terrain fused so far), "
+                  "gravity (Ceres over a window: accelerometer, gyro, trunks, poles and walls)")
+      ->check(CLI::IsMember({"prior", "refine_to_map", "gravity"}))
+      ->excludes(refine)
+      ->excludes(no_refine)
+      ->type_name("MODE");
   app->add_flag("--strict", options->strict,
                 "a frame that cannot be used (missing, truncated, no valid points, a pose that "
                 "jumps) is an error, not a frame skipped and counted");
@@ -384,6 +395,10 @@ Subcommand AddMapCommand(CLI::App& parent) {
                   "when stderr is not a terminal: a progress line every N frames")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app->add_option("--truth-poses", options->truth_poses,
+                  "TUM file of the sensor's true poses (e.g. poses_sensor.tum of `cairn synth "
+                  "--drive`): the fused poses' tilt and height errors in the summary")
+      ->type_name("FILE.tum");
 #ifdef CAIRN_HAVE_SYNTH
   app->add_option("--truth", options->truth,
                   "world YAML of a synthetic sequence: score the obstacles and the elevation")

@@ -44,6 +44,8 @@ struct MapOptions {
   bool offline = false;
   bool refine_tilt = false;
   bool no_refine_tilt = false;
+  std::string tilt;  ///< --tilt MODE ("" = the config's)
+  std::string truth_poses;  ///< --truth-poses FILE.tum
   bool strict = false;  ///< a frame that cannot be used is an error
   int max_frames = 0;
   int progress_every = 10;
@@ -100,7 +102,7 @@ struct RunState {
 
 nlohmann::json SourceJson(const sources::SourceInfo& info);
 /// The options besides the input and --config that change what is fused.
-nlohmann::json RunOptions(const MapOptions& o, bool refine_tilt, double window_size_m);
+nlohmann::json RunOptions(const MapOptions& o, map::TiltMode tilt, double window_size_m);
 std::string ResumeStateJson(const RunState& state);
 Expected<RunState> ResumeStateFromJson(const std::string& text, const std::string& path);
 
@@ -161,6 +163,19 @@ Status WriteOverlay(const std::filesystem::path& cost_png, const std::filesystem
 
 /// poses.tum, frames.csv, summary.json and summary.txt into `dir` (setting times.write_s);
 /// returns summary.txt's text.
+/// The fused poses against true sensor poses (--truth-poses FILE.tum).
+struct PoseTruth {
+  std::string source;  ///< the TUM file
+  int frames = 0;      ///< fused frames scored
+  /// Angle between the fused and the true up vector of the sensor [deg].
+  double tilt_median_deg = 0.0, tilt_p95_deg = 0.0, tilt_max_deg = 0.0;
+  double height_rms_m = 0.0;  ///< fused minus true sensor height, RMS [m]
+};
+
+/// Scores every record's fused T_world_sensor against the TUM file's pose at its stamp
+/// (interpolated). Fails naming the file when it cannot be read or does not span a stamp.
+Expected<PoseTruth> ScorePoses(const std::string& tum_path, const std::vector<FrameRecord>& records);
+
 struct RunReport {
   const sources::FrameSource& source;
   const map::Mapper& mapper;
@@ -168,6 +183,7 @@ struct RunReport {
   const std::optional<TruthScore>& truth;
   double wall_s = 0.0;                 ///< of every run of this map [s]
   Clock::time_point write_start = {};  ///< times.write_s runs from here
+  const PoseTruth* poses = nullptr;    ///< --truth-poses
 };
 Expected<std::string> WriteRunFiles(const RunReport& run, const std::filesystem::path& dir,
                                     StageTimes& times);

@@ -149,10 +149,10 @@ json SourceJson(const sources::SourceInfo& info) {
   return j;
 }
 
-json RunOptions(const MapOptions& o, bool refine_tilt, double window_size_m) {
+json RunOptions(const MapOptions& o, map::TiltMode tilt, double window_size_m) {
   return {{"--range", o.range},
           {"--intrinsics", o.intrinsics},
-          {"--refine-tilt", refine_tilt},
+          {"--tilt", map::TiltModeName(tilt)},
           {"--window", window_size_m}};
 }
 

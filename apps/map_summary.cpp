@@ -163,6 +163,7 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
       ++counted;
     }
     summary["tilt"] = {{"refine", true},
+                       {"mode", map::TiltModeName(config.tilt.mode)},
                        {"refined_frames", run.state.refined_frames},
                        {"final_correction_deg",
                         {records.back().d_roll_rad / kMapDeg, records.back().d_pitch_rad / kMapDeg}},
@@ -170,7 +171,7 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
                        {"mean_rms_before_m", counted ? sum_before / counted : 0.0},
                        {"mean_rms_after_m", counted ? sum_after / counted : 0.0}};
   } else {
-    summary["tilt"] = {{"refine", false}};
+    summary["tilt"] = {{"refine", false}, {"mode", map::TiltModeName(config.tilt.mode)}};
   }
   // Frames not fused, by reason, and each with what was found.
   std::map<std::string, int> by_reason;
@@ -190,6 +191,14 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
   // Of this process: a resumed run's peak is its own, not the interrupted run's.
   summary["peak_rss_mb"] = ReadProcessMemory().peak_rss_mb;
   if (run.truth) summary["truth"] = TruthJson(*run.truth);
+  if (run.poses) {
+    summary["truth_poses"] = {{"source", run.poses->source},
+                              {"frames", run.poses->frames},
+                              {"tilt_error_median_deg", run.poses->tilt_median_deg},
+                              {"tilt_error_p95_deg", run.poses->tilt_p95_deg},
+                              {"tilt_error_max_deg", run.poses->tilt_max_deg},
+                              {"height_error_rms_m", run.poses->height_rms_m}};
+  }
 
   std::ostringstream text;
   text << "cairn map: " << n << " frames from " << summary["input"]["path"].get<std::string>()
@@ -213,18 +222,28 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
        << "  obstacles: " << terrain.obstacles().size() << " (" << terrain.obstacles_retired()
        << " retired on the way)\n";
   if (refine) {
-    text << "  tilt: refined " << run.state.refined_frames << "/" << n
-         << " frames; correction at the end " << Fixed(records.back().d_roll_rad / kMapDeg, 2)
-         << " deg roll, " << Fixed(records.back().d_pitch_rad / kMapDeg, 2) << " deg pitch, "
-         << Fixed(records.back().dz_m, 3) << " m height; ground RMS "
-         << Fixed(summary["tilt"]["mean_rms_before_m"].get<double>(), 3) << " -> "
-         << Fixed(summary["tilt"]["mean_rms_after_m"].get<double>(), 3) << " m\n";
+    text << "  tilt (" << map::TiltModeName(config.tilt.mode) << "): applied on "
+         << run.state.refined_frames << "/" << n << " frames; correction at the end "
+         << Fixed(records.back().d_roll_rad / kMapDeg, 2) << " deg roll, "
+         << Fixed(records.back().d_pitch_rad / kMapDeg, 2) << " deg pitch, "
+         << Fixed(records.back().dz_m, 3) << " m height";
+    if (config.tilt.mode == map::TiltMode::kRefineToMap) {
+      text << "; ground RMS " << Fixed(summary["tilt"]["mean_rms_before_m"].get<double>(), 3)
+           << " -> " << Fixed(summary["tilt"]["mean_rms_after_m"].get<double>(), 3) << " m";
+    }
+    text << "\n";
   }
   text << "  time: read " << Fixed(times.read_s, 2) << " s, detect " << Fixed(times.detect_s, 2)
        << " s, refine " << Fixed(times.refine_s, 2) << " s, fuse " << Fixed(times.fuse_s, 2)
        << " s, write " << Fixed(times.write_s, 2) << " s; " << Fixed(wall_s, 2) << " s in all, "
        << Fixed(n / wall_s, 2) << " frames/s; peak memory "
        << Fixed(summary["peak_rss_mb"].get<double>(), 0) << " MiB\n";
+  if (run.poses) {
+    text << "  poses against " << run.poses->source << ": tilt error median "
+         << Fixed(run.poses->tilt_median_deg, 2) << " deg, 95th percentile "
+         << Fixed(run.poses->tilt_p95_deg, 2) << " deg; height error RMS "
+         << Fixed(run.poses->height_rms_m, 3) << " m (" << run.poses->frames << " frames)\n";
+  }
   if (run.truth) TruthText(*run.truth, text);
   if (Status s = od::io::WriteFileAtomic(dir / "summary.json", summary.dump(2) + "\n"); !s) {
     return s.error();

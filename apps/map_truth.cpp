@@ -11,6 +11,7 @@
 #include <string_view>
 
 #include "cairn/map/map_files.hpp"
+#include "cairn/sources/trajectory.hpp"
 #include "cairn/od/io/atomic_file.hpp"
 #include "map_run.hpp"
 #ifdef CAIRN_HAVE_SYNTH
@@ -259,6 +260,39 @@ Status WriteOverlay(const fs::path& cost_png, const fs::path& path, const map::T
   if (!cv::imencode(".png", canvas, bytes)) return Error{path.string() + ": cannot encode PNG"};
   return od::io::WriteFileAtomic(
       path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
+Expected<PoseTruth> ScorePoses(const std::string& tum_path,
+                               const std::vector<FrameRecord>& records) {
+  Expected<sources::Trajectory> truth = sources::ReadTumTrajectory(tum_path);
+  if (!truth) return Error{"--truth-poses: " + truth.error().message};
+  PoseTruth out;
+  out.source = tum_path;
+  std::vector<double> tilt_deg;
+  double sum2 = 0.0;
+  for (const FrameRecord& r : records) {
+    Expected<sources::BodyPose> pose = truth->PoseAt(r.stamp_s);
+    if (!pose) return Error{"--truth-poses: " + tum_path + ": frame " + std::to_string(r.index) +
+                            ": " + pose.error().message};
+    const Eigen::Vector3d up_fused = r.T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d up_true =
+        pose->T_world_body.linear().transpose() * Eigen::Vector3d::UnitZ();
+    tilt_deg.push_back(std::atan2(up_fused.cross(up_true).norm(), up_fused.dot(up_true)) * 180.0 /
+                       M_PI);
+    const double dz = r.T_world_sensor.translation().z() - pose->T_world_body.translation().z();
+    sum2 += dz * dz;
+  }
+  if (tilt_deg.empty()) return out;
+  out.frames = static_cast<int>(tilt_deg.size());
+  std::sort(tilt_deg.begin(), tilt_deg.end());
+  const auto at = [&](double q) {
+    return tilt_deg[std::min(tilt_deg.size() - 1, static_cast<std::size_t>(q * (tilt_deg.size() - 1) + 0.5))];
+  };
+  out.tilt_median_deg = at(0.5);
+  out.tilt_p95_deg = at(0.95);
+  out.tilt_max_deg = tilt_deg.back();
+  out.height_rms_m = std::sqrt(sum2 / out.frames);
+  return out;
 }
 
 }  // namespace cairn::apps

@@ -38,6 +38,7 @@ struct SynthOptions {
   int frames = 0;  ///< 0: the whole drive
   std::string sensor = "camera";
   bool exact = false;
+  bool raw_imu = false;
 };
 
 int Fail(const std::string& message) {
@@ -153,6 +154,7 @@ int RunSynth(const SynthOptions& options) {
     sequence.sensor = lidar ? sim::SensorFrame::kLidar : sim::SensorFrame::kCameraOptical;
     sequence.max_frames = options.frames;
     sequence.noise = !options.exact;
+    sequence.raw_imu = options.raw_imu;
     ProgressLine progress;
     Expected<sim::SequenceSummary> summary = sim::WriteDriveSequence(
         world, out, sequence, [&progress](int done, int total) { progress.Update(done, total); });
@@ -228,6 +230,11 @@ Subcommand AddSynthCommand(CLI::App& parent) {
       ->capture_default_str()
       ->type_name("camera|lidar");
   app->add_flag("--exact", options->exact, "no sensor noise: exact ranges");
+  app->add_flag("--raw-imu", options->raw_imu,
+                "with --drive: also write the raw accelerometer and gyro samples (100 Hz, "
+                "white noise 0.02 m/s^2 and 0.002 rad/s) as CObservationIMU, for "
+                "`cairn map --tilt gravity`")
+      ->needs(drive);
   return {app, [options] { return RunSynth(*options); }};
 }
 

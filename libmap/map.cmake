@@ -11,7 +11,9 @@ find_package(Ceres REQUIRED)  # tilt_refiner.cpp
 cairn_add_library(cairn_map EXPORT_NAME map SOURCES
   src/checkpoint.cpp
   src/cost.cpp
+  src/gravity_cues.cpp
   src/gravity_estimator.cpp
+  src/gravity_tilt.cpp
   src/map_config.cpp
   src/map_config_file.cpp
   src/map_files.cpp

@@ -3,7 +3,7 @@
 # (datasets/sequences/hill_drive: a synthetic 36 m drive over a hill past eight obstacles,
 # an MRPT rawlog with wheel odometry and IMU), writing the map into out/demo-map/; then
 # `cairn detect` on the bundled frame (datasets/frames/demo) into out/demo/.
-# Extra arguments go to `cairn map` (e.g. --no-refine-tilt, --window 20).
+# Extra arguments go to `cairn map` (e.g. --tilt prior, --window 20).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${CAIRN_BUILD_DIR:-$root/build}
@@ -26,6 +26,7 @@ done
   --rawlog "$sequence/sequence.rawlog" \
   --config "$sequence/map.yaml" \
   --truth "$sequence/world.yaml" \
+  --truth-poses "$sequence/poses_sensor.tum" \
   --out "$out_map" "$@"
 
 echo

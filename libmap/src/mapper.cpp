@@ -93,6 +93,7 @@ struct Mapper::State {
   std::int64_t fused = 0;
   // The previous frame given to Process (the jump check's reference).
   std::optional<std::pair<double, Eigen::Isometry3d>> previous;
+  Eigen::Isometry3d T_body_sensor = Eigen::Isometry3d::Identity();  // SetSensorMount
 
   State(const MapperConfig& c, TerrainMap m, std::unique_ptr<TiltStep> t)
       : config(c), map(std::move(m)), tilt(std::move(t)) {}
@@ -194,7 +195,7 @@ Expected<MapperRecord> Mapper::Process(od::RangeImage image,
       ground.push_back(image.point(i).cast<float>());
     }
   }
-  const TiltFrame frame{s.fused,     stamp_s,         T_world_sensor,  prior, imu,
+  const TiltFrame frame{s.fused, stamp_s, T_world_sensor, prior, s.T_body_sensor, imu,
                         image,       *detection,      *classification, ground};
   Expected<TiltOutcome> tilt = s.tilt->Estimate(frame, s.map);
   if (!tilt) return Error{"tilt: " + tilt.error().message};
@@ -282,6 +283,18 @@ Expected<Mapper> Mapper::FromCheckpoint(const std::filesystem::path& dir_or_file
   }
   return Mapper(std::move(state));
 }
+
+Status Mapper::SetSensorMount(const Eigen::Isometry3d& T_body_sensor) {
+  const Eigen::Matrix3d R = T_body_sensor.linear();
+  if (!T_body_sensor.matrix().allFinite() ||
+      !(R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), 1e-6) || R.determinant() < 0.0) {
+    return Error{"mapper: the sensor mount T_body_sensor must be finite and rigid"};
+  }
+  state_->T_body_sensor = T_body_sensor;
+  return {};
+}
+
+const Eigen::Isometry3d& Mapper::sensor_mount() const { return state_->T_body_sensor; }
 
 const TerrainMap& Mapper::map() const { return state_->map; }
 const MapperConfig& Mapper::config() const { return state_->config; }

@@ -63,7 +63,20 @@ Status ParseTilt(const yaml::FieldReader& reader, const YAML::Node& root, TiltCo
   const std::vector<IntField> ints = {{"max_points", &c.max_points, 0, 100000000},
                                       {"min_points", &c.min_points, 0, 100000000},
                                       {"max_iterations", &c.max_iterations, 0, 100000000}};
-  if (Status s = ReadFields(reader, section, "tilt", doubles, ints, {"refine"}); !s) return s;
+  if (Status s = ReadFields(reader, section, "tilt", doubles, ints, {"refine", "mode"}); !s) {
+    return s;
+  }
+  if (section["refine"] && section["mode"]) {
+    return reader.Fail("tilt.refine", "give tilt.mode or tilt.refine, not both");
+  }
+  if (const YAML::Node v = section["mode"]) {
+    Expected<TiltMode> mode = ParseTiltMode(v.IsScalar() ? v.Scalar() : std::string());
+    if (!mode) {
+      return reader.Fail("tilt.mode", "expected prior, refine_to_map or gravity, got " +
+                                          yaml::Describe(v));
+    }
+    tilt.mode = *mode;
+  }
   if (const YAML::Node v = section["refine"]) {
     bool refine = false, ok = v.IsScalar();
     if (ok) {

@@ -3,6 +3,8 @@
 #include <exception>
 #include <nlohmann/json.hpp>
 
+#include "gravity_tilt.hpp"
+
 namespace cairn::map {
 namespace {
 
@@ -90,15 +92,26 @@ const char* TiltModeName(TiltMode mode) {
       return "prior";
     case TiltMode::kRefineToMap:
       return "refine_to_map";
+    case TiltMode::kGravity:
+      return "gravity";
   }
   return "?";
 }
 
+Expected<TiltMode> ParseTiltMode(const std::string& name) {
+  for (TiltMode m : {TiltMode::kPrior, TiltMode::kRefineToMap, TiltMode::kGravity}) {
+    if (name == TiltModeName(m)) return m;
+  }
+  return Error{"expected prior, refine_to_map or gravity, got '" + name + "'"};
+}
+
 Status TiltConfig::Validate() const {
-  if (mode != TiltMode::kPrior && mode != TiltMode::kRefineToMap) {
+  if (mode != TiltMode::kPrior && mode != TiltMode::kRefineToMap && mode != TiltMode::kGravity) {
     return Error{"tilt config: 'mode': unknown"};
   }
   if (Status s = refiner.Validate(); !s) return Error{"tilt config: " + s.message()};
+  if (Status s = gravity.Validate(); !s) return Error{"tilt config: " + s.message()};
+  if (Status s = verticals.Validate(); !s) return Error{"tilt config: " + s.message()};
   return {};
 }
 
@@ -107,6 +120,7 @@ Expected<std::unique_ptr<TiltStep>> MakeTiltStep(const TiltConfig& config) {
   if (config.mode == TiltMode::kRefineToMap) {
     return std::unique_ptr<TiltStep>(std::make_unique<RefineToMapTilt>(config.refiner));
   }
+  if (config.mode == TiltMode::kGravity) return MakeGravityTilt(config);
   return std::unique_ptr<TiltStep>(std::make_unique<PriorTilt>());
 }
 

@@ -89,15 +89,8 @@ Frame NextFrame(FrameIterator& it) {
   f.T_world_sensor = next->T_world_sensor;
   f.T_world_body = next->T_world_body;
   f.tilt_from_imu = next->tilt_from_imu;
-  // As `cairn map` hands the IMU attitudes to the Mapper.
-  for (const sources::ImuAttitude& a : next->imu) {
-    map::ImuSample s;
-    s.stamp_s = a.stamp_s;
-    s.roll_rad = a.roll_rad;
-    s.pitch_rad = a.pitch_rad;
-    s.has_attitude = true;
-    f.imu.push_back(s);
-  }
+  // As `cairn map` hands the IMU readings to the Mapper.
+  f.imu = sources::MapperImuSamples(*next);
   f.skip = next->used() ? std::string() : std::string(sources::SourceSkipName(next->skip));
   f.skip_detail = next->skip_detail;
   f.image = std::move(next->image);

@@ -120,6 +120,10 @@ py::dict AddFrame(PyMapper& self, const Frame& frame) {
   map::MapperRecord record;
   {
     py::gil_scoped_release release;
+    if (Status st = self.mapper.SetSensorMount(frame.T_world_body.inverse() * frame.T_world_sensor);
+        !st) {
+      throw CairnError(frame.name + ": " + st.message());
+    }
     Expected<map::MapperRecord> r =
         self.mapper.Process(frame.image, frame.T_world_sensor, frame.stamp_s, frame.imu);
     if (!r) throw CairnError(frame.name + ": " + r.error().message);  // as `cairn map` says it

@@ -352,7 +352,7 @@ TEST_F(MapCli, TiltRefinementReportsItsCorrection) {
   EXPECT_GE(summary.at("tilt").at("refined_frames").get<int>(), 9);
   EXPECT_LE(summary.at("tilt").at("mean_rms_after_m").get<double>(),
             summary.at("tilt").at("mean_rms_before_m").get<double>());
-  EXPECT_NE(run.out.find("tilt: refined"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("tilt (refine_to_map): applied on"), std::string::npos) << run.out;
   ExpectObstaclesNearTheTrueOnes(out_refined / "obstacles.json");
 }
 
@@ -438,7 +438,7 @@ TEST_F(MapCli, AnInterruptedRunResumesFromItsCheckpointToTheSameMap) {
                                           "' --out '" + parts.string() + "' --resume",
                                       dir());  // without --refine-tilt
   EXPECT_EQ(other_tilt.status, 1);
-  EXPECT_NE(other_tilt.err.find("--refine-tilt"), std::string::npos) << other_tilt.err;
+  EXPECT_NE(other_tilt.err.find("--tilt"), std::string::npos) << other_tilt.err;
   // A run that forgets --resume does not overwrite the interrupted run's checkpoint.
   const CommandRun afresh = Cairn(common + parts.string() + "'", dir());
   EXPECT_EQ(afresh.status, 1);
@@ -476,6 +476,40 @@ TEST_F(MapCli, ACorruptCheckpointIsRefusedNamingIt) {
   EXPECT_NE(run.err.find((out / "map.checkpoint").string()), std::string::npos) << run.err;
   EXPECT_TRUE(fs::exists(out / "map.checkpoint"));  // left as it was
   EXPECT_FALSE(fs::exists(out / "map.bt"));
+}
+
+// `--tilt gravity` on a drive recorded with raw IMU samples (`cairn synth --raw-imu`) and a
+// 2 deg IMU attitude bias: the accelerometer and the pole observe gravity, and the fused
+// poses' tilt, scored against the true poses (--truth-poses), is far below the prior's.
+TEST_F(MapCli, TheGravityEstimatorObservesTheIMUBias) {
+  std::string world = kWorld;
+  world.replace(world.find("imu_bias: 0.3"), 13, "imu_bias: 2.0");
+  std::ofstream(dir() / "world_imu.yaml") << world;
+  const fs::path seq = dir() / "seq_imu";
+  const CommandRun synth = Cairn("synth --world '" + (dir() / "world_imu.yaml").string() +
+                                     "' --drive --raw-imu --out '" + seq.string() + "'",
+                                 dir());
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  json tilt[2];
+  const char* modes[2] = {"prior", "gravity"};
+  for (int m = 0; m < 2; ++m) {
+    const fs::path out = dir() / (std::string("out_tilt_") + modes[m]);
+    const CommandRun run = Cairn("map --rawlog '" + (seq / "sequence.rawlog").string() +
+                                     "' --tilt " + modes[m] + " --truth-poses '" +
+                                     (seq / "poses_sensor.tum").string() + "' --out '" +
+                                     out.string() + "'",
+                                 dir());
+    ASSERT_EQ(run.status, 0) << run.err;
+    const json summary = json::parse(ReadFile(out / "summary.json"));
+    EXPECT_EQ(summary.at("tilt").at("mode"), modes[m]);
+    EXPECT_GT(summary.at("input").at("imu_raw_samples").get<int>(), 400);  // 100 Hz
+    tilt[m] = summary.at("truth_poses");
+    EXPECT_NE(run.out.find("poses against"), std::string::npos) << run.out;
+  }
+  EXPECT_GT(tilt[0].at("tilt_error_median_deg").get<double>(), 1.5);
+  EXPECT_LT(tilt[1].at("tilt_error_median_deg").get<double>(), 0.5);
+  EXPECT_LT(tilt[1].at("height_error_rms_m").get<double>(),
+            tilt[0].at("height_error_rms_m").get<double>());
 }
 
 // The real sequence with poses (datasets/real/REPORT.md): KITTI 00, scans 0-10, fused along

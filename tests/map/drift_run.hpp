@@ -20,6 +20,7 @@
 #include <utility>
 #include <vector>
 
+#include "cairn/map/gravity_cues.hpp"
 #include "cairn/map/mapper.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/sim/render.hpp"
@@ -37,7 +38,14 @@ struct DriftRunSpec {
   double odom_sigma_per_m = 0.0;           ///< libsim DriveSpec::odom_sigma_per_m
   double odom_yaw_sigma_rad_per_m = 0.0;   ///< libsim DriveSpec::odom_yaw_sigma_rad_per_m
   double imu_bias_rad = 0.0;               ///< constant roll and pitch bias
+  double imu_sigma_rad = 0.0;              ///< the IMU attitude output's noise
   bool refine_tilt = false;                ///< Ceres tilt refiner on the believed pose
+  bool gravity = false;                    ///< the gravity estimator (takes over refine_tilt)
+  /// Raw IMU errors (accelerometer and gyro bias and noise, misalignment) and the sensor's
+  /// mount misalignment; the raw samples reach the Mapper in every mode.
+  sim::ImuSpec imu;
+  Eigen::Vector3d sensor_misalignment_rad = Eigen::Vector3d::Zero();  ///< roll, pitch, yaw
+  bool measure_cues = false;  ///< score the vertical cues (gravity_cues.hpp) of every frame
   std::uint64_t drive_seed = 1;            ///< draws the drift of the drive
   double rate_hz = 2.0;
   double speed_mps = 2.0;
@@ -84,6 +92,13 @@ struct DriftRunResult {
   double elevation_rms_m = 0.0;
   int elevation_cells = 0;
   std::vector<PoseError> pose_errors;
+  /// measure_cues: each vertical cue's angle from the true vertical (a wall normal's from
+  /// the horizontal) [rad].
+  std::vector<double> cue_errors_rad;
+  /// Gravity mode: frames whose estimate flagged a state as not observable, and the reasons
+  /// of the last frame's flags.
+  int degenerate_frames = 0;
+  std::vector<std::string> last_degeneracies;
   std::set<std::pair<int, int>> truth_cells;  ///< true obstacle cells (for figures)
   std::string error;                          ///< non-empty when the run failed
 };
@@ -167,7 +182,12 @@ inline void Score(const sim::World& world, const std::map<int, int>& pixels_seen
 
 }  // namespace detail
 
+/// A gallery world by its stem, or any world file by its path (ending in .yaml, relative to
+/// the source tree).
 inline Expected<sim::World> LoadGalleryWorld(const std::string& name) {
+  if (name.size() > 5 && name.compare(name.size() - 5, 5, ".yaml") == 0) {
+    return sim::LoadWorld((SourceDir() / name).string());
+  }
   return sim::LoadWorld((SourceDir() / "datasets" / "worlds" / (name + ".yaml")).string());
 }
 
@@ -181,8 +201,10 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   map::MapperConfig config;
   config.detector = settings->detector;
   config.rules = settings->rules;
-  config.tilt.mode = spec.refine_tilt && !spec.true_poses ? map::TiltMode::kRefineToMap
-                                                          : map::TiltMode::kPrior;
+  config.tilt.mode = spec.true_poses   ? map::TiltMode::kPrior
+                     : spec.gravity     ? map::TiltMode::kGravity
+                     : spec.refine_tilt ? map::TiltMode::kRefineToMap
+                                        : map::TiltMode::kPrior;
   Expected<map::Mapper> mapper = map::Mapper::Create(config);
   if (!mapper) return mapper.error();
 
@@ -193,21 +215,39 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   drive_spec.sensor_pitch_rad = 8.0 * kDriftDeg;
   drive_spec.odom_sigma_per_m = spec.odom_sigma_per_m;
   drive_spec.odom_yaw_sigma_rad_per_m = spec.odom_yaw_sigma_rad_per_m;
-  drive_spec.imu_sigma_rad = 0.0;
+  drive_spec.imu_sigma_rad = spec.imu_sigma_rad;
   drive_spec.imu_bias_rad = spec.imu_bias_rad;
-  const Expected<sim::Drive> drive = sim::SimulateDrive(
-      world->scene.terrain(), drive_spec, sim::SensorFrame::kCameraOptical, spec.drive_seed);
+  drive_spec.sensor_misalignment_rad = spec.sensor_misalignment_rad;
+  const Expected<sim::Drive> drive =
+      sim::SimulateDrive(world->scene.terrain(), drive_spec, sim::SensorFrame::kCameraOptical,
+                         spec.drive_seed, 0, spec.imu);
   if (!drive) return drive.error();
+  if (Status st = (*mapper).SetSensorMount(drive->T_body_sensor); !st) return st.error();
   const sim::RangeCameraSpec camera_spec = SmallCamera(world->camera, spec.camera_width);
 
   std::map<int, int> pixels_seen;
   std::map<int, double> first_seen_m;
   std::vector<PoseError> pose_errors;
+  std::vector<double> cue_errors_rad;
+  int degenerate_frames = 0;
+  std::vector<std::string> last_degeneracies;
   int refined_frames = 0;
   double distance_m = 0.0;
   double z_body = 0.0;  // dead reckoning
   const sim::DriveSample* previous = nullptr;
+  std::size_t next_imu = 0;
   for (const sim::DriveSample& s : drive->samples) {
+    // The raw IMU samples since the previous frame, rotated into the body frame.
+    std::vector<map::ImuSample> imu;
+    for (; next_imu < drive->imu.size() && drive->imu[next_imu].stamp_s <= s.stamp_s; ++next_imu) {
+      const sim::ImuReading& reading = drive->imu[next_imu];
+      map::ImuSample sample;
+      sample.stamp_s = reading.stamp_s;
+      sample.specific_force_mps2 = drive->R_body_imu * reading.specific_force_mps2;
+      sample.angular_rate_radps = drive->R_body_imu * reading.angular_rate_radps;
+      sample.has_raw = true;
+      imu.push_back(sample);
+    }
     // The believed pose.
     Eigen::Isometry3d T_world_sensor = s.T_world_sensor;
     if (!spec.true_poses) {
@@ -238,14 +278,34 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
     Expected<od::RangeImage> image =
         od::RangeImage::FromDepth(rendered->depth_m, rendered->model, up);
     if (!image) return image.error();
+    if (spec.measure_cues) {  // the vertical cues the gravity step would see, against the truth
+      Expected<od::Detection> detection = od::Detect(*image, config.detector);
+      if (!detection) return detection.error();
+      Expected<od::Classification> classes = od::Classify(*detection, config.rules);
+      if (!classes) return classes.error();
+      const Eigen::Vector3d up_true =
+          s.T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
+      for (const map::VerticalCue& c : map::FindVerticalCues(*image, *detection, *classes,
+                                                             image->up(), config.tilt.verticals)) {
+        const double a = std::acos(std::min(1.0, std::abs(c.direction_sensor.dot(up_true))));
+        cue_errors_rad.push_back(c.wall_normal ? std::abs(0.5 * M_PI - a) : a);
+      }
+    }
     Expected<map::MapperRecord> record =
-        (*mapper).Process(std::move(*image), T_world_sensor, s.stamp_s);
+        (*mapper).Process(std::move(*image), T_world_sensor, s.stamp_s, imu);
     if (!record) return record.error();
     if (!record->used()) {
       return Error{spec.world + ": frame " + std::to_string(s.index) + " skipped: " +
                    map::FrameSkipName(record->skip) + " (" + record->skip_detail + ")"};
     }
     refined_frames += record->tilt.applied ? 1 : 0;
+    if (record->tilt.gravity) {
+      degenerate_frames += record->tilt.gravity->degeneracies.empty() ? 0 : 1;
+      last_degeneracies.clear();
+      for (const map::GravityDegeneracy& d : record->tilt.gravity->degeneracies) {
+        last_degeneracies.push_back(d.reason);
+      }
+    }
     std::map<int, int> pixels;
     for (const std::int32_t object : rendered->object_id) {
       if (object > 0) ++pixels[object];
@@ -272,6 +332,9 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   r.distance_m = distance_m;
   r.refined_frames = refined_frames;
   r.pose_errors = std::move(pose_errors);
+  r.cue_errors_rad = std::move(cue_errors_rad);
+  r.degenerate_frames = degenerate_frames;
+  r.last_degeneracies = std::move(last_degeneracies);
   detail::Score(*world, pixels_seen, first_seen_m, r);
   if (!r.error.empty()) return Error{spec.world + ": " + r.error};
   return r;

@@ -2,7 +2,9 @@
 // claims datasets/maps/REPORT.md makes, on small drives (160 x 120 range camera, 2 Hz).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <vector>
 
 #include "drift_run.hpp"
 
@@ -94,6 +96,54 @@ TEST(TerrainMapDrift, ConstantImuBiasOnASlopeKeepsObstaclesButNotElevation) {
   }
   EXPECT_GT(refined.refined_frames, refined.frames / 2);
   EXPECT_GE(refined.iou, biased.iou - 0.02);
+}
+
+double MedianTiltDeg(const DriftRunResult& r, double quantile = 0.5) {
+  std::vector<double> tilt;
+  for (const PoseError& e : r.pose_errors) tilt.push_back(e.tilt_rad / kDriftDeg);
+  std::sort(tilt.begin(), tilt.end());
+  return tilt[std::min(tilt.size() - 1, static_cast<std::size_t>(quantile * (tilt.size() - 1) + 0.5))];
+}
+
+// The same biased drive through the gravity estimator: the accelerometer and the trunks and
+// poles observe gravity, so the bias present from the first frame is found and the height
+// integrated along the drive follows the true slope.
+TEST(TerrainMapDrift, TheGravityEstimatorFindsAConstantImuBiasOnASlope) {
+  DriftRunSpec spec;
+  spec.world = "uphill_tilted";
+  spec.waypoints = {{0.0, 0.0}, {20.0, 1.0}, {30.0, -0.5}};
+  spec.imu_bias_rad = 2.0 * kDriftDeg;
+  spec.imu_sigma_rad = 0.3 * kDriftDeg;
+  spec.measure_cues = true;
+  const Expected<DriftRunResult> prior_run = MapRun(spec, "uphill_tilted, 2 deg IMU bias");
+  ASSERT_TRUE(prior_run.ok()) << prior_run.error().message;
+  spec.gravity = true;
+  const Expected<DriftRunResult> gravity_run =
+      MapRun(spec, "uphill_tilted, 2 deg IMU bias, gravity estimator");
+  ASSERT_TRUE(gravity_run.ok()) << gravity_run.error().message;
+  const DriftRunResult& prior = *prior_run;
+  const DriftRunResult& gravity = *gravity_run;
+  std::printf("[ figures  ] tilt error median / 95th: prior %.2f / %.2f deg, gravity %.2f / %.2f "
+              "deg; elevation RMS prior %.3f m, gravity %.3f m\n",
+              MedianTiltDeg(prior), MedianTiltDeg(prior, 0.95), MedianTiltDeg(gravity),
+              MedianTiltDeg(gravity, 0.95), prior.elevation_rms_m, gravity.elevation_rms_m);
+  // The trunks and poles the detector found point up: the cues are measured above their
+  // feet, so the slope under them does not tilt them.
+  std::vector<double> cues = prior.cue_errors_rad;
+  ASSERT_GE(cues.size(), 20u);
+  std::sort(cues.begin(), cues.end());
+  std::printf("[ figures  ] %zu vertical cues: median %.2f deg, 90th %.2f deg from the vertical\n",
+              cues.size(), cues[cues.size() / 2] / kDriftDeg, cues[cues.size() * 9 / 10] / kDriftDeg);
+  EXPECT_LT(cues[cues.size() / 2], 0.5 * kDriftDeg);
+  EXPECT_LT(cues[cues.size() * 9 / 10], 1.5 * kDriftDeg);
+  EXPECT_GT(MedianTiltDeg(prior), 1.5);
+  EXPECT_LT(MedianTiltDeg(gravity), 0.2);
+  EXPECT_LT(MedianTiltDeg(gravity, 0.95), 0.5);
+  EXPECT_LT(gravity.elevation_rms_m, 0.08);
+  EXPECT_LT(gravity.elevation_rms_m, prior.elevation_rms_m / 10);
+  EXPECT_GE(gravity.obstacles.size(), 6u);
+  EXPECT_LE(gravity.max_distance_m, 0.3);
+  EXPECT_EQ(gravity.false_lethal, 0);
 }
 
 }  // namespace

@@ -23,13 +23,14 @@ Eigen::Vector3d UpIn(const Eigen::Isometry3d& T_world_sensor) {
 class RawlogFrames final : public FrameSource {
  public:
   RawlogFrames(std::string path, std::string label, const od::io::StereoConfig& stereo,
-               Trajectory trajectory, std::vector<ImuAttitude> imu, int total,
-               RawlogSource source)
+               Trajectory trajectory, std::vector<ImuAttitude> imu,
+               std::vector<ImuSample> imu_raw, int total, RawlogSource source)
       : path_(std::move(path)),
         label_(std::move(label)),
         stereo_(stereo),
         trajectory_(std::move(trajectory)),
         imu_(std::move(imu)),
+        imu_raw_(std::move(imu_raw)),
         total_(total),
         source_(std::move(source)) {}
 
@@ -45,6 +46,9 @@ class RawlogFrames final : public FrameSource {
     // The IMU attitudes since the previous frame.
     while (next_imu_ < imu_.size() && !(imu_[next_imu_].stamp_s > f.stamp_s)) {
       out.imu.push_back(imu_[next_imu_++]);
+    }
+    while (next_raw_ < imu_raw_.size() && !(imu_raw_[next_raw_].stamp_s > f.stamp_s)) {
+      out.imu_raw.push_back(imu_raw_[next_raw_++]);
     }
     Expected<BodyPose> body = trajectory_.PoseAt(f.stamp_s);
     if (!body) return Error{out.name + ": " + body.error().message};
@@ -80,6 +84,9 @@ class RawlogFrames final : public FrameSource {
       while (next_imu_ < imu_.size() && !(imu_[next_imu_].stamp_s > (*frame)->stamp_s)) {
         ++next_imu_;
       }
+      while (next_raw_ < imu_raw_.size() && !(imu_raw_[next_raw_].stamp_s > (*frame)->stamp_s)) {
+        ++next_raw_;
+      }
     }
     return {};
   }
@@ -91,7 +98,8 @@ class RawlogFrames final : public FrameSource {
             {"label", label_},
             {"frames", std::int64_t{total_}},
             {"poses", trajectory_.source()},
-            {"imu_samples", static_cast<std::int64_t>(imu_.size())}};
+            {"imu_samples", static_cast<std::int64_t>(imu_.size())},
+            {"imu_raw_samples", static_cast<std::int64_t>(imu_raw_.size())}};
   }
   const Trajectory& trajectory() const override { return trajectory_; }
 
@@ -101,6 +109,8 @@ class RawlogFrames final : public FrameSource {
   Trajectory trajectory_;
   std::vector<ImuAttitude> imu_;  // in file order
   std::size_t next_imu_ = 0;
+  std::vector<ImuSample> imu_raw_;  // in file order
+  std::size_t next_raw_ = 0;
   int total_ = 0;
   RawlogSource source_;
 };
@@ -116,6 +126,7 @@ Expected<std::unique_ptr<FrameSource>> OpenRawlogFrames(const std::string& path,
   Expected<RawlogSource> first = RawlogSource::Open(path, scan);
   if (!first) return first.error();
   std::vector<ImuAttitude> imu;
+  std::vector<ImuSample> imu_raw;
   std::vector<std::string> labels;
   int total = 0;
   while (true) {
@@ -125,6 +136,7 @@ Expected<std::unique_ptr<FrameSource>> OpenRawlogFrames(const std::string& path,
     for (const auto& o : (*entry)->observations) {
       if (const auto* m = dynamic_cast<const ::mrpt::obs::CObservationIMU*>(o.get())) {
         if (std::optional<ImuAttitude> a = DecodeImu(*m)) imu.push_back(*a);
+        if (std::optional<ImuSample> r = DecodeImuSample(*m)) imu_raw.push_back(*r);
       }
       if (!IsRangeObservation(*o) || WhyNoRangeData(*o)) continue;
       if (std::find(labels.begin(), labels.end(), o->sensorLabel) == labels.end()) {
@@ -152,7 +164,8 @@ Expected<std::unique_ptr<FrameSource>> OpenRawlogFrames(const std::string& path,
   Expected<RawlogSource> second = RawlogSource::Open(path, read);
   if (!second) return second.error();
   return std::unique_ptr<FrameSource>(std::make_unique<RawlogFrames>(
-      path, label, stereo, std::move(*trajectory), std::move(imu), total, std::move(*second)));
+      path, label, stereo, std::move(*trajectory), std::move(imu), std::move(imu_raw), total,
+      std::move(*second)));
 }
 
 }  // namespace cairn::sources

@@ -134,6 +134,12 @@ class Mapper {
                                          std::string* app_data = nullptr,
                                          std::unique_ptr<TiltStep> tilt = nullptr);
 
+  /// The sensor's pose on the body (x forward, y left, z up; the IMU's frame) that the
+  /// odometry poses assume: the tilt step needs it to tell the body's attitude from the
+  /// sensor's (TiltFrame::T_body_sensor). Identity unless set. Fails on a non-rigid pose.
+  Status SetSensorMount(const Eigen::Isometry3d& T_body_sensor);
+  const Eigen::Isometry3d& sensor_mount() const;
+
   const TerrainMap& map() const;
   const MapperConfig& config() const;
   const TiltStep& tilt() const;

@@ -13,23 +13,30 @@
 // What a step carries from frame to frame is its resume state (SaveState / RestoreState):
 // a Mapper restored from a checkpoint continues exactly as the uninterrupted one.
 //
-// Two steps exist (MakeTiltStep):
+// Three steps exist (MakeTiltStep):
 //   kPrior     the odometry pose is fused as it is; nothing is carried.
 //   kRefineToMap  map::RefineTilt (tilt_refiner.hpp) matches the frame's ground points to the
 //              fused elevation around the prior; a usable estimate that lowers the ground
 //              RMS is fused and its correction is carried to the next frame's prior (IMU
 //              biases and the height integrated from them persist from frame to frame).
-// A gravity-observing estimator (accelerometer, gyro, vertical structure) plugs in as a
-// third implementation of TiltStep (Mapper::Create takes one).
+//   kGravity   map::GravityEstimator (gravity_estimator.hpp) over a sliding window: the
+//              frame's raw IMU samples, its odometry (planar pose, velocity), the IMU
+//              attitude in the odometry pose as a prior, and the vertical structure the
+//              detector found (gravity_cues.hpp). The frame is fused at the estimated roll,
+//              pitch, height and mount tilt, the odometry's x, y and heading.
+// Mapper::Create also takes a step of the caller's.
 #pragma once
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "cairn/map/gravity_cues.hpp"
+#include "cairn/map/gravity_estimator.hpp"
 #include "cairn/map/imu.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/map/tilt_refiner.hpp"
@@ -43,15 +50,20 @@ namespace cairn::map {
 enum class TiltMode {
   kPrior,        ///< fuse the odometry pose as it is
   kRefineToMap,  ///< RefineTilt against the fused terrain, correction carried
+  kGravity,      ///< GravityEstimator: IMU, odometry and vertical structure
 };
 
-/// "prior" | "refine_to_map".
+/// "prior" | "refine_to_map" | "gravity".
 const char* TiltModeName(TiltMode mode);
+/// The mode of a TiltModeName; fails naming the three.
+Expected<TiltMode> ParseTiltMode(const std::string& name);
 
 /// The `tilt:` section of a settings file (mapper_config_file.hpp).
 struct TiltConfig {
   TiltMode mode = TiltMode::kPrior;
   TiltRefinerConfig refiner;  ///< kRefineToMap
+  GravityEstimatorConfig gravity;  ///< kGravity
+  VerticalCueConfig verticals;     ///< kGravity: which segments are vertical cues
   /// Fails naming the first bad field ("tilt.max_points: ...").
   Status Validate() const;
 };
@@ -62,6 +74,8 @@ struct TiltFrame {
   double stamp_s = 0.0;
   Eigen::Isometry3d T_world_sensor_odometry = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_world_sensor_prior = Eigen::Isometry3d::Identity();  ///< Prior()
+  /// The sensor's nominal mount on the body (Mapper::SetSensorMount; identity unless set).
+  Eigen::Isometry3d T_body_sensor = Eigen::Isometry3d::Identity();
   const std::vector<ImuSample>& imu;  ///< since the previous frame, by stamp
   const od::RangeImage& image;        ///< levelled with the prior's up vector
   const od::Detection& detection;
@@ -78,6 +92,8 @@ struct TiltOutcome {
   bool applied = false;    ///< its estimate replaced the prior
   /// The estimator's diagnostics (kRefineToMap: RefineTilt's), when estimated.
   TiltEstimate estimate;
+  /// kGravity: the estimator's answer for this frame (covariance, cues, degeneracies).
+  std::optional<GravityEstimate> gravity;
   /// Total correction of the fused pose relative to the odometry pose, as carried after this
   /// frame (ApplyTiltCorrection's roll, pitch, dz) [rad, rad, m].
   double roll_rad = 0.0, pitch_rad = 0.0, dz_m = 0.0;

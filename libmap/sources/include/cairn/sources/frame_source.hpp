@@ -29,6 +29,7 @@
 #include <variant>
 #include <vector>
 
+#include "cairn/map/imu.hpp"
 #include "cairn/od/expected.hpp"
 #include "cairn/od/io/stereo.hpp"
 #include "cairn/od/range_image.hpp"
@@ -57,12 +58,22 @@ struct SequenceFrame {
   bool tilt_from_imu = false;  ///< the pose's roll and pitch came from an IMU
   /// IMU attitudes of the recording since the previous frame (rawlogs), by stamp.
   std::vector<ImuAttitude> imu;
+  /// Raw IMU samples (accelerometer, gyro) since the previous frame (rawlogs), by stamp, in
+  /// the IMU's frame with its T_body_imu.
+  std::vector<ImuSample> imu_raw;
   od::RangeImage image;  ///< sensor frame, levelled with T_world_sensor's up; empty if skipped
   SourceSkip skip = SourceSkip::kNone;
   std::string skip_detail;  ///< what was found ("7 bytes, not a whole 16-byte point")
 
   bool used() const { return skip == SourceSkip::kNone; }
+  /// The sensor's pose on the body: T_world_body^-1 T_world_sensor.
+  Eigen::Isometry3d T_body_sensor() const { return T_world_body.inverse() * T_world_sensor; }
 };
+
+/// The frame's IMU readings as the Mapper takes them (map::ImuSample), by stamp: each
+/// attitude, and each raw sample with both an accelerometer and a gyro reading, rotated
+/// from the IMU's frame into the body's (the IMU's lever arm is not modelled).
+std::vector<map::ImuSample> MapperImuSamples(const SequenceFrame& frame);
 
 /// What a source reads, for summaries and for telling two runs' inputs apart: "kind",
 /// "path", "frames", "poses", and per kind "label" and "imu_samples" (rawlog), "lidar"
