@@ -169,7 +169,10 @@ class Mapper:
         *,
         window_m: Optional[float] = None,
         refine_tilt: Optional[bool] = None,
-    ) -> None: ...
+        tilt: Optional[str] = None,
+    ) -> None:
+        """tilt: "prior" | "refine_to_map" | "gravity" (the gravity estimator's answer per
+        frame is in the record's "gravity" dict)."""
     def add_points(
         self,
         points: npt.ArrayLike,

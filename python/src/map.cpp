@@ -44,6 +44,25 @@ py::dict RecordDict(const map::MapperRecord& r) {
   d["tilt_roll_rad"] = r.tilt.roll_rad;
   d["tilt_pitch_rad"] = r.tilt.pitch_rad;
   d["tilt_dz_m"] = r.tilt.dz_m;
+  d["tilt_applied"] = r.tilt.applied;
+  if (r.tilt.gravity) {  // tilt mode "gravity": the estimator's answer for this frame
+    const map::GravityEstimate& g = *r.tilt.gravity;
+    py::dict e;
+    e["roll_rad"] = g.roll_rad;
+    e["pitch_rad"] = g.pitch_rad;
+    e["height_m"] = g.height_m;
+    e["attitude_covariance"] = py::cast(Eigen::Matrix3d(g.attitude_covariance));
+    e["accel_bias_mps2"] = std::vector<double>{g.accel_bias_mps2.x(), g.accel_bias_mps2.y(),
+                                               g.accel_bias_mps2.z()};
+    e["mount_rad"] = std::vector<double>{g.mount_rad.x(), g.mount_rad.y()};
+    e["verticals"] = g.cues.verticals;
+    e["accel_terms"] = g.cues.accel_terms;
+    std::vector<std::string> flags;
+    for (const map::GravityDegeneracy& f : g.degeneracies) flags.push_back(f.reason);
+    e["not_observable"] = flags;
+    e["report"] = g.BriefReport();
+    d["gravity"] = e;
+  }
   d["detect_s"] = r.detect_s;
   d["tilt_s"] = r.tilt_s;
   d["fuse_s"] = r.fuse_s;
@@ -57,12 +76,14 @@ struct PyMapper {
 };
 
 std::unique_ptr<PyMapper> MakeMapper(const Settings* settings, std::optional<double> window_m,
-                                     std::optional<bool> refine_tilt) {
+                                     std::optional<bool> refine_tilt,
+                                     const std::optional<std::string>& tilt) {
   map::MapperConfig config = settings != nullptr ? settings->map.mapper : map::MapperConfig{};
   // The overrides of `cairn map --window / --offline / --refine-tilt / --no-refine-tilt`.
   if (window_m) config.map.window_size_m = *window_m;
   if (refine_tilt) config.tilt.mode = *refine_tilt ? map::TiltMode::kRefineToMap
                                                    : map::TiltMode::kPrior;
+  if (tilt) config.tilt.mode = Unwrap(map::ParseTiltMode(*tilt));
   if (Status s = config.map.Validate(); !s) throw CairnError("window: " + s.message());
   py::gil_scoped_release release;
   return std::make_unique<PyMapper>(Unwrap(map::Mapper::Create(config)));
@@ -224,9 +245,11 @@ void RegisterMap(py::module_& m) {
                        "up; metres, radians, seconds. Not thread-safe.")
       .def(py::init(&MakeMapper), py::arg("settings") = nullptr, py::kw_only(),
            py::arg("window_m") = py::none(), py::arg("refine_tilt") = py::none(),
+           py::arg("tilt") = py::none(),
            "settings: cairn.Settings (None: the defaults). window_m: rolling window side [m], "
            "0 = unbounded (cairn map --window / --offline); None keeps the settings'. "
-           "refine_tilt: True / False override tilt.refine (--refine-tilt / --no-refine-tilt).")
+           "refine_tilt: True / False override tilt.refine (--refine-tilt / --no-refine-tilt). "
+           "tilt: 'prior' | 'refine_to_map' | 'gravity' (cairn map --tilt).")
       .def("add_points", &AddPoints, py::arg("points"), py::arg("T_world_sensor"),
            py::kw_only(), py::arg("stamp"), py::arg("sensor") = py::none(),
            py::arg("organised") = "auto", py::arg("columns") = 0, py::arg("source") = "points",

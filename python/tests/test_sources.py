@@ -151,3 +151,18 @@ def test_bad_sources_raise_the_cli_message(depth_folder, tmp_path):
     run = run_cli("map", "--frames", folder, "--poses", bad_poses, "--out", tmp_path / "out2",
                   check=False)
     assert str(raised.value) == cli_error(run, "map")
+
+
+def test_the_gravity_mode_reports_its_estimate(rawlog_frames):
+    """The bundled drive has raw IMU samples: with tilt="gravity" every record carries the
+    estimator's answer, and the fused tilt follows the accelerometer, not the biased IMU
+    attitude (0.5 deg) of the odometry pose."""
+    settings, frames = rawlog_frames
+    mapper = cairn.Mapper(settings, tilt="gravity")
+    records = [mapper.add_frame(f) for f in frames[:FRAMES]]
+    g = records[-1]["gravity"]
+    assert g["accel_terms"] > 0 and g["verticals"] > 0
+    assert np.shape(g["attitude_covariance"]) == (3, 3)
+    assert all(r["tilt_applied"] for r in records)
+    with pytest.raises(cairn.Error, match="prior, refine_to_map or gravity"):
+        cairn.Mapper(settings, tilt="level")

@@ -34,5 +34,15 @@ int main(int argc, char** argv) {
               r.gyro_bias_radps.x(), r.gyro_bias_radps.y(), r.gyro_bias_radps.z(),
               r.truth_gyro_bias_radps.x(), r.truth_gyro_bias_radps.y(),
               r.truth_gyro_bias_radps.z());
+  const auto up = cairn::test::RunEurocStereoUp(root);
+  if (!up) {
+    std::fprintf(stderr, "cairn_euroc_gravity: %s\n", up.error().message.c_str());
+    return 1;
+  }
+  std::printf("stereo pairs at rest: floor found in %d (%d inlier points); up from the floor vs "
+              "the truth median %.3f deg (max %.3f), from the accelerometer median %.3f deg "
+              "(max %.3f); floor vs accelerometer median %.3f deg\n",
+              up->pairs, up->floor_points, up->floor_median_deg, up->floor_max_deg,
+              up->accel_median_deg, up->accel_max_deg, up->floor_vs_accel_median_deg);
   return 0;
 }

@@ -11,7 +11,13 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
+#include <cstdlib>
+#include <random>
+#include <sstream>
+
 #include "cairn/map/gravity_estimator.hpp"
+#include "cairn/od/io/stereo.hpp"
 #include "cairn/od/expected.hpp"
 #include "cairn/sources/asl_dataset.hpp"
 
@@ -128,6 +134,160 @@ inline Expected<EurocGravityResult> RunEurocGravity(const std::filesystem::path&
     const Eigen::Vector3d a = rest_sum.normalized(), b = rest_up.normalized();
     result.rest_accel_tilt_deg = std::atan2(a.cross(b).norm(), a.dot(b)) / kDeg;
   }
+  return result;
+}
+
+
+/// The up vector at rest from the stereo pairs' floor and from the accelerometer, each
+/// against the truth, in the rectified left camera's frame [deg].
+struct EurocStereoUpResult {
+  int pairs = 0;       ///< pairs whose floor was found
+  int floor_points = 0;  ///< inliers of the floor plane, summed over pairs
+  double floor_median_deg = 0.0, floor_max_deg = 0.0;  ///< floor normal vs the true up
+  double accel_median_deg = 0.0, accel_max_deg = 0.0;  ///< mean specific force vs the true up
+  double floor_vs_accel_median_deg = 0.0;
+};
+
+/// The floor of a rectified depth image: RANSAC over planes whose normal lies within 40 deg
+/// of the image's up (-y), 2 cm inlier band, points 0.3-6 m; then the least-squares plane of
+/// its inliers, the normal turned towards the camera. Deterministic (fixed seed).
+inline bool FloorNormal(const std::vector<Eigen::Vector3d>& points, Eigen::Vector3d* normal,
+                        int* inliers_out) {
+  if (points.size() < 100) return false;
+  std::mt19937 rng(1);
+  std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
+  const double band = 0.02, cos_gate = std::cos(40.0 * 3.14159265358979323846 / 180.0);
+  int best = 0;
+  Eigen::Vector3d best_n = Eigen::Vector3d::Zero();
+  double best_d = 0.0;
+  for (int it = 0; it < 400; ++it) {
+    const Eigen::Vector3d a = points[pick(rng)], b = points[pick(rng)], c = points[pick(rng)];
+    Eigen::Vector3d n = (b - a).cross(c - a);
+    if (n.norm() < 1e-9) continue;
+    n.normalize();
+    if (std::abs(n.y()) < cos_gate) continue;
+    const double d = -n.dot(a);
+    int count = 0;
+    for (std::size_t k = 0; k < points.size(); k += 4) count += std::abs(n.dot(points[k]) + d) < band;
+    if (count > best) {
+      best = count;
+      best_n = n;
+      best_d = d;
+    }
+  }
+  if (best == 0) return false;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> in;
+  for (const Eigen::Vector3d& p : points) {
+    if (std::abs(best_n.dot(p) + best_d) < band) in.push_back(p);
+  }
+  for (const Eigen::Vector3d& p : in) mean += p;
+  mean /= static_cast<double>(in.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& p : in) cov += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  Eigen::Vector3d n = eig.eigenvectors().col(0);
+  if (n.dot(-mean) < 0.0) n = -n;  // from the floor towards the camera: up
+  *normal = n;
+  *inliers_out = static_cast<int>(in.size());
+  return true;
+}
+
+/// The EuRoC pairs at rest: rectified with the data set's calibration (an OpenCV stereo
+/// calibration built from cam0/cam1's intrinsics, distortion and extrinsics), matched with
+/// od::io::ComputeStereoDepth, the floor's normal and the accelerometer's mean direction
+/// (+-25 ms around each pair) against the true up (OpenVINS' attitude).
+inline Expected<EurocStereoUpResult> RunEurocStereoUp(const std::filesystem::path& root) {
+  constexpr double kDeg = 3.14159265358979323846 / 180.0;
+  Expected<sources::AslDataset> data = sources::ReadAslDataset(root / "mav0");
+  if (!data) return data.error();
+  if (data->cameras.size() < 2) return Error{"EuRoC: cam0 and cam1 needed"};
+  const sources::AslCamera& c0 = data->cameras[0];
+  const sources::AslCamera& c1 = data->cameras[1];
+  Expected<std::vector<sources::AslGroundTruth>> truth =
+      sources::ReadOpenVinsGroundTruth(root / "ov_data" / "euroc_mav" / "V1_01_easy.csv");
+  if (!truth) return truth.error();
+  // p_cam1 = R p_cam0 + T.
+  const Eigen::Isometry3d T_c1_c0 = c1.T_body_camera.inverse() * c0.T_body_camera;
+  std::ostringstream yaml;
+  yaml.precision(17);
+  auto list = [&](const std::vector<double>& v) {
+    yaml << "[";
+    for (std::size_t k = 0; k < v.size(); ++k) yaml << (k ? ", " : "") << v[k];
+    yaml << "]\n";
+  };
+  yaml << "image_size: [" << c0.width << ", " << c0.height << "]\nM1: ";
+  list({c0.fx, 0, c0.cx, 0, c0.fy, c0.cy, 0, 0, 1});
+  yaml << "D1: ";
+  list(c0.distortion);
+  yaml << "M2: ";
+  list({c1.fx, 0, c1.cx, 0, c1.fy, c1.cy, 0, 0, 1});
+  yaml << "D2: ";
+  list(c1.distortion);
+  const Eigen::Matrix3d R = T_c1_c0.linear();
+  yaml << "R: ";
+  list({R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)});
+  yaml << "T: ";
+  list({T_c1_c0.translation().x(), T_c1_c0.translation().y(), T_c1_c0.translation().z()});
+  Expected<od::io::StereoCalibration> calibration =
+      od::io::ParseOpenCvStereoCalibration(yaml.str(), "EuRoC cam0/cam1");
+  if (!calibration) return calibration.error();
+  const Eigen::Matrix3d R_rect_body =
+      calibration->rectification->R1 * c0.T_body_camera.linear().transpose();
+  od::io::StereoConfig config;
+  config.min_depth_m = 0.5;
+  config.max_depth_m = 6.0;
+  EurocStereoUpResult result;
+  std::vector<double> floor_err, accel_err, floor_accel;
+  for (std::size_t k = 0; k < c0.images.size() && k < c1.images.size(); ++k) {
+    if (!c0.images[k].exists || !c1.images[k].exists) continue;
+    Expected<od::io::GreyImage> left = od::io::ReadGreyImage(c0.images[k].path);
+    if (!left) return left.error();
+    Expected<od::io::GreyImage> right = od::io::ReadGreyImage(c1.images[k].path);
+    if (!right) return right.error();
+    Expected<od::io::StereoPair> pair = od::io::PrepareStereoPair(*left, *right, *calibration);
+    if (!pair) return pair.error();
+    Expected<od::io::StereoDepth> depth = od::io::ComputeStereoDepth(*pair, config);
+    if (!depth) return depth.error();
+    const od::PinholeModel& m = pair->calibration.model;
+    std::vector<Eigen::Vector3d> points;
+    for (int v = 0; v < depth->depth_m.height; ++v) {
+      for (int u = 0; u < depth->depth_m.width; ++u) {
+        const double z = depth->depth_m.data[static_cast<std::size_t>(v) * depth->depth_m.width + u];
+        if (!(z >= 0.3 && z <= 6.0)) continue;
+        points.emplace_back((u - m.cx) * z / m.fx, (v - m.cy) * z / m.fy, z);
+      }
+    }
+    Eigen::Vector3d floor;
+    int inliers = 0;
+    if (!FloorNormal(points, &floor, &inliers)) continue;
+    // The truth nearest in time, and the accelerometer around the pair.
+    const std::int64_t t = c0.images[k].stamp_ns;
+    const sources::AslGroundTruth* g = &truth->front();
+    for (const sources::AslGroundTruth& row : *truth) {
+      if (std::llabs(row.stamp_ns - t) < std::llabs(g->stamp_ns - t)) g = &row;
+    }
+    const Eigen::Vector3d up_true =
+        R_rect_body * g->q_world_body.toRotationMatrix().transpose() * Eigen::Vector3d::UnitZ();
+    Eigen::Vector3d f = Eigen::Vector3d::Zero();
+    for (const sources::AslImuSample& s : data->imu.samples) {
+      if (std::llabs(s.stamp_ns - t) <= 25000000) f += s.specific_force_mps2;
+    }
+    const Eigen::Vector3d up_accel = R_rect_body * data->imu.T_body_imu.linear() * f.normalized();
+    auto angle = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+      return std::atan2(a.cross(b).norm(), a.dot(b)) / kDeg;
+    };
+    floor_err.push_back(angle(floor, up_true));
+    accel_err.push_back(angle(up_accel, up_true));
+    floor_accel.push_back(angle(floor, up_accel));
+    ++result.pairs;
+    result.floor_points += inliers;
+  }
+  result.floor_median_deg = EurocPercentile(floor_err, 0.5);
+  result.floor_max_deg = EurocPercentile(floor_err, 1.0);
+  result.accel_median_deg = EurocPercentile(accel_err, 0.5);
+  result.accel_max_deg = EurocPercentile(accel_err, 1.0);
+  result.floor_vs_accel_median_deg = EurocPercentile(floor_accel, 0.5);
   return result;
 }
 
