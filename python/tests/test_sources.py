@@ -161,7 +161,8 @@ def test_the_gravity_mode_reports_its_estimate(rawlog_frames):
     mapper = cairn.Mapper(settings, tilt="gravity")
     records = [mapper.add_frame(f) for f in frames[:16]]  # accelerometer spans: 7 frames
     g = records[-1]["gravity"]
-    assert g["accel_terms"] > 0 and g["verticals"] > 0
+    assert any(r["gravity"]["accel_terms"] > 0 for r in records)  # one per 7-frame span
+    assert g["verticals"] > 0
     assert np.shape(g["attitude_covariance"]) == (3, 3)
     assert all(r["tilt_applied"] for r in records)
     with pytest.raises(cairn.Error, match="prior, refine_to_map or gravity"):
