@@ -14,8 +14,9 @@ function(cairn_add_library target)
   target_compile_features(${target} PUBLIC cxx_std_17)
   cairn_set_warnings(${target})
   get_property(sanitize GLOBAL PROPERTY CAIRN_LIBRARY_SANITIZE_OPTIONS)
-  if(sanitize)  # CAIRN_SANITIZE_SCOPE=libraries
-    target_compile_options(${target} PRIVATE ${sanitize})
+  get_property(sanitize_targets GLOBAL PROPERTY CAIRN_LIBRARY_SANITIZE_TARGETS)
+  if(sanitize AND (sanitize_targets STREQUAL "libraries" OR target IN_LIST sanitize_targets))
+    target_compile_options(${target} PRIVATE ${sanitize})  # CAIRN_SANITIZE_SCOPE
   endif()
   if(ARG_NO_INSTALL)
     return()
