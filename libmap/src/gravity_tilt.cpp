@@ -72,12 +72,14 @@ GravityFrame FrameFrom(const json& j) {
   return f;
 }
 
+constexpr const char* kNoGround = "no ground overlap";
+
 class GravityTilt final : public TiltStep {
  public:
   explicit GravityTilt(const TiltConfig& config) : config_(config) {}
 
   TiltMode mode() const override { return TiltMode::kGravity; }
-  bool UsesGroundPoints() const override { return false; }
+  bool UsesGroundPoints() const override { return true; }
 
   // The odometry pose with the correction of the last estimate: its tilt (a rotation about
   // world axes, the heading kept) and its height.
@@ -88,7 +90,7 @@ class GravityTilt final : public TiltStep {
     return T;
   }
 
-  Expected<TiltOutcome> Estimate(const TiltFrame& frame, const TerrainMap&) override {
+  Expected<TiltOutcome> Estimate(const TiltFrame& frame, const TerrainMap& map) override {
     const Eigen::Isometry3d T_world_body =
         frame.T_world_sensor_odometry * frame.T_body_sensor.inverse();
     const Attitude odom = AttitudeOf(T_world_body.linear());
@@ -111,6 +113,16 @@ class GravityTilt final : public TiltStep {
     g.attitude_prior_rad = Eigen::Vector2d(odom.roll, odom.pitch);
     g.verticals = FindVerticalCues(frame.image, frame.detection, frame.classification,
                                    frame.image.up(), config_.verticals);
+    // The frame-to-map ground height: the frame's ground points against the terrain fused
+    // so far, the prior's tilt held (RefineTilt with a tight tilt prior), give the body's
+    // height; it keeps the height consistent with the map, as refine_to_map does, while
+    // the tilt comes from gravity.
+    if (Expected<double> h = GroundHeight(frame, map); h) {
+      g.ground_height_m = *h - z0_m_;
+      g.ground_height_sigma_m = config_.gravity_ground_sigma_m;
+    } else if (h.error().message != kNoGround) {
+      return h.error();
+    }
     Expected<GravityEstimate> estimate = estimator_->AddFrame(g);
     if (!estimate) return estimate.error();
     frames_.push_back(FrameJson(g));
@@ -143,6 +155,21 @@ class GravityTilt final : public TiltStep {
                    frame.T_world_sensor_odometry.translation().z();
     outcome.gravity = std::move(*estimate);
     return outcome;
+  }
+
+  // The body height [m] at which the frame's ground points fit the fused terrain (tilt as
+  // the prior has it), or Error{kNoGround} when too few overlap it.
+  Expected<double> GroundHeight(const TiltFrame& frame, const TerrainMap& map) const {
+    if (frame.index == 0) return Error{kNoGround};
+    TiltRefinerConfig c = config_.refiner;
+    c.prior_sigma_rad = 1e-5;  // the tilt is the estimator's business
+    const ElevationPatch patch = ElevationPatchAround(
+        map, frame.T_world_sensor_prior.translation().head<2>(), c.max_range_m);
+    Expected<TiltEstimate> fit = RefineTilt(frame.ground_points_sensor, frame.T_world_sensor_prior, patch, c);
+    if (!fit) return fit.error();
+    if (!fit->usable) return Error{kNoGround};
+    const Eigen::Isometry3d body = frame.T_world_sensor_prior * frame.T_body_sensor.inverse();
+    return body.translation().z() + fit->dz_m;
   }
 
   // The estimator's window and marginalised prior are a function of every frame it was

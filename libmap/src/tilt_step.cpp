@@ -1,5 +1,6 @@
 #include "cairn/map/tilt_step.hpp"
 
+#include <cmath>
 #include <exception>
 #include <nlohmann/json.hpp>
 
@@ -112,6 +113,9 @@ Status TiltConfig::Validate() const {
   if (Status s = refiner.Validate(); !s) return Error{"tilt config: " + s.message()};
   if (Status s = gravity.Validate(); !s) return Error{"tilt config: " + s.message()};
   if (Status s = verticals.Validate(); !s) return Error{"tilt config: " + s.message()};
+  if (!(gravity_ground_sigma_m > 0.0 && std::isfinite(gravity_ground_sigma_m))) {
+    return Error{"tilt config: 'gravity_ground_sigma': must be > 0 m"};
+  }
   return {};
 }
 
