@@ -116,8 +116,12 @@ class GravityTilt final : public TiltStep {
     // The frame-to-map ground height: the frame's ground points against the terrain fused
     // so far, the prior's tilt held (RefineTilt with a tight tilt prior), give the body's
     // height; it keeps the height consistent with the map, as refine_to_map does, while
-    // the tilt comes from gravity.
-    if (Expected<double> h = GroundHeight(frame, map); h) {
+    // the tilt comes from gravity. Only once vertical structure anchors the tilt: without
+    // it the map, built at the earlier frames' tilts, would pull the tilt back to theirs
+    // through the height steps (on an open field it turned a 2.5 deg mount error into 7).
+    if (verticals_seen_ < config_.gravity_ground_min_verticals) {
+      // not yet anchored
+    } else if (Expected<double> h = GroundHeight(frame, map); h) {
       g.ground_height_m = *h - z0_m_;
       g.ground_height_sigma_m = config_.gravity_ground_sigma_m;
     } else if (h.error().message != kNoGround) {
@@ -125,6 +129,7 @@ class GravityTilt final : public TiltStep {
     }
     Expected<GravityEstimate> estimate = estimator_->AddFrame(g);
     if (!estimate) return estimate.error();
+    verticals_seen_ += static_cast<int>(g.verticals.size());
     frames_.push_back(FrameJson(g));
 
     TiltOutcome outcome;
@@ -187,6 +192,7 @@ class GravityTilt final : public TiltStep {
       const json j = json::parse(state);
       estimator_.reset();
       frames_ = json::array();
+      verticals_seen_ = 0;
       const Eigen::Matrix<double, 16, 1> mount = VecFrom<16>(j.at("mount"));
       T_body_sensor_.matrix() = Eigen::Map<const Eigen::Matrix4d>(mount.data());
       for (const json& f : j.at("frames")) {
@@ -196,8 +202,10 @@ class GravityTilt final : public TiltStep {
           if (!made) return made.error();
           estimator_.emplace(std::move(*made));
         }
-        Expected<GravityEstimate> e = estimator_->AddFrame(FrameFrom(f));
+        const GravityFrame frame = FrameFrom(f);
+        Expected<GravityEstimate> e = estimator_->AddFrame(frame);
         if (!e) return Error{"tilt state (gravity): " + e.error().message};
+        verticals_seen_ += static_cast<int>(frame.verticals.size());
         frames_.push_back(f);
       }
       const Eigen::Matrix<double, 9, 1> c = VecFrom<9>(j.at("correction"));
@@ -215,6 +223,7 @@ class GravityTilt final : public TiltStep {
   std::optional<GravityEstimator> estimator_;  // made at the first frame (it needs the mount)
   Eigen::Isometry3d T_body_sensor_ = Eigen::Isometry3d::Identity();
   double z0_m_ = 0.0;  // the body's odometry height at the first frame [m]
+  int verticals_seen_ = 0;  // vertical cues given so far
   json frames_ = json::array();
   Eigen::Matrix3d R_correction_ = Eigen::Matrix3d::Identity();  // carried to the next prior
   double dz_m_ = 0.0;

@@ -116,6 +116,9 @@ Status TiltConfig::Validate() const {
   if (!(gravity_ground_sigma_m > 0.0 && std::isfinite(gravity_ground_sigma_m))) {
     return Error{"tilt config: 'gravity_ground_sigma': must be > 0 m"};
   }
+  if (gravity_ground_min_verticals < 0) {
+    return Error{"tilt config: 'gravity_ground_min_verticals': must be >= 0"};
+  }
   return {};
 }
 

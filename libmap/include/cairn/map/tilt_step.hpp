@@ -22,8 +22,9 @@
 //   kGravity   map::GravityEstimator (gravity_estimator.hpp) over a sliding window: the
 //              frame's raw IMU samples, its odometry (planar pose, velocity), the IMU
 //              attitude in the odometry pose as a prior, the vertical structure the
-//              detector found (gravity_cues.hpp), and the body height at which its ground
-//              fits the terrain fused so far (RefineTilt's height with the tilt held). The
+//              detector found (gravity_cues.hpp), and, once vertical cues anchor the tilt,
+//              the body height at which its ground fits the terrain fused so far
+//              (RefineTilt's height with the tilt held). The
 //              frame is fused at the estimated roll, pitch, height and mount tilt, the
 //              odometry's x, y and heading.
 // Mapper::Create also takes a step of the caller's.
@@ -68,7 +69,10 @@ struct TiltConfig {
   VerticalCueConfig verticals;     ///< kGravity: which segments are vertical cues
   /// kGravity: sigma of the frame-to-map ground height (the refiner's dz with the tilt
   /// held) given to the estimator [m]; refiner.* sets the ground matching.
-  double gravity_ground_sigma_m = 0.03;
+  double gravity_ground_sigma_m = 0.3;
+  /// kGravity: the ground height is used once this many vertical cues have been seen (the
+  /// tilt anchored by structure, not only by the accelerometer).
+  int gravity_ground_min_verticals = 5;
   /// Fails naming the first bad field ("tilt.max_points: ...").
   Status Validate() const;
 };
