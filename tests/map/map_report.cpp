@@ -595,11 +595,11 @@ int main(int argc, char** argv) {
   if (!TiltStudy(md, tilt_csv)) return 1;
   md << "\n## Figures\n\n";
   // The whole run's time, tilt study included.
-  std::string text = md.str();
+  std::string report = md.str();
   const double total_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  text.replace(text.find("@SECONDS@"), 9, Fmt("%.0f", total_s));
-  md.str(text);
+  report.replace(report.find("@SECONDS@"), 9, Fmt("%.0f", total_s));
+  md.str(report);
   md.seekp(0, std::ios_base::end);
   for (const std::string& f : figures) md << "![" << f << "](figures/" << f << ")\n\n";
   md << "Cost grids: grey = cost (light free, dark high), red = lethal, black = unknown, "
