@@ -18,6 +18,7 @@
 
 #include "cairn/map/gravity_estimator.hpp"
 #include "cairn/od/io/stereo.hpp"
+#include "../io/plane_fit.hpp"
 #include "cairn/od/expected.hpp"
 #include "cairn/sources/asl_dataset.hpp"
 
@@ -150,7 +151,7 @@ struct EurocStereoUpResult {
 
 /// The floor of a rectified depth image: RANSAC over planes whose normal lies within 40 deg
 /// of the image's up (-y), 2 cm inlier band, points 0.3-6 m; then the least-squares plane of
-/// its inliers, the normal turned towards the camera. Deterministic (fixed seed).
+/// its inliers (FitPlane), the normal turned up. Deterministic (fixed seed).
 inline bool FloorNormal(const std::vector<Eigen::Vector3d>& points, Eigen::Vector3d* normal,
                         int* inliers_out) {
   if (points.size() < 100) return false;
@@ -176,19 +177,11 @@ inline bool FloorNormal(const std::vector<Eigen::Vector3d>& points, Eigen::Vecto
     }
   }
   if (best == 0) return false;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> in;
   for (const Eigen::Vector3d& p : points) {
     if (std::abs(best_n.dot(p) + best_d) < band) in.push_back(p);
   }
-  for (const Eigen::Vector3d& p : in) mean += p;
-  mean /= static_cast<double>(in.size());
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const Eigen::Vector3d& p : in) cov += (p - mean) * (p - mean).transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  Eigen::Vector3d n = eig.eigenvectors().col(0);
-  if (n.dot(-mean) < 0.0) n = -n;  // from the floor towards the camera: up
-  *normal = n;
+  *normal = FitPlane(in).normal;  // turned to -y: up in the optical frame
   *inliers_out = static_cast<int>(in.size());
   return true;
 }
