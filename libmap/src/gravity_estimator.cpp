@@ -26,6 +26,16 @@ Error FieldError(const std::string& field, const std::string& what) {
   return Error{"gravity." + field + ": " + what};
 }
 
+// The half span of the accelerometer term centred on frame `id` (frames counted from the
+// first), or 0 when no term is centred there. Spans run end to end from frame 0: first
+// accel_warmup_spans of half span 1 (centres 1, 3, ..), then half span m.
+int AccelHalfSpanAt(const GravityEstimatorConfig& c, std::int64_t id) {
+  const std::int64_t warmup_end = 2 * static_cast<std::int64_t>(c.accel_warmup_spans);
+  if (id < warmup_end) return id % 2 == 1 ? 1 : 0;
+  const int m = c.accel_half_span_frames;
+  return (id - warmup_end) % (2 * m) == m ? m : 0;
+}
+
 // The raw samples as integration pieces: sample j covers [stamp - dt/2, stamp + dt/2].
 struct Sample {
   GravityImuSample raw;
@@ -209,8 +219,8 @@ void GravityEstimator::State::Build(ceres::Problem& problem,
       add(new ceres::AutoDiffCostFunction<gravity::HeightStepTerm, 1, 1, 1, 3, 3>(step), nullptr,
           {f.h, g.h, f.rpy, g.rpy}, Kind::kHeightStep, i);
     }
-    const int m = c.accel_half_span_frames;
-    if (f.id % (2 * m) == 0 && i - m >= 0 && i + m < n && window[i - m]->velocity &&
+    const int m = AccelHalfSpanAt(c, f.id);
+    if (m > 0 && i - m >= 0 && i + m < n && window[i - m]->velocity &&
         window[i + m]->velocity) {
       WindowFrame& fa = *window[i - m];
       WindowFrame& fb = *window[i + m];
@@ -349,6 +359,9 @@ void GravityEstimator::State::Marginalise() {
 }
 
 Status GravityEstimatorConfig::Validate() const {
+  if (accel_warmup_spans < 0) {
+    return FieldError("accel_warmup_spans", "must be >= 0, got " + std::to_string(accel_warmup_spans));
+  }
   if (accel_half_span_frames < 1) {
     return FieldError("accel_half_span_frames",
                       "must be >= 1, got " + std::to_string(accel_half_span_frames));

@@ -13,7 +13,9 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
@@ -41,6 +43,9 @@ struct DriftRunSpec {
   double imu_sigma_rad = 0.0;              ///< the IMU attitude output's noise
   bool refine_tilt = false;                ///< Ceres tilt refiner on the believed pose
   bool gravity = false;                    ///< the gravity estimator (takes over refine_tilt)
+  /// The floor of every tilt mode: roll, pitch and height true, x, y and heading from the
+  /// odometry (what is left is the odometry's horizontal drift).
+  bool truth_tilt_height = false;
   /// Raw IMU errors (accelerometer and gyro bias and noise, misalignment) and the sensor's
   /// mount misalignment; the raw samples reach the Mapper in every mode.
   sim::ImuSpec imu;
@@ -50,6 +55,10 @@ struct DriftRunSpec {
   double rate_hz = 2.0;
   double speed_mps = 2.0;
   int camera_width = 160;  ///< 160 x 120 range camera
+  /// Changes the Mapper's settings before it is made (studies); may be empty.
+  std::function<void(map::MapperConfig&)> configure;
+  /// Called with every frame's record and its true sample (diagnostics); may be empty.
+  std::function<void(const map::MapperRecord&, const sim::DriveSample&)> on_frame;
 };
 
 /// Odometry that drifts by `fraction` of the distance (sigma of the scale error) and, in
@@ -91,6 +100,12 @@ struct DriftRunResult {
   int found_0_3 = 0;                                   ///< of which within 0.3 m
   double elevation_rms_m = 0.0;
   int elevation_cells = 0;
+  /// Every fused frame's terrain returns within map.max_range (every 4th pixel): the height
+  /// they were fused at against the true terrain under their true position [m]. Unlike
+  /// elevation_rms_m, which compares the grid with the terrain at the same x, y, it leaves
+  /// out the odometry's horizontal drift: it is the error the fused pose's tilt and height
+  /// put into the map.
+  double ground_height_rms_m = 0.0;
   std::vector<PoseError> pose_errors;
   /// measure_cues: each vertical cue's angle from the true vertical (a wall normal's from
   /// the horizontal) [rad].
@@ -115,6 +130,38 @@ namespace detail {
 inline double CellDistance(const std::pair<int, int>& a, const std::pair<int, int>& b, double s) {
   return std::hypot(a.first - b.first, a.second - b.second) * s;
 }
+
+// truth_tilt_height: fuses the odometry's x, y and heading with the true roll, pitch and
+// height of `*truth` (set before each frame).
+class TruthTiltStep final : public map::TiltStep {
+ public:
+  explicit TruthTiltStep(const Eigen::Isometry3d* truth) : truth_(truth) {}
+  map::TiltMode mode() const override { return map::TiltMode::kPrior; }
+  bool UsesGroundPoints() const override { return false; }
+  Eigen::Isometry3d Prior(const Eigen::Isometry3d& odometry) const override {
+    const auto heading = [](const Eigen::Matrix3d& R) {
+      // The heading of the sensor's viewing direction (optical z) on the level plane.
+      return std::atan2(R(1, 2), R(0, 2));
+    };
+    Eigen::Isometry3d T = *truth_;
+    T.linear() = Eigen::AngleAxisd(heading(odometry.linear()) - heading(truth_->linear()),
+                                   Eigen::Vector3d::UnitZ()) *
+                 truth_->linear();
+    T.translation().head<2>() = odometry.translation().head<2>();
+    return T;
+  }
+  Expected<map::TiltOutcome> Estimate(const map::TiltFrame& frame, const map::TerrainMap&) override {
+    map::TiltOutcome out;
+    out.T_world_sensor = Prior(frame.T_world_sensor_odometry);
+    out.applied = true;
+    return out;
+  }
+  std::string SaveState() const override { return {}; }
+  Status RestoreState(const std::string&) override { return {}; }
+
+ private:
+  const Eigen::Isometry3d* truth_;
+};
 
 // Scores the map of `r` against the world (same measures as terrain_map_sim_test).
 inline void Score(const sim::World& world, const std::map<int, int>& pixels_seen,
@@ -205,7 +252,12 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
                      : spec.gravity     ? map::TiltMode::kGravity
                      : spec.refine_tilt ? map::TiltMode::kRefineToMap
                                         : map::TiltMode::kPrior;
-  Expected<map::Mapper> mapper = map::Mapper::Create(config);
+  if (spec.configure) spec.configure(config);
+  Eigen::Isometry3d truth_now = Eigen::Isometry3d::Identity();  // truth_tilt_height
+  Expected<map::Mapper> mapper =
+      spec.truth_tilt_height
+          ? map::Mapper::Create(config, std::make_unique<detail::TruthTiltStep>(&truth_now))
+          : map::Mapper::Create(config);
   if (!mapper) return mapper.error();
 
   sim::DriveSpec drive_spec;
@@ -234,6 +286,8 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   int refined_frames = 0;
   double distance_m = 0.0;
   double z_body = 0.0;  // dead reckoning
+  double ground_sum2 = 0.0;  // ground_height_rms_m
+  long ground_n = 0;
   const sim::DriveSample* previous = nullptr;
   std::size_t next_imu = 0;
   for (const sim::DriveSample& s : drive->samples) {
@@ -291,6 +345,15 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
         cue_errors_rad.push_back(c.wall_normal ? std::abs(0.5 * M_PI - a) : a);
       }
     }
+    // The terrain returns (sensor frame) for ground_height_rms_m.
+    std::vector<Eigen::Vector3d> terrain_returns;
+    for (int i = 0; i < image->size(); i += 4) {
+      if (image->valid(i) && rendered->object_id[i] == sim::kTerrainId &&
+          image->point(i).norm() <= config.map.max_range_m) {
+        terrain_returns.push_back(image->point(i));
+      }
+    }
+    truth_now = s.T_world_sensor;
     Expected<map::MapperRecord> record =
         (*mapper).Process(std::move(*image), T_world_sensor, s.stamp_s, imu);
     if (!record) return record.error();
@@ -298,6 +361,7 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
       return Error{spec.world + ": frame " + std::to_string(s.index) + " skipped: " +
                    map::FrameSkipName(record->skip) + " (" + record->skip_detail + ")"};
     }
+    if (spec.on_frame) spec.on_frame(*record, s);
     refined_frames += record->tilt.applied ? 1 : 0;
     if (record->tilt.gravity) {
       degenerate_frames += record->tilt.gravity->degeneracies.empty() ? 0 : 1;
@@ -315,6 +379,12 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
       if (n >= 30 && first_seen_m.count(object) == 0) first_seen_m[object] = s.distance_m;
     }
     const Eigen::Isometry3d& fused = record->T_world_sensor;
+    for (const Eigen::Vector3d& p : terrain_returns) {
+      const Eigen::Vector3d at = s.T_world_sensor * p;
+      const double e = (fused * p).z() - world->scene.terrain().Height(at.x(), at.y());
+      ground_sum2 += e * e;
+      ++ground_n;
+    }
     PoseError e;
     e.distance_m = s.distance_m;
     e.position_m = (fused.translation() - s.T_world_sensor.translation()).head<2>().norm();
@@ -331,6 +401,7 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   r.frames = static_cast<int>(r.mapper.frames_fused());
   r.distance_m = distance_m;
   r.refined_frames = refined_frames;
+  r.ground_height_rms_m = std::sqrt(ground_sum2 / std::max(1L, ground_n));
   r.pose_errors = std::move(pose_errors);
   r.cue_errors_rad = std::move(cue_errors_rad);
   r.degenerate_frames = degenerate_frames;

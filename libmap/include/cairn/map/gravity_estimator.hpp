@@ -47,8 +47,16 @@ struct GravityEstimatorConfig {
   double motion_sigma_mps2 = 0.05;  ///< motion the odometry misses, per span average [m/s^2]
   /// The accelerometer term spans this many frames on each side of its centre (m): one
   /// term per 2m frames, spans end to end. Longer spans average the odometry's
-  /// displacement noise down (it enters as odometry_sigma_m / (dt * span)).
-  int accel_half_span_frames = 3;
+  /// displacement noise down (it enters as odometry_sigma_m / (dt * span)); short ones
+  /// observe the body's up (not only the sensor's) sooner and more often. On the 60 m
+  /// uphill drive with a 2 deg IMU bias and 1% odometry (seeds 1-3), the fused ground's
+  /// height RMS was 0.050-0.066 m with m = 3 and 0.015-0.021 m with m = 1.
+  int accel_half_span_frames = 1;
+  /// With m > 1: the first spans of a run are this many 2-frame spans (half span 1), then
+  /// the long ones follow end to end, so that the body's up is observed after 3 frames
+  /// instead of 2m + 1 (before, the first frames knew only the sensor's up from vertical
+  /// cues and the height was integrated from a body pitch 1.5 deg off).
+  int accel_warmup_spans = 3;
   double odometry_sigma_m = 0.005;  ///< odometry displacement noise per frame and axis [m]
   double accel_huber = 3.0;         ///< Huber threshold of the accelerometer term [sigma]
   double gyro_sigma_radps = 0.002;  ///< gyro white noise per sample [rad/s]
