@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/kitti.hpp"
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/range_image.hpp"
@@ -163,7 +163,7 @@ int RunDetectKitti(const DetectOptions& options) {
               << " kept), detect " << row.detect_ms << " ms, total " << row.total_ms << " ms\n";
   }
   const std::filesystem::path summary = std::filesystem::path(options.out) / "summary.csv";
-  if (Status s = io::WriteFileAtomic(summary, SummaryCsv(rows)); !s) return DetectFail(s.message());
+  if (Status s = util::WriteFileAtomic(summary, SummaryCsv(rows)); !s) return DetectFail(s.message());
 
   double detect_sum = 0.0, total_sum = 0.0;
   for (const FrameSummary& r : rows) {

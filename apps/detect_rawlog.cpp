@@ -29,7 +29,7 @@
 #include <string>
 #include <vector>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/detection_files.hpp"
 #include "cairn/od/io/point_cloud.hpp"
@@ -350,7 +350,7 @@ int RawlogRun::Run() {
                   {"skipped", skipped},
                   {"frames", frames}};
   const fs::path summary_path = out_ / "summary.json";
-  if (Status s = io::WriteFileAtomic(summary_path, summary.dump(2) + "\n"); !s) {
+  if (Status s = util::WriteFileAtomic(summary_path, summary.dump(2) + "\n"); !s) {
     return DetectFail(s.message());
   }
 

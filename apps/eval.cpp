@@ -31,7 +31,7 @@
 #include <string>
 #include <vector>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/sim/eval/figures.hpp"
 #include "cairn/sim/eval/label_eval.hpp"
@@ -231,14 +231,14 @@ class Evaluation {
     }
     std::vector<ev::ResultRow> csv_rows = rows;
     csv_rows.insert(csv_rows.end(), totals.begin(), totals.end());
-    if (Status s = od::io::WriteFileAtomic(dir / "results.csv", ev::ResultsCsv(csv_rows)); !s) {
+    if (Status s = util::WriteFileAtomic(dir / "results.csv", ev::ResultsCsv(csv_rows)); !s) {
       return s.error();
     }
 
     std::string pr_figure;
     if (sweep_) {
       sweep_rows.push_back({"all", sweep_total});
-      if (Status s = od::io::WriteFileAtomic(dir / "sweep.csv",
+      if (Status s = util::WriteFileAtomic(dir / "sweep.csv",
                                              ev::SweepCsv(*sweep_, methods_, sweep_rows));
           !s) {
         return s.error();
@@ -354,7 +354,7 @@ class Evaluation {
          << "![precision-recall](" << pr_figure << ")\n\n"
          << ev::SweepMarkdown(*sweep_, methods_, sweep_total) << "\n";
     }
-    if (Status s = od::io::WriteFileAtomic(dir / "REPORT.md", md.str()); !s) return s.error();
+    if (Status s = util::WriteFileAtomic(dir / "REPORT.md", md.str()); !s) return s.error();
 
     std::ostringstream summary;
     summary << ev::ResultsMarkdown(totals);
@@ -510,7 +510,7 @@ int RunLabelEval(const EvalOptions& o) {
   const std::string range_png = "figures/range_image.png", birds_eye_png = "figures/birds_eye.png";
   if (Status s = ev::WritePng(dir / range_png, *range_figure); !s) return Fail(s.message());
   if (Status s = ev::WritePng(dir / birds_eye_png, *birds_eye); !s) return Fail(s.message());
-  if (Status s = od::io::WriteFileAtomic(dir / "results.csv",
+  if (Status s = util::WriteFileAtomic(dir / "results.csv",
                                          ev::LabelResultsCsv(*map, *methods, *results));
       !s) {
     return Fail(s.message());
@@ -576,7 +576,7 @@ int RunLabelEval(const EvalOptions& o) {
     while (!notes.empty() && notes.back() == '\n') notes.pop_back();
     md << "## Notes\n\n" << notes << "\n";
   }
-  if (Status s = od::io::WriteFileAtomic(dir / "REPORT.md", md.str()); !s) return Fail(s.message());
+  if (Status s = util::WriteFileAtomic(dir / "REPORT.md", md.str()); !s) return Fail(s.message());
 
   std::cout << results_table << "wrote: " << (dir / "REPORT.md").string() << "\n"
             << "       " << (dir / "results.csv").string() << "\n"

@@ -6,7 +6,7 @@
 #include <sstream>
 
 #include "cairn/map/map_files.hpp"
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"
 
@@ -112,8 +112,8 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
         << Fixed(r.refine_s * 1e3, 1) << "," << Fixed(r.fuse_s * 1e3, 1) << ","
         << Fixed(r.rss_mb, 1) << "," << Fixed(r.heap_mb, 1) << "\n";
   }
-  if (Status s = od::io::WriteFileAtomic(dir / "poses.tum", tum); !s) return s.error();
-  if (Status s = od::io::WriteFileAtomic(dir / "frames.csv", csv.str()); !s) return s.error();
+  if (Status s = util::WriteFileAtomic(dir / "poses.tum", tum); !s) return s.error();
+  if (Status s = util::WriteFileAtomic(dir / "frames.csv", csv.str()); !s) return s.error();
   times.write_s = SecondsSince(run.write_start);
 
   // Summary.
@@ -245,10 +245,10 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
          << Fixed(run.poses->height_rms_m, 3) << " m (" << run.poses->frames << " frames)\n";
   }
   if (run.truth) TruthText(*run.truth, text);
-  if (Status s = od::io::WriteFileAtomic(dir / "summary.json", summary.dump(2) + "\n"); !s) {
+  if (Status s = util::WriteFileAtomic(dir / "summary.json", summary.dump(2) + "\n"); !s) {
     return s.error();
   }
-  if (Status s = od::io::WriteFileAtomic(dir / "summary.txt", text.str()); !s) return s.error();
+  if (Status s = util::WriteFileAtomic(dir / "summary.txt", text.str()); !s) return s.error();
   return text.str();
 }
 

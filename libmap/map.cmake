@@ -28,8 +28,6 @@ cairn_add_library(cairn_map EXPORT_NAME map SOURCES
 # OctoMap's package exports the imported targets octomap and octomath. An installed cairn
 # needs find_dependency(octomap) in cmake/cairn-config.cmake.in for cairn::map.
 target_link_libraries(cairn_map
-  PUBLIC cairn::od cairn::od_io Eigen3::Eigen octomap
+  PUBLIC cairn::od cairn::od_io cairn::util Eigen3::Eigen octomap
   PRIVATE opencv_core opencv_imgcodecs yaml-cpp Ceres::ceres
           $<BUILD_INTERFACE:nlohmann_json::nlohmann_json>)
-# The strict YAML field reader of cairn_od_io (internal header, linked through cairn::od_io).
-target_include_directories(cairn_map PRIVATE $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/libod/io/src>)

@@ -10,7 +10,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 
 namespace cairn::map {
 namespace {
@@ -428,7 +428,7 @@ Status SaveCheckpoint(const TerrainMap& map, const std::filesystem::path& dir_or
   header.Put<std::uint64_t>(Fnv1a64(payload));
   std::string bytes = std::move(header.bytes());
   bytes += payload;
-  if (Status s = od::io::WriteFileAtomic(path, bytes); !s) {
+  if (Status s = util::WriteFileAtomic(path, bytes); !s) {
     return Error{"checkpoint " + Quoted(path) + ": " + s.message()};
   }
   return {};

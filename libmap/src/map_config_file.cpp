@@ -2,12 +2,12 @@
 
 #include <vector>
 
-#include "yaml_fields.hpp"  // cairn_od_io's strict field reader
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::map {
 namespace {
 
-namespace detail = od::io::detail;
+namespace detail = util;  // the strict field reader
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
@@ -46,13 +46,13 @@ std::vector<Field> Fields(MapConfig& c) {
 }  // namespace
 
 Expected<MapConfig> ParseMapConfig(const std::string& yaml_text, const std::string& source) {
-  Expected<YAML::Node> root = detail::ParseYaml(yaml_text, source);
+  Expected<YAML::Node> root = util::ParseYaml(yaml_text, source);
   if (!root) return root.error();
-  const detail::FieldReader reader(source);
+  const util::FieldReader reader(source);
   MapConfig config;
   if (root->IsNull()) return config;  // an empty file sets nothing
   if (!root->IsMap()) {
-    return Error{source + ": expected a mapping of sections, got " + detail::Describe(*root)};
+    return Error{source + ": expected a mapping of sections, got " + util::Describe(*root)};
   }
   const std::vector<Field> fields = Fields(config);
   const YAML::Node section = (*root)["map"];
@@ -81,7 +81,7 @@ Expected<MapConfig> ParseMapConfig(const std::string& yaml_text, const std::stri
 }
 
 Expected<MapConfig> LoadMapConfig(const std::filesystem::path& path) {
-  Expected<std::string> text = detail::ReadTextFile(path);
+  Expected<std::string> text = util::ReadTextFile(path);
   if (!text) return text.error();
   return ParseMapConfig(*text, path.string());
 }

@@ -11,7 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 
 namespace cairn::map {
 namespace {
@@ -49,7 +49,7 @@ void CopySensorModel(const TerrainOcTree& from, Tree& to) {
 }
 
 Status WriteBytes(const std::filesystem::path& path, const std::string& bytes) {
-  return od::io::WriteFileAtomic(path, bytes);
+  return util::WriteFileAtomic(path, bytes);
 }
 
 Status WriteImage(const std::filesystem::path& path, const std::string& ext, const cv::Mat& image,

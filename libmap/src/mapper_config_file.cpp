@@ -5,12 +5,12 @@
 
 #include "cairn/map/map_config_file.hpp"
 #include "cairn/od/io/detect_config.hpp"
-#include "yaml_fields.hpp"  // cairn_od_io's strict field reader
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::map {
 namespace {
 
-namespace yaml = od::io::detail;
+namespace yaml = util;  // the strict field reader
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 

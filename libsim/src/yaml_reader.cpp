@@ -7,23 +7,6 @@ namespace cairn::sim::detail {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
-std::string Describe(const YAML::Node& node) {
-  if (!node.IsDefined()) return "nothing";
-  switch (node.Type()) {
-    case YAML::NodeType::Null:
-      return "nothing (null)";
-    case YAML::NodeType::Scalar:
-      return "'" + node.Scalar() + "'";
-    case YAML::NodeType::Sequence:
-      return "a sequence";
-    case YAML::NodeType::Map:
-      return "a mapping";
-    case YAML::NodeType::Undefined:
-      break;
-  }
-  return "nothing";
-}
-
 void ErrorSink::Fail(const std::string& field, const std::string& what) {
   if (error_) return;
   std::string message = file_;

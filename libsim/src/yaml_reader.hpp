@@ -16,11 +16,12 @@
 #include <vector>
 
 #include "cairn/od/expected.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::sim::detail {
 
 /// "'abc'", "a sequence", "a mapping", "nothing (null)": what was found, for messages.
-std::string Describe(const YAML::Node& node);
+using util::Describe;
 
 /// The first error met while reading one file.
 class ErrorSink {

@@ -10,7 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <set>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "temp_dir.hpp"
 
 namespace cairn::od::io {
@@ -118,8 +118,8 @@ TEST(ClassesPng, HoldsTheClassOfEachPixel) {
 
 TEST(AtomicFile, LeavesNoTemporaryFile) {
   test::TempDir dir;
-  ASSERT_TRUE(WriteFileAtomic(dir / "a.txt", "first").ok());
-  ASSERT_TRUE(WriteFileAtomic(dir / "a.txt", "second").ok());  // replaces
+  ASSERT_TRUE(util::WriteFileAtomic(dir / "a.txt", "first").ok());
+  ASSERT_TRUE(util::WriteFileAtomic(dir / "a.txt", "second").ok());  // replaces
   EXPECT_EQ(dir.List(), std::vector<std::string>{"a.txt"});
   std::ifstream in(dir / "a.txt");
   std::string text;
@@ -131,12 +131,12 @@ TEST(AtomicFile, AFailedWriteLeavesNothingAndNamesTheFile) {
   test::TempDir dir;
   // The rename fails: the destination is a directory that is not empty.
   std::filesystem::create_directories(dir / "target" / "inside");
-  Status s = WriteFileAtomic(dir / "target", "data");
+  Status s = util::WriteFileAtomic(dir / "target", "data");
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.message().find((dir / "target").string()), std::string::npos);
   EXPECT_EQ(dir.List(), std::vector<std::string>{"target"});
   // The directory does not exist: nothing can be created.
-  Status missing = WriteFileAtomic(dir / "no" / "a.txt", "data");
+  Status missing = util::WriteFileAtomic(dir / "no" / "a.txt", "data");
   ASSERT_FALSE(missing.ok());
   EXPECT_NE(missing.message().find((dir / "no" / "a.txt").string()), std::string::npos);
 }

@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "png.hpp"
-#include "yaml_fields.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::od::io {
 namespace {
@@ -77,7 +77,7 @@ Expected<Grid<float>> ReadDepthTiff(const std::filesystem::path& path, int width
                                     double depth_scale_m) {
   const std::string name = path.string();
   if (Status s = CheckScale(name, depth_scale_m); !s) return s.error();
-  Expected<std::string> bytes = detail::ReadTextFile(path);
+  Expected<std::string> bytes = util::ReadTextFile(path);
   if (!bytes) return bytes.error();
   if (!IsTiff(*bytes)) {
     return Error{name + ": not a TIFF file (expected a 32-bit float single-channel TIFF)"};
@@ -113,7 +113,7 @@ Expected<Grid<float>> ReadDepthImage(const std::filesystem::path& path, int widt
                                      double depth_scale_m) {
   const std::string name = path.string();
   // The signature decides, not the file name (a depth PNG saved as .tif still reads).
-  Expected<std::string> bytes = detail::ReadTextFile(path);
+  Expected<std::string> bytes = util::ReadTextFile(path);
   if (!bytes) return bytes.error();
   if (IsTiff(*bytes)) return ReadDepthTiff(path, width, height, depth_scale_m);
   if (IsPng(*bytes)) return ReadDepthPng(path, width, height, depth_scale_m);
@@ -148,7 +148,7 @@ Status WriteDepthTiff(const std::filesystem::path& path, const Grid<float>& dept
   } catch (const cv::Exception& e) {
     return Error{name + ": TIFF encoding failed: " + e.err};
   }
-  return WriteFileAtomic(
+  return util::WriteFileAtomic(
       name, std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
 }
 

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "cairn/od/column_detector.hpp"
-#include "yaml_fields.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::od::io {
 namespace {
@@ -76,7 +76,7 @@ std::vector<std::string> Keys(const std::vector<Field>& fields) {
   return keys;
 }
 
-Status ReadField(const detail::FieldReader& reader, const YAML::Node& node, const std::string& name,
+Status ReadField(const util::FieldReader& reader, const YAML::Node& node, const std::string& name,
                  const Field& f) {
   switch (f.kind) {
     case Kind::kNumber:
@@ -94,7 +94,7 @@ Status ReadField(const detail::FieldReader& reader, const YAML::Node& node, cons
         *static_cast<std::int64_t*>(f.target) = *v;
       } else {
         if (*v < std::numeric_limits<int>::min() || *v > std::numeric_limits<int>::max()) {
-          return reader.Fail(name, "integer out of range, got " + detail::Describe(node));
+          return reader.Fail(name, "integer out of range, got " + util::Describe(node));
         }
         *static_cast<int*>(f.target) = static_cast<int>(*v);
       }
@@ -108,7 +108,7 @@ Status ReadField(const detail::FieldReader& reader, const YAML::Node& node, cons
       } else if (*v == "paper_window") {
         *static_cast<SearchMode*>(f.target) = SearchMode::kPaperWindow;
       } else {
-        return reader.Fail(name, "expected exact or paper_window, got " + detail::Describe(node));
+        return reader.Fail(name, "expected exact or paper_window, got " + util::Describe(node));
       }
       return Status::Ok();
     }
@@ -123,14 +123,14 @@ Status ReadField(const detail::FieldReader& reader, const YAML::Node& node, cons
         }
       }
       return reader.Fail(name,
-                         "expected sgbm, sgbm_3way, hh or hh4, got " + detail::Describe(node));
+                         "expected sgbm, sgbm_3way, hh or hh4, got " + util::Describe(node));
     }
   }
   return Status::Ok();
 }
 
 /// Reads the keys present in `section` (a mapping, or null for "nothing set").
-Status ReadSection(const detail::FieldReader& reader, const YAML::Node& root,
+Status ReadSection(const util::FieldReader& reader, const YAML::Node& root,
                    const std::string& section, const std::vector<Field>& fields) {
   const YAML::Node node = root[section];
   if (!node || node.IsNull()) return Status::Ok();
@@ -162,7 +162,7 @@ std::size_t FindIdentifier(const std::string& message, const std::string& name) 
 
 /// A Validate() failure, prefixed with the file and the key it is about: the field whose
 /// key or struct member the message names first (the section when it names none).
-Error Located(const detail::FieldReader& reader, const std::string& section,
+Error Located(const util::FieldReader& reader, const std::string& section,
               const std::vector<Field>& fields, const std::string& message) {
   const Field* best = nullptr;
   std::size_t best_pos = std::string::npos;
@@ -192,9 +192,9 @@ const char* SearchModeName(SearchMode mode) {
 Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
                                              const std::string& source,
                                              const std::vector<std::string>& other_sections) {
-  Expected<YAML::Node> root = detail::ParseYaml(yaml_text, source);
+  Expected<YAML::Node> root = util::ParseYaml(yaml_text, source);
   if (!root) return root.error();
-  const detail::FieldReader reader(source);
+  const util::FieldReader reader(source);
   // One settings file configures every stage; the other stages' sections are read, as
   // strictly, by their own loaders.
   std::vector<std::string> sections = {"detector", "rules", "column", "stereo"};
@@ -243,7 +243,7 @@ Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
 }
 
 Expected<DetectSettings> LoadDetectSettings(const std::filesystem::path& path) {
-  Expected<std::string> text = detail::ReadTextFile(path);
+  Expected<std::string> text = util::ReadTextFile(path);
   if (!text) return text.error();
   return ParseDetectSettings(*text, path.string());
 }

@@ -8,7 +8,7 @@
 #include <string>
 #include <system_error>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "png.hpp"
 
 namespace cairn::od::io {
@@ -280,7 +280,7 @@ Status WriteSegmentsJson(const std::filesystem::path& path, const Detection& det
                          const Classification& classification, const RunDescription& run) {
   Expected<std::string> text = SegmentsJsonText(path.string(), detection, classification, run);
   if (!text) return text.error();
-  return WriteFileAtomic(path, *text);
+  return util::WriteFileAtomic(path, *text);
 }
 
 Expected<RgbImage> RenderOverlay(const Grid<float>& depth_m, const Detection& detection,

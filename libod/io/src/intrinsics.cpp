@@ -4,17 +4,17 @@
 #include <cstdio>
 #include <limits>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/limits.hpp"
 #include "cairn/od/leveling.hpp"
-#include "yaml_fields.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::od::io {
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
-Expected<int> PositiveSize(const detail::FieldReader& reader, const YAML::Node& node,
+Expected<int> PositiveSize(const util::FieldReader& reader, const YAML::Node& node,
                            const std::string& field) {
   if (!node) return reader.Fail(field, "missing (expected a positive integer [px])");
   Expected<std::int64_t> value = reader.Integer(node, field);
@@ -22,23 +22,23 @@ Expected<int> PositiveSize(const detail::FieldReader& reader, const YAML::Node& 
   if (*value <= 0 || *value > kMaxImageSide) {
     return reader.Fail(field, "expected a positive integer [px] up to " +
                                   std::to_string(kMaxImageSide) + ", got " +
-                                  detail::Describe(node));
+                                  util::Describe(node));
   }
   return static_cast<int>(*value);
 }
 
-Expected<double> RequiredDouble(const detail::FieldReader& reader, const YAML::Node& node,
+Expected<double> RequiredDouble(const util::FieldReader& reader, const YAML::Node& node,
                                 const std::string& field, const char* unit) {
   if (!node) return reader.Fail(field, std::string("missing (expected a number ") + unit + ")");
   return reader.Double(node, field);
 }
 
-Expected<Eigen::Vector3d> UpVector(const detail::FieldReader& reader, const YAML::Node& node) {
+Expected<Eigen::Vector3d> UpVector(const util::FieldReader& reader, const YAML::Node& node) {
   if (!node.IsSequence() || node.size() != 3) {
     return reader.Fail("up",
                        "expected a sequence of 3 numbers [x, y, z] in the optical frame, "
                        "got " +
-                           detail::Describe(node) +
+                           util::Describe(node) +
                            (node.IsSequence() ? " of " + std::to_string(node.size()) : ""));
   }
   Eigen::Vector3d up;
@@ -56,7 +56,7 @@ Expected<Eigen::Vector3d> UpVector(const detail::FieldReader& reader, const YAML
 
 // Focal lengths within (0, 1e6] px; the principal point inside the image, give or take
 // its size (a crop may move it out, a typo by a factor of ten may not).
-Status CheckPinholeRanges(const detail::FieldReader& reader, const PinholeModel& m) {
+Status CheckPinholeRanges(const util::FieldReader& reader, const PinholeModel& m) {
   if (!(m.fx > 0.0 && m.fx <= 1e6)) {
     return reader.Fail("fx", "expected a focal length in (0, 1e6] px, got " + std::to_string(m.fx));
   }
@@ -80,9 +80,9 @@ Status CheckPinholeRanges(const detail::FieldReader& reader, const PinholeModel&
 
 Expected<CameraIntrinsics> ParseIntrinsics(const std::string& yaml_text,
                                            const std::string& source) {
-  Expected<YAML::Node> root = detail::ParseYaml(yaml_text, source);
+  Expected<YAML::Node> root = util::ParseYaml(yaml_text, source);
   if (!root) return root.error();
-  const detail::FieldReader reader(source);
+  const util::FieldReader reader(source);
   if (Status s = reader.CheckMapping(*root, "",
                                      {"width", "height", "fx", "fy", "cx", "cy", "depth_scale",
                                       "up", "pitch_deg", "roll_deg"});
@@ -123,7 +123,7 @@ Expected<CameraIntrinsics> ParseIntrinsics(const std::string& yaml_text,
   if (Status s = CheckPinholeRanges(reader, m); !s) return s.error();
   if (!(out.depth_scale_m > 0.0 && out.depth_scale_m <= 1.0)) {
     return reader.Fail("depth_scale", "expected metres per PNG unit in (0, 1], got " +
-                                          detail::Describe(node["depth_scale"]));
+                                          util::Describe(node["depth_scale"]));
   }
   if (Status s = m.Validate(); !s) return Error{source + ": " + s.message()};
 
@@ -139,11 +139,11 @@ Expected<CameraIntrinsics> ParseIntrinsics(const std::string& yaml_text,
     if (!up) return up.error();
     out.up = *up;
   } else if (has_pitch) {
-    Expected<double> pitch = detail::Angle(reader, node["pitch_deg"], "pitch_deg", 90.0);
+    Expected<double> pitch = util::Angle(reader, node["pitch_deg"], "pitch_deg", 90.0);
     if (!pitch) return pitch.error();
     double roll = 0.0;
     if (has_roll) {
-      Expected<double> r = detail::Angle(reader, node["roll_deg"], "roll_deg", 90.0);
+      Expected<double> r = util::Angle(reader, node["roll_deg"], "roll_deg", 90.0);
       if (!r) return r.error();
       roll = *r;
     }
@@ -159,7 +159,7 @@ Expected<CameraIntrinsics> ParseIntrinsics(const std::string& yaml_text,
 }
 
 Expected<CameraIntrinsics> LoadIntrinsics(const std::filesystem::path& path) {
-  Expected<std::string> text = detail::ReadTextFile(path);
+  Expected<std::string> text = util::ReadTextFile(path);
   if (!text) return text.error();
   return ParseIntrinsics(*text, path.string());
 }
@@ -175,7 +175,7 @@ Status WriteIntrinsics(const std::filesystem::path& path, const CameraIntrinsics
                 "up: [%.12g, %.12g, %.12g]  # gravity's up in the optical frame\n",
                 m.width, m.height, m.fx, m.fy, m.cx, m.cy, intrinsics.depth_scale_m,
                 intrinsics.up.x(), intrinsics.up.y(), intrinsics.up.z());
-  return WriteFileAtomic(path, "# " + comment + "\n" + buf);
+  return util::WriteFileAtomic(path, "# " + comment + "\n" + buf);
 }
 
 }  // namespace cairn::od::io

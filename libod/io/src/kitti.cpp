@@ -7,7 +7,7 @@
 #include <map>
 #include <string_view>
 
-#include "yaml_fields.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::od::io {
 namespace {
@@ -93,7 +93,7 @@ Expected<Eigen::Isometry3d> RigidFrom3x4(const Eigen::Matrix<double, 3, 4>& m,
 
 Expected<KittiCalibration> ReadKittiCalibration(const std::filesystem::path& path) {
   const std::string name = path.string();
-  Expected<std::string> text = detail::ReadTextFile(path);
+  Expected<std::string> text = util::ReadTextFile(path);
   if (!text) return text.error();
   std::map<std::string, Eigen::Matrix<double, 3, 4>> matrices;
   std::map<std::string, int> lines;
@@ -141,7 +141,7 @@ Expected<KittiCalibration> ReadKittiCalibration(const std::filesystem::path& pat
 
 Expected<std::vector<Eigen::Isometry3d>> ReadKittiPoses(const std::filesystem::path& path) {
   const std::string name = path.string();
-  Expected<std::string> text = detail::ReadTextFile(path);
+  Expected<std::string> text = util::ReadTextFile(path);
   if (!text) return text.error();
   std::vector<Eigen::Isometry3d> poses;
   Status parsed = ForEachLine(*text, [&](int line_number, std::string_view line) -> Status {
@@ -167,7 +167,7 @@ Expected<std::vector<Eigen::Isometry3d>> ReadKittiPoses(const std::filesystem::p
 
 Expected<std::vector<double>> ReadKittiTimes(const std::filesystem::path& path) {
   const std::string name = path.string();
-  Expected<std::string> text = detail::ReadTextFile(path);
+  Expected<std::string> text = util::ReadTextFile(path);
   if (!text) return text.error();
   std::vector<double> times;
   Status parsed = ForEachLine(*text, [&](int line_number, std::string_view line) -> Status {

@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/limits.hpp"
-#include "yaml_fields.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::od::io::detail {
 
@@ -93,14 +93,14 @@ Status WritePngAtomic(const std::filesystem::path& path, const cv::Mat& image) {
   } catch (const cv::Exception& e) {
     return Error{path.string() + ": PNG encoding failed: " + e.what()};
   }
-  return WriteFileAtomic(
+  return util::WriteFileAtomic(
       path, std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
 }
 
 Expected<cv::Mat> ReadPng(const std::filesystem::path& path, int expected_type,
                           const char* expected) {
   const std::string name = path.string();
-  Expected<std::string> bytes = ReadTextFile(path);
+  Expected<std::string> bytes = util::ReadTextFile(path);
   if (!bytes) return bytes.error();
   static const char kSignature[] = "\x89PNG\r\n\x1a\n";
   if (bytes->size() < 8 || std::memcmp(bytes->data(), kSignature, 8) != 0) {

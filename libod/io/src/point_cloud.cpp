@@ -14,7 +14,7 @@
 #include <sstream>
 #include <string_view>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/limits.hpp"
 #include "png.hpp"
 
@@ -615,7 +615,7 @@ Status WriteKittiBin(const std::filesystem::path& path, const PointCloud& cloud)
                         cloud.intensity.empty() ? 0.f : cloud.intensity[i]};
     std::memcpy(bytes.data() + i * kBinPointBytes, v, kBinPointBytes);
   }
-  return WriteFileAtomic(path, bytes);
+  return util::WriteFileAtomic(path, bytes);
 }
 
 Expected<PointLayout> ResolveLayout(const PointCloud& cloud, const SphericalModel& preset,
@@ -1142,7 +1142,7 @@ Expected<std::vector<std::uint32_t>> PointLabels(const RangeImage& image,
 }
 
 Status WriteLabelFile(const std::filesystem::path& path, const std::vector<std::uint32_t>& labels) {
-  return WriteFileAtomic(
+  return util::WriteFileAtomic(
       path, std::string_view(reinterpret_cast<const char*>(labels.data()), labels.size() * 4));
 }
 

@@ -14,7 +14,7 @@
 #include "cairn/od/io/limits.hpp"
 #include "cairn/od/leveling.hpp"
 #include "png.hpp"
-#include "yaml_fields.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::od::io {
 namespace {
@@ -33,13 +33,13 @@ std::string Num(double v) {
 // ---------------------------------------------------------------------------------------
 // cairn's stereo YAML
 
-Expected<double> RequiredNumber(const detail::FieldReader& reader, const YAML::Node& node,
+Expected<double> RequiredNumber(const util::FieldReader& reader, const YAML::Node& node,
                                 const std::string& field, const char* what) {
   if (!node) return reader.Fail(field, std::string("missing (expected ") + what + ")");
   return reader.Double(node, field);
 }
 
-Expected<int> RequiredSize(const detail::FieldReader& reader, const YAML::Node& node,
+Expected<int> RequiredSize(const util::FieldReader& reader, const YAML::Node& node,
                            const std::string& field) {
   if (!node) return reader.Fail(field, "missing (expected a positive integer [px])");
   Expected<std::int64_t> v = reader.Integer(node, field);
@@ -47,13 +47,13 @@ Expected<int> RequiredSize(const detail::FieldReader& reader, const YAML::Node& 
   if (*v <= 0 || *v > kMaxImageSide) {
     return reader.Fail(field, "expected a positive integer [px] up to " +
                                   std::to_string(kMaxImageSide) + ", got " +
-                                  detail::Describe(node));
+                                  util::Describe(node));
   }
   return static_cast<int>(*v);
 }
 
 /// up: [x, y, z], or pitch_deg (+ roll_deg), or neither (nullopt).
-Expected<std::optional<Eigen::Vector3d>> ReadUp(const detail::FieldReader& reader,
+Expected<std::optional<Eigen::Vector3d>> ReadUp(const util::FieldReader& reader,
                                                 const YAML::Node& root) {
   const YAML::Node up_node = root["up"];
   const bool has_pitch = static_cast<bool>(root["pitch_deg"]);
@@ -66,7 +66,7 @@ Expected<std::optional<Eigen::Vector3d>> ReadUp(const detail::FieldReader& reade
     if (!up_node.IsSequence() || up_node.size() != 3) {
       return reader.Fail("up",
                          "expected a sequence of 3 numbers [x, y, z] in the optical frame, got " +
-                             detail::Describe(up_node));
+                             util::Describe(up_node));
     }
     Eigen::Vector3d up;
     for (int i = 0; i < 3; ++i) {
@@ -83,11 +83,11 @@ Expected<std::optional<Eigen::Vector3d>> ReadUp(const detail::FieldReader& reade
     return reader.Fail("pitch_deg", "missing: roll_deg is given, pitch_deg must be too");
   }
   if (!has_pitch) return std::optional<Eigen::Vector3d>();
-  Expected<double> pitch = detail::Angle(reader, root["pitch_deg"], "pitch_deg", 90.0);
+  Expected<double> pitch = util::Angle(reader, root["pitch_deg"], "pitch_deg", 90.0);
   if (!pitch) return pitch.error();
   double roll = 0.0;
   if (has_roll) {
-    Expected<double> r = detail::Angle(reader, root["roll_deg"], "roll_deg", 90.0);
+    Expected<double> r = util::Angle(reader, root["roll_deg"], "roll_deg", 90.0);
     if (!r) return r.error();
     roll = *r;
   }
@@ -294,9 +294,9 @@ int OpenCvMode(StereoMode mode) {
 
 Expected<StereoCalibration> ParseStereoCalibrationYaml(const std::string& yaml_text,
                                                        const std::string& source) {
-  Expected<YAML::Node> root = detail::ParseYaml(yaml_text, source);
+  Expected<YAML::Node> root = util::ParseYaml(yaml_text, source);
   if (!root) return root.error();
-  const detail::FieldReader reader(source);
+  const util::FieldReader reader(source);
   if (Status s = reader.CheckMapping(
           *root, "",
           {"width", "height", "fx", "fy", "cx", "cy", "baseline", "up", "pitch_deg", "roll_deg"});
@@ -524,12 +524,12 @@ Expected<StereoCalibration> ParseOpenCvStereoCalibration(const std::string& text
 }
 
 Expected<StereoCalibration> LoadStereoCalibration(const std::filesystem::path& path) {
-  Expected<std::string> text = detail::ReadTextFile(path);
+  Expected<std::string> text = util::ReadTextFile(path);
   if (!text) return text.error();
   const std::string source = path.string();
   if (LooksLikeOpenCv(*text)) return ParseOpenCvStereoCalibration(*text, source);
   if (LooksLikeNumbers(*text)) return ParseFoundationStereoK(*text, source);
-  Expected<YAML::Node> root = detail::ParseYaml(*text, source);
+  Expected<YAML::Node> root = util::ParseYaml(*text, source);
   if (!root) return root.error();
   if (root->IsMap() && (*root)["M1"]) return ParseOpenCvStereoCalibration(*text, source);
   if (!root->IsMap()) {
@@ -545,7 +545,7 @@ Expected<StereoCalibration> LoadStereoCalibration(const std::filesystem::path& p
 // Images
 
 Expected<GreyImage> ReadGreyImage(const std::filesystem::path& path) {
-  Expected<std::string> bytes = detail::ReadTextFile(path);
+  Expected<std::string> bytes = util::ReadTextFile(path);
   if (!bytes) return bytes.error();
   cv::Mat image;
   try {

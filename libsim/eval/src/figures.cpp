@@ -9,7 +9,7 @@
 #include <set>
 #include <sstream>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/sim/eval/report.hpp"
 
 namespace cairn::sim::eval {
@@ -386,7 +386,7 @@ Status WritePng(const std::filesystem::path& path, const RgbImage& image) {
   } catch (const cv::Exception& e) {
     return Error{path.string() + ": PNG encoding failed: " + e.what()};
   }
-  return od::io::WriteFileAtomic(
+  return util::WriteFileAtomic(
       path, std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
 }
 

@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "cairn/od/rules.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::sim::eval {
 namespace {
@@ -29,20 +30,7 @@ constexpr int kBirdsEyePanelsPerRow = 3;  // wider figures do not fit a page
 // ---------------------------------------------------------------------------------------
 // Class mapping file.
 
-std::string Describe(const YAML::Node& node) {
-  switch (node.Type()) {
-    case YAML::NodeType::Null:
-      return "nothing";
-    case YAML::NodeType::Scalar:
-      return "'" + node.Scalar() + "'";
-    case YAML::NodeType::Sequence:
-      return "a sequence";
-    case YAML::NodeType::Map:
-      return "a mapping";
-    default:
-      return "an undefined node";
-  }
-}
+using util::Describe;
 
 /// A decimal integer in 0..hi, the whole scalar (no sign, no spaces, no fraction).
 bool ParseUnsigned(const std::string& text, std::uint32_t hi, std::uint32_t* value) {

@@ -13,6 +13,7 @@
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/intrinsics.hpp"
 #include "cairn/sim/geometry.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::sim::eval {
 namespace {
@@ -26,12 +27,7 @@ std::string At(std::size_t index, int width) {
   return "row " + std::to_string(index / width) + ", col " + std::to_string(index % width);
 }
 
-std::string Describe(const YAML::Node& node) {
-  if (node.IsScalar()) return "'" + node.Scalar() + "'";
-  if (node.IsSequence()) return "a sequence";
-  if (node.IsMap()) return "a mapping";
-  return "nothing";
-}
+using util::Describe;
 
 Expected<std::vector<TruthObject>> ParseObjects(const std::filesystem::path& path) {
   const std::string file = path.string();

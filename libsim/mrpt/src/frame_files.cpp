@@ -12,7 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/intrinsics.hpp"
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/sim/geometry.hpp"
@@ -40,7 +40,7 @@ Status WritePng(const fs::path& path, const cv::Mat& image) {
   } catch (const cv::Exception& e) {
     return Error{path.string() + ": PNG encoding failed: " + e.what()};
   }
-  return od::io::WriteFileAtomic(
+  return util::WriteFileAtomic(
       path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
@@ -131,7 +131,7 @@ Status WriteTruthYaml(const fs::path& path, const Scene& scene) {
       "# (16-bit) = no return, else the object id. height_m: the object's top above the\n"
       "# ground under its centre.\n" +
       std::string(out.c_str()) + "\n";
-  return od::io::WriteFileAtomic(path, text);
+  return util::WriteFileAtomic(path, text);
 }
 
 double DepthScaleFor(double max_depth_m) {
@@ -158,7 +158,7 @@ Status WriteTumPoses(const fs::path& path, const std::vector<StampedPose>& poses
   for (std::string line; std::getline(lines, line);) text += "# " + line + "\n";
   text += "# timestamp tx ty tz qx qy qz qw\n";
   for (const StampedPose& p : poses) text += TumLine(p) + "\n";
-  return od::io::WriteFileAtomic(path, text);
+  return util::WriteFileAtomic(path, text);
 }
 
 Expected<std::vector<StampedPose>> ReadTumPoses(const fs::path& path) {
@@ -236,7 +236,7 @@ Status WriteKittiPoints(const fs::path& path, const LidarScan& scan) {
   for (const Eigen::Vector3f& p : scan.points) {
     values.insert(values.end(), {p.x(), p.y(), p.z(), 0.0f});
   }
-  return od::io::WriteFileAtomic(path, Bytes(values));
+  return util::WriteFileAtomic(path, Bytes(values));
 }
 
 Status WriteLidarLabels(const fs::path& path, const LidarScan& scan) {
@@ -252,7 +252,7 @@ Status WriteLidarLabels(const fs::path& path, const LidarScan& scan) {
     }
     labels[i] = static_cast<std::uint32_t>(scan.object_id[i]);
   }
-  return od::io::WriteFileAtomic(path, Bytes(labels));
+  return util::WriteFileAtomic(path, Bytes(labels));
 }
 
 Status WriteLidarRowCol(const fs::path& path, const LidarScan& scan) {
@@ -265,7 +265,7 @@ Status WriteLidarRowCol(const fs::path& path, const LidarScan& scan) {
     rowcol[2 * i] = static_cast<std::uint16_t>(scan.ring[i]);
     rowcol[2 * i + 1] = static_cast<std::uint16_t>(scan.column[i]);
   }
-  return od::io::WriteFileAtomic(path, Bytes(rowcol));
+  return util::WriteFileAtomic(path, Bytes(rowcol));
 }
 
 Expected<LidarFrameFiles> WriteLidarFrame(const fs::path& dir, const LidarScan& scan,
@@ -296,7 +296,7 @@ Expected<LidarFrameFiles> WriteLidarFrame(const fs::path& dir, const LidarScan& 
   text += "]\n";
   text += Format("up: [%.12f, %.12f, %.12f]  # gravity's up in the LiDAR frame\n", up_lidar.x(),
                  up_lidar.y(), up_lidar.z());
-  if (Status s = od::io::WriteFileAtomic(files.lidar_yaml, text); !s) return s.error();
+  if (Status s = util::WriteFileAtomic(files.lidar_yaml, text); !s) return s.error();
   if (Status s = WriteTruthYaml(files.truth_yaml, scene); !s) return s.error();
   return files;
 }

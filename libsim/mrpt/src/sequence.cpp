@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/sim/mrpt/frame_files.hpp"
 #include "cairn/sim/mrpt/rawlog.hpp"
 #include "cairn/sources/mrpt_convert.hpp"
@@ -256,7 +256,7 @@ Expected<SequenceSummary> WriteDriveSequence(const World& world, const fs::path&
     return s.error();
   }
   if (Status s = WriteTruthYaml(summary.truth_yaml, world.scene); !s) return s.error();
-  if (Status s = od::io::WriteFileAtomic(summary.sequence_yaml,
+  if (Status s = util::WriteFileAtomic(summary.sequence_yaml,
                                          SequenceYaml(world, drive, spec, options, summary));
       !s) {
     return s.error();

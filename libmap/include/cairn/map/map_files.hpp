@@ -2,7 +2,7 @@
 // reader of map_server maps for checking them.
 //
 // Every writer builds the whole file in memory and writes it atomically (a temporary in the
-// same directory, renamed over the destination; od::io::WriteFileAtomic). Errors name the
+// same directory, renamed over the destination; util::WriteFileAtomic). Errors name the
 // file and the reason; nothing is printed.
 //
 // Images of the grid (cost PGM, colour PNG, elevation TIFF) share one extent and one

@@ -1,5 +1,5 @@
 // Synthetic frames and their ground truth on disk. Every file is written to a temporary
-// name in its directory and renamed into place (od::io::WriteFileAtomic).
+// name in its directory and renamed into place (util::WriteFileAtomic).
 //
 // A camera frame (what `cairn detect` and `cairn eval` read):
 //   depth.png        16-bit z-depth, metres = value * depth_scale, 0 = no return (od::io)

@@ -1,5 +1,5 @@
 // Strict reading of YAML fields: every failure becomes an Error naming the source file and
-// the field's dotted path. Internal to cairn_od_io.
+// the field's dotted path (cairn::util: od_io, map and the apps read their files with it).
 #pragma once
 
 #include <yaml-cpp/yaml.h>
@@ -11,7 +11,7 @@
 
 #include "cairn/od/expected.hpp"
 
-namespace cairn::od::io::detail {
+namespace cairn::util {
 
 /// Reads a whole text file; fails with "<path>: ..." when it is missing or unreadable.
 Expected<std::string> ReadTextFile(const std::filesystem::path& path);
@@ -48,4 +48,4 @@ Expected<double> Angle(const FieldReader& reader, const YAML::Node& node, const 
 /// "a scalar 'abc'", "a sequence", "a mapping", "null": what was found, for messages.
 std::string Describe(const YAML::Node& node);
 
-}  // namespace cairn::od::io::detail
+}  // namespace cairn::util

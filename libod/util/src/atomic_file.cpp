@@ -1,4 +1,4 @@
-#include "cairn/od/io/atomic_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -9,7 +9,7 @@
 #include <cstring>
 #include <string>
 
-namespace cairn::od::io {
+namespace cairn::util {
 namespace {
 
 std::string SystemError(int error) { return std::strerror(error); }
@@ -72,4 +72,4 @@ Status WriteFileAtomic(const std::filesystem::path& path, std::string_view bytes
   return Status::Ok();
 }
 
-}  // namespace cairn::od::io
+}  // namespace cairn::util

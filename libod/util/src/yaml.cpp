@@ -1,4 +1,4 @@
-#include "yaml_fields.hpp"
+#include "cairn/util/yaml.hpp"
 
 #include <cmath>
 #include <fstream>
@@ -6,7 +6,7 @@
 #include <set>
 #include <sstream>
 
-namespace cairn::od::io::detail {
+namespace cairn::util {
 
 Expected<std::string> ReadTextFile(const std::filesystem::path& path) {
   std::error_code ec;
@@ -35,6 +35,7 @@ Expected<YAML::Node> ParseYaml(const std::string& text, const std::string& sourc
 }
 
 std::string Describe(const YAML::Node& node) {
+  if (!node.IsDefined()) return "nothing";
   switch (node.Type()) {
     case YAML::NodeType::Null:
       return "nothing (null)";
@@ -128,4 +129,4 @@ Expected<std::string> FieldReader::String(const YAML::Node& node, const std::str
   return node.Scalar();
 }
 
-}  // namespace cairn::od::io::detail
+}  // namespace cairn::util

@@ -8,10 +8,10 @@
 
 #include "cairn/od/expected.hpp"
 
-namespace cairn::od::io {
+namespace cairn::util {
 
 /// Writes `bytes` to `path` atomically (POSIX rename). The directory must exist. Errors
 /// name the file and the system's reason.
 Status WriteFileAtomic(const std::filesystem::path& path, std::string_view bytes);
 
-}  // namespace cairn::od::io
+}  // namespace cairn::util
