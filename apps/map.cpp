@@ -17,14 +17,13 @@
 #include <algorithm>
 #include <csignal>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
-#include <iterator>
 #include <memory>
 
 #include "cairn/map/checkpoint.hpp"
 #include "cairn/map/map_files.hpp"
 #include "cairn/map/mapper_config_file.hpp"
+#include "cairn/util/yaml.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"
 #include "subcommands.hpp"
@@ -64,44 +63,9 @@ Expected<std::unique_ptr<sources::FrameSource>> OpenSource(const MapOptions& o,
   return sources::OpenDepthFolderFrames(o.frames, o.poses, o.intrinsics);
 }
 
-Expected<std::string> ReadWholeFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Error{path + ": cannot read"};
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-/// Checks a checkpoint's run state against this run: same input, options and settings.
-Status SameRun(const RunState& saved, const RunState& now, const std::string& checkpoint,
-               const std::string& config) {
-  if (saved.input != now.input) {
-    return Error{checkpoint + ": made from another input (" + saved.input.dump() + "), not " +
-                 now.input.dump() + " (--resume needs the same input)"};
-  }
-  for (const auto& [key, value] : saved.options.items()) {
-    if (!now.options.contains(key) || now.options.at(key) != value) {
-      return Error{checkpoint + ": made with " + key + " " + value.dump() + ", not " +
-                   (now.options.contains(key) ? now.options.at(key).dump() : "none") +
-                   " (--resume needs the same options)"};
-    }
-  }
-  if (saved.config_text != now.config_text) {
-    return Error{checkpoint + ": made with other settings than " +
-                 (config.empty() ? std::string("the defaults") : config) +
-                 " (--resume needs the same --config)"};
-  }
-  return {};
-}
-
 int RunMap(const MapOptions& options) {
   const Clock::time_point run_start = Clock::now();
   // --- parse ---
-  const int inputs = !options.rawlog.empty() + !options.kitti.empty() + !options.frames.empty();
-  if (inputs != 1) {
-    return Fail("give one input: --rawlog FILE, --kitti DIR or --frames DIR --poses FILE.tum");
-  }
-  if (!options.frames.empty() && options.poses.empty()) {
-    return Fail("--frames DIR needs --poses FILE.tum (the camera's pose per image)");
-  }
   Expected<map::MapperSettings> settings = map::LoadMapperSettings(options.config);
   if (!settings) return Fail(settings.error().message);
   map::MapperConfig& config = settings->mapper;
@@ -150,7 +114,7 @@ int RunMap(const MapOptions& options) {
   // Checkpoints: the Mapper and the run's state, every --checkpoint-every frames and when
   // interrupted, in DIR/map.checkpoint (atomically); removed once the map files are written.
   Expected<std::string> config_text =
-      options.config.empty() ? Expected<std::string>(std::string()) : ReadWholeFile(options.config);
+      options.config.empty() ? Expected<std::string>(std::string()) : util::ReadTextFile(options.config);
   if (!config_text) return Fail(config_text.error().message);
   const fs::path checkpoint = fs::path(options.out) / map::kCheckpointFileName;
   RunState state;
@@ -327,12 +291,15 @@ Subcommand AddMapCommand(CLI::App& parent) {
       "map",
       "Fuse a whole sequence into an OctoMap and a 2.5-D cost grid: detect obstacles in every "
       "frame, place it by odometry (or given poses), write the map files and a summary");
-  app->add_option("--rawlog", options->rawlog,
-                  "MRPT rawlog with range frames and odometry (IMU used when present)")
+  // One input, with the options that go with it.
+  CLI::Option_group* input = app->add_option_group(
+      "input", "one of --rawlog FILE, --kitti DIR, --frames DIR (with --poses FILE.tum)");
+  input->add_option("--rawlog", options->rawlog,
+                    "MRPT rawlog with range frames and odometry (IMU used when present)")
       ->type_name("FILE");
   app->add_option("--label", options->label, "with --rawlog: the range sensor's label")
       ->type_name("L");
-  app->add_option("--kitti", options->kitti,
+  input->add_option("--kitti", options->kitti,
                   "KITTI odometry sequence folder (velodyne/, calib.txt, times.txt, poses.txt), "
                   "or the data set's root with --sequence")
       ->type_name("DIR");
@@ -340,13 +307,19 @@ Subcommand AddMapCommand(CLI::App& parent) {
       ->type_name("NN");
   app->add_option("--range", options->range, "with --kitti: scans A:B (inclusive)")
       ->type_name("A:B");
-  app->add_option("--lidar", options->lidar, "with --kitti: sensor preset")->capture_default_str();
-  app->add_option("--frames", options->frames,
-                  "folder of 16-bit depth PNGs (named by stamp, or in pose order)")
-      ->type_name("DIR");
-  app->add_option("--poses", options->poses,
-                  "with --frames: TUM file of the camera's poses (optical frame, z-up world)")
-      ->type_name("FILE.tum");
+  app->add_option("--lidar", options->lidar,
+                  "with --kitti: sensor preset (HDL-64E, VLP-16, VLP-32C, OS1-64; any case)")
+      ->capture_default_str();
+  CLI::Option* frames =
+      input->add_option("--frames", options->frames,
+                        "folder of 16-bit depth PNGs (named by stamp, or in pose order)")
+          ->type_name("DIR");
+  input->require_option(1);
+  CLI::Option* poses =
+      app->add_option("--poses", options->poses,
+                      "with --frames: TUM file of the camera's poses (optical frame, z-up world)")
+          ->type_name("FILE.tum");
+  frames->needs(poses);
   app->add_option("--intrinsics", options->intrinsics,
                   "with --frames: camera YAML (default DIR/intrinsics.yaml)")
       ->type_name("FILE");

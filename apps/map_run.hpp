@@ -105,6 +105,10 @@ nlohmann::json SourceJson(const sources::SourceInfo& info);
 nlohmann::json RunOptions(const MapOptions& o, map::TiltMode tilt, double window_size_m);
 std::string ResumeStateJson(const RunState& state);
 Expected<RunState> ResumeStateFromJson(const std::string& text, const std::string& path);
+/// Checks a checkpoint's run state against this run: the same input, options and settings
+/// (`config`: the --config path, empty for the defaults); the error names what differs.
+Status SameRun(const RunState& saved, const RunState& now, const std::string& checkpoint,
+               const std::string& config);
 
 /// The record of a fused frame.
 FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecord& r,

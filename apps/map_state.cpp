@@ -228,4 +228,26 @@ void Progress::Finish() {
   if (tty_ && bar_shown_) std::cerr << "\n";
 }
 
+Status SameRun(const RunState& saved, const RunState& now, const std::string& checkpoint,
+               const std::string& config) {
+  if (saved.input != now.input) {
+    return Error{checkpoint + ": made from another input (" + saved.input.dump() + "), not " +
+                 now.input.dump() + " (--resume needs the same input)"};
+  }
+  for (const auto& [key, value] : saved.options.items()) {
+    if (!now.options.contains(key) || now.options.at(key) != value) {
+      return Error{checkpoint + ": made with " + key + " " + value.dump() + ", not " +
+                   (now.options.contains(key) ? now.options.at(key).dump() : "none") +
+                   " (--resume needs the same options)"};
+    }
+  }
+  if (saved.config_text != now.config_text) {
+    return Error{checkpoint + ": made with other settings than " +
+                 (config.empty() ? std::string("the defaults") : config) +
+                 " (--resume needs the same --config)"};
+  }
+  return {};
+}
+
+
 }  // namespace cairn::apps

@@ -1,0 +1,59 @@
+// What the parts of `cairn eval` share: its options and the few helpers its runs use.
+//   eval.cpp         the command line, and which run the options ask for
+//   eval_worlds.cpp  synthetic worlds or one depth frame with truth images: the methods
+//                    side by side, REPORT.md, results.csv, figures, the sweep
+//   eval_labels.cpp  one LiDAR scan with real per-point labels and a class mapping
+#pragma once
+
+#include <chrono>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "subcommands.hpp"
+
+namespace cairn::apps::eval {
+
+using Clock = std::chrono::steady_clock;
+
+struct EvalOptions {
+  std::vector<std::string> worlds;
+  std::string worlds_dir;
+  std::string depth, intrinsics, truth, truth_yaml;
+  // One LiDAR scan with real labels.
+  std::string points, labels, classes, sensor, notes;
+  std::string organised = "auto";
+  int columns = 0;  ///< azimuth steps of an unorganised scan; 0: the sensor's default
+  std::string up = "0,0,1";
+  std::string config;
+  std::string report;
+  std::string sweep;
+  std::string methods;
+  double found_fraction = 0.5;
+  int min_object_pixels = 20;
+  int cell_width = 320;
+};
+
+inline int Fail(const std::string& message) {
+  std::cerr << "cairn eval: error: " << message << "\n";
+  return kExitFailure;
+}
+
+inline double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+inline std::string Fixed(double v, int decimals) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(decimals) << v;
+  return out.str();
+}
+
+/// Synthetic worlds (--world, --worlds) or one depth frame with truth (--depth ...).
+int RunWorldEval(const EvalOptions& o);
+/// One scan with real labels (--points, --labels, --classes, --sensor).
+int RunLabelEval(const EvalOptions& o);
+
+}  // namespace cairn::apps::eval
