@@ -182,7 +182,7 @@ Subcommand AddBenchCommand(CLI::App& parent) {
   app->add_option("--points", o->input.points, "LiDAR scan (.bin, PLY, text), as cairn detect")
       ->type_name("FILE");
   app->add_option("--sensor", o->input.sensor, "LiDAR preset (with --points)")
-      ->check(CLI::IsMember({"HDL-64E", "VLP-16", "VLP-32C", "OS1-64"}));
+      ->transform(CLI::IsMember(SensorPresets(), CLI::ignore_case));
   app->add_option("--up", o->input.up, "gravity's up in the LiDAR frame (with --points)")
       ->capture_default_str();
   app->add_option("--config", o->input.config, "settings YAML (config/default.yaml)")

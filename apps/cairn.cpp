@@ -36,7 +36,9 @@ int main(int argc, char** argv) {
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-      return app.exit(e);
+      // --help and --version exit 0; every bad command line exits 1, as bad input does,
+      // whichever CLI11 error it was.
+      return app.exit(e) == 0 ? kExitOk : kExitFailure;
     }
     for (const Subcommand& command : commands) {
       if (command.app->parsed()) return command.run();

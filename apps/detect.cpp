@@ -261,7 +261,7 @@ Subcommand AddDetectCommand(CLI::App& parent) {
                   "sensor preset of the scan (or of every scan of --kitti); default: rings "
                   "found from the data (ring field, organised order, ring breaks, elevation "
                   "clusters, else uniform elevation bins)")
-      ->check(CLI::IsMember({"HDL-64E", "VLP-16", "VLP-32C", "OS1-64"}))
+      ->transform(CLI::IsMember(SensorPresets(), CLI::ignore_case))
       ->type_name("PRESET");
   app->add_option("--organised", options->organised,
                   "auto: organised (index = col * rings + ring, Ouster) when the data says so; "

@@ -5,6 +5,8 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <string>
+#include <vector>
 
 namespace cairn::apps {
 
@@ -12,6 +14,13 @@ namespace cairn::apps {
 constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1;    ///< bad input, unreadable file, failed write
 constexpr int kExitInternal = 70;  ///< a bug: an exception escaped (EX_SOFTWARE)
+
+/// The LiDAR presets of od::SphericalModel::Preset, for the --sensor options (any case:
+/// `->transform(CLI::IsMember(SensorPresets(), CLI::ignore_case))` gives the preset's name).
+inline const std::vector<std::string>& SensorPresets() {
+  static const std::vector<std::string> names = {"HDL-64E", "VLP-16", "VLP-32C", "OS1-64"};
+  return names;
+}
 
 struct Subcommand {
   CLI::App* app = nullptr;   ///< owned by the parent app

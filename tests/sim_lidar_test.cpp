@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <random>
 #include <string>
@@ -38,6 +39,22 @@ Eigen::Isometry3d Pose(const Eigen::Vector3d& position, double yaw, double pitch
                    .toRotationMatrix();
   T.translation() = position;
   return T;
+}
+
+// Preset names in any case, as the settings files (config/sensors/os1-64.yaml) spell them.
+TEST(SphericalModel, PresetNamesAreAcceptedInAnyCase) {
+  for (const std::string name : {"HDL-64E", "VLP-16", "VLP-32C", "OS1-64"}) {
+    std::string lower = name;
+    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const Expected<od::SphericalModel> a = od::SphericalModel::Preset(name);
+    const Expected<od::SphericalModel> b = od::SphericalModel::Preset(lower);
+    ASSERT_TRUE(a.ok() && b.ok()) << lower;
+    EXPECT_EQ(a->ring_elevation_rad, b->ring_elevation_rad) << lower;
+    EXPECT_EQ(a->width, b->width) << lower;
+  }
+  const Expected<od::SphericalModel> bad = od::SphericalModel::Preset("os2-128");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("'os2-128'"), std::string::npos) << bad.error().message;
 }
 
 TEST(LidarSpec, PresetsHaveTheirRings) {

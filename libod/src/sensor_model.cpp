@@ -1,6 +1,7 @@
 #include "cairn/od/sensor_model.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <complex>
 #include <limits>
@@ -84,7 +85,10 @@ int SphericalModel::NearestRing(const Eigen::Vector3d& p) const {
   return best;
 }
 
-Expected<SphericalModel> SphericalModel::Preset(const std::string& name, int width) {
+Expected<SphericalModel> SphericalModel::Preset(const std::string& given, int width) {
+  // Names in any case: "os1-64" as the settings file config/sensors/os1-64.yaml has it.
+  std::string name = given;
+  for (char& c : name) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   SphericalModel m;
   const bool velodyne_puck = name == "VLP-16" || name == "VLP-32C";
   m.width = width != 0 ? width : velodyne_puck ? 1800 : 2048;
@@ -104,7 +108,7 @@ Expected<SphericalModel> SphericalModel::Preset(const std::string& name, int wid
                             -4.667, -5.333, -6.148, -7.254, -8.843, -11.31, -15.639, -25.0};
     for (double e : table) m.ring_elevation_rad.push_back(e * kDeg);
   } else {
-    return Error{"unknown sensor preset '" + name +
+    return Error{"unknown sensor preset '" + given +
                  "' (expected HDL-64E, VLP-16, VLP-32C or OS1-64)"};
   }
   if (Status s = m.Validate(); !s) return s.error();

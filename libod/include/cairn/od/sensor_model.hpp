@@ -70,7 +70,7 @@ struct SphericalModel {
   /// (upper block of 32 lasers 1/3 deg apart from +2 deg, lower block of 32 from -8.83 to
   /// -24.8 deg), "VLP-16" (+15 to -15 deg every 2 deg), "VLP-32C" (its data sheet table,
   /// +15 to -25 deg, densest 1/3 deg around the horizon), "OS1-64" (64 rings evenly over
-  /// +-16.6 deg).
+  /// +-16.6 deg). Names in any case ("os1-64").
   static Expected<SphericalModel> Preset(const std::string& name, int width = 0);
 };
 
