@@ -14,18 +14,13 @@
 #include <string>
 #include <vector>
 
-#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/sim/eval/figures.hpp"
 #include "cairn/sim/eval/label_eval.hpp"
 #include "cairn/sim/eval/methods.hpp"
 #include "cairn/sim/eval/report.hpp"
-#include "cairn/sim/eval/score.hpp"
-#include "cairn/sim/eval/sweep.hpp"
-#include "cairn/sim/eval/truth.hpp"
-#include "cairn/sim/world.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "detect.hpp"
-#include "subcommands.hpp"
 #include "eval_run.hpp"
 
 namespace cairn::apps::eval {

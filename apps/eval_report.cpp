@@ -14,18 +14,12 @@
 #include <string>
 #include <vector>
 
-#include "cairn/util/atomic_file.hpp"
-#include "cairn/od/io/detect_config.hpp"
 #include "cairn/sim/eval/figures.hpp"
-#include "cairn/sim/eval/label_eval.hpp"
 #include "cairn/sim/eval/methods.hpp"
 #include "cairn/sim/eval/report.hpp"
 #include "cairn/sim/eval/score.hpp"
 #include "cairn/sim/eval/sweep.hpp"
-#include "cairn/sim/eval/truth.hpp"
-#include "cairn/sim/world.hpp"
-#include "detect.hpp"
-#include "subcommands.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "eval_worlds.hpp"
 
 namespace cairn::apps::eval {
@@ -59,8 +53,6 @@ std::string CommandLine(const EvalOptions& o) {
 }
 
 const char* Mark(bool holds) { return holds ? "yes" : "**no**"; }
-
-/// Everything one run needs: the sources, settings and methods, and what it measured.
 
 }  // namespace
 

@@ -4,6 +4,7 @@
 
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cairn/od/io/detect_config.hpp"
@@ -36,6 +37,7 @@ inline bool RulesDisabled(const od::RuleConfig& r) {
          r.min_height_max_m == 0.0 && r.min_raised == 0;
 }
 
+/// Everything one run needs: the sources, settings and methods, and what it measured.
 class Evaluation {
  public:
   Evaluation(const EvalOptions& options, od::io::DetectSettings settings,
