@@ -24,6 +24,8 @@
 #include <thread>
 #include <vector>
 
+#include "io/temp_dir.hpp"
+
 #ifndef CAIRN_EXE
 #error "CAIRN_EXE must name the cairn executable"
 #endif
@@ -38,12 +40,7 @@ namespace fs = std::filesystem;
 
 const fs::path kDrive = fs::path(CAIRN_SOURCE_DIR) / "datasets" / "sequences" / "hill_drive";
 
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using test::ReadFile;
 
 /// Every regular file directly in `dir`, by name, with its bytes.
 std::map<std::string, std::string> Files(const fs::path& dir) {

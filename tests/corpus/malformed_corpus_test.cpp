@@ -28,6 +28,9 @@
 #include <string>
 #include <vector>
 
+#include "io/temp_dir.hpp"
+#include "io/cairn_command.hpp"
+
 #ifndef CAIRN_EXE
 #error "CAIRN_EXE must name the cairn executable"
 #endif
@@ -42,23 +45,14 @@ namespace fs = std::filesystem;
 
 const fs::path kSource = CAIRN_SOURCE_DIR;
 
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using test::ReadFile;
 
 void WriteFile(const fs::path& path, const std::string& bytes) {
   fs::create_directories(path.parent_path());
   std::ofstream(path, std::ios::binary) << bytes;
 }
 
-std::string ShellQuote(const std::string& s) {
-  std::string q = "'";
-  for (const char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  return q + "'";
-}
+using test::ShellQuote;
 
 struct RunResult {
   int status = -1;      ///< exit status; -1 when killed by a signal

@@ -19,6 +19,7 @@
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/scene.hpp"
+#include "io/temp_dir.hpp"
 #include "sim_frames.hpp"
 
 namespace cairn::map {
@@ -27,13 +28,8 @@ namespace {
 namespace fs = std::filesystem;
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
-// A fresh directory per test and process (ctest runs the tests of one file in parallel).
 fs::path TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("cairn_checkpoint_test_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return test::FreshDir("cairn_checkpoint_test", name);
 }
 
 // A short drive along +x past boxes and poles on flat ground: 14 frames of a small camera

@@ -28,6 +28,7 @@
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/intrinsics.hpp"
 #include "cairn/sources/rawlog_source.hpp"
+#include "io/temp_dir.hpp"
 
 namespace cairn {
 namespace {
@@ -84,12 +85,7 @@ struct CommandRun {
   std::string out, err;
 };
 
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using test::ReadFile;
 
 /// Runs `cairn <args>`, capturing stdout and stderr.
 CommandRun Cairn(const std::string& args, const fs::path& scratch) {

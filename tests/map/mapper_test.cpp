@@ -24,6 +24,7 @@
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
+#include "io/temp_dir.hpp"
 #include "sim_frames.hpp"
 
 namespace cairn::map {
@@ -33,11 +34,7 @@ namespace fs = std::filesystem;
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 fs::path TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("cairn_mapper_test_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return test::FreshDir("cairn_mapper_test", name);
 }
 
 /// A frame as a source gives it: points in the sensor frame, the odometry pose (here the
