@@ -132,10 +132,11 @@ inline double CellDistance(const std::pair<int, int>& a, const std::pair<int, in
 }
 
 // truth_tilt_height: fuses the odometry's x, y and heading with the true roll, pitch and
-// height of `*truth` (set before each frame).
+// height of `*truth` (set before each frame; shared, so that the step never outlives it).
 class TruthTiltStep final : public map::TiltStep {
  public:
-  explicit TruthTiltStep(const Eigen::Isometry3d* truth) : truth_(truth) {}
+  explicit TruthTiltStep(std::shared_ptr<const Eigen::Isometry3d> truth)
+      : truth_(std::move(truth)) {}
   map::TiltMode mode() const override { return map::TiltMode::kPrior; }
   bool UsesGroundPoints() const override { return false; }
   Eigen::Isometry3d Prior(const Eigen::Isometry3d& odometry) const override {
@@ -160,7 +161,7 @@ class TruthTiltStep final : public map::TiltStep {
   Status RestoreState(const std::string&) override { return {}; }
 
  private:
-  const Eigen::Isometry3d* truth_;
+  std::shared_ptr<const Eigen::Isometry3d> truth_;
 };
 
 // Scores the map of `r` against the world (same measures as terrain_map_sim_test).
@@ -253,10 +254,11 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
                      : spec.refine_tilt ? map::TiltMode::kRefineToMap
                                         : map::TiltMode::kPrior;
   if (spec.configure) spec.configure(config);
-  Eigen::Isometry3d truth_now = Eigen::Isometry3d::Identity();  // truth_tilt_height
+  // truth_tilt_height: the true pose of the frame being fused.
+  const auto truth_now = std::make_shared<Eigen::Isometry3d>(Eigen::Isometry3d::Identity());
   Expected<map::Mapper> mapper =
       spec.truth_tilt_height
-          ? map::Mapper::Create(config, std::make_unique<detail::TruthTiltStep>(&truth_now))
+          ? map::Mapper::Create(config, std::make_unique<detail::TruthTiltStep>(truth_now))
           : map::Mapper::Create(config);
   if (!mapper) return mapper.error();
 
@@ -353,7 +355,7 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
         terrain_returns.push_back(image->point(i));
       }
     }
-    truth_now = s.T_world_sensor;
+    *truth_now = s.T_world_sensor;
     Expected<map::MapperRecord> record =
         (*mapper).Process(std::move(*image), T_world_sensor, s.stamp_s, imu);
     if (!record) return record.error();
