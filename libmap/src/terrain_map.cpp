@@ -1,5 +1,7 @@
 #include "cairn/map/terrain_map.hpp"
 
+#include "key_bricks.hpp"
+
 #include <octomap/OcTreeKey.h>
 
 #include <Eigen/Dense>
@@ -46,120 +48,6 @@ enum PointClass : std::uint8_t {
   kObstacle = 3  // in range, kept segment, above its foot
 };
 
-// A set of OcTreeKeys with open addressing (linear probing) in one flat array: the free
-// voxels of a frame, a million insertions with many repeats, several times faster than
-// OctoMap's node-based KeySet. Keys are packed into 48 bits (+1, so that 0 marks a free
-// slot).
-class FlatKeySet {
- public:
-  void Clear() {
-    std::fill(slots_.begin(), slots_.end(), 0);
-    size_ = 0;
-  }
-  void Insert(const octomap::OcTreeKey& key) {
-    if (2 * (size_ + 1) > slots_.size()) Grow();
-    const std::uint64_t packed = Pack(key);
-    const std::size_t mask = slots_.size() - 1;
-    for (std::size_t i = Hash(packed) & mask;; i = (i + 1) & mask) {
-      if (slots_[i] == packed) return;
-      if (slots_[i] == 0) {
-        slots_[i] = packed;
-        ++size_;
-        return;
-      }
-    }
-  }
-  /// The keys in Morton order (x, y, z bits interleaved), so that a walk over them visits
-  /// the octree with few cache misses. `codes` and `scratch` are reused buffers.
-  template <typename F>
-  void ForEachInMortonOrder(std::vector<std::uint64_t>& codes, std::vector<std::uint64_t>& scratch,
-                            F&& f) const {
-    codes.clear();
-    for (const std::uint64_t packed : slots_) {
-      if (packed != 0) codes.push_back(Morton(packed - 1));
-    }
-    // LSD radix sort of the 48-bit codes, 16 bits per pass.
-    scratch.resize(codes.size());
-    std::vector<std::size_t> count(1 << 16);
-    for (int shift = 0; shift < 48; shift += 16) {
-      std::fill(count.begin(), count.end(), 0);
-      for (const std::uint64_t c : codes) ++count[(c >> shift) & 0xffff];
-      std::size_t sum = 0;
-      for (std::size_t& n : count) {
-        const std::size_t here = n;
-        n = sum;
-        sum += here;
-      }
-      for (const std::uint64_t c : codes) scratch[count[(c >> shift) & 0xffff]++] = c;
-      codes.swap(scratch);
-    }
-    for (const std::uint64_t c : codes) f(Unpack(Unmorton(c) + 1));
-  }
-  std::size_t size() const { return size_; }
-
- private:
-  static std::uint64_t Pack(const octomap::OcTreeKey& k) {
-    return (static_cast<std::uint64_t>(k[0]) | static_cast<std::uint64_t>(k[1]) << 16 |
-            static_cast<std::uint64_t>(k[2]) << 32) +
-           1;
-  }
-  static octomap::OcTreeKey Unpack(std::uint64_t packed) {
-    --packed;
-    return octomap::OcTreeKey(static_cast<octomap::key_type>(packed & 0xffff),
-                              static_cast<octomap::key_type>((packed >> 16) & 0xffff),
-                              static_cast<octomap::key_type>((packed >> 32) & 0xffff));
-  }
-  // Morton codes by spreading each 16-bit key to every third bit with shifts and masks
-  // (x at bits 3b, y at 3b + 1, z at 3b + 2), and back.
-  static std::uint64_t Spread3(std::uint64_t v) {
-    v &= 0xffff;
-    v = (v | v << 32) & 0x1f00000000ffffULL;
-    v = (v | v << 16) & 0x1f0000ff0000ffULL;
-    v = (v | v << 8) & 0x100f00f00f00f00fULL;
-    v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
-    v = (v | v << 2) & 0x1249249249249249ULL;
-    return v;
-  }
-  static std::uint64_t Compact3(std::uint64_t v) {
-    v &= 0x1249249249249249ULL;
-    v = (v ^ (v >> 2)) & 0x10c30c30c30c30c3ULL;
-    v = (v ^ (v >> 4)) & 0x100f00f00f00f00fULL;
-    v = (v ^ (v >> 8)) & 0x1f0000ff0000ffULL;
-    v = (v ^ (v >> 16)) & 0x1f00000000ffffULL;
-    v = (v ^ (v >> 32)) & 0x1fffffULL;
-    return v;
-  }
-  static std::uint64_t Morton(std::uint64_t packed) {
-    return Spread3(packed) | Spread3(packed >> 16) << 1 | Spread3(packed >> 32) << 2;
-  }
-  static std::uint64_t Unmorton(std::uint64_t code) {
-    return Compact3(code) | Compact3(code >> 1) << 16 | Compact3(code >> 2) << 32;
-  }
-  static std::size_t Hash(std::uint64_t x) {  // splitmix64's finaliser
-    x ^= x >> 30;
-    x *= 0xbf58476d1ce4e5b9ULL;
-    x ^= x >> 27;
-    x *= 0x94d049bb133111ebULL;
-    x ^= x >> 31;
-    return static_cast<std::size_t>(x);
-  }
-  void Grow() {
-    std::vector<std::uint64_t> old = std::move(slots_);
-    slots_.assign(std::max<std::size_t>(1024, old.size() * 2), 0);
-    size_ = 0;
-    const std::size_t mask = slots_.size() - 1;
-    for (const std::uint64_t packed : old) {
-      if (packed == 0) continue;
-      std::size_t i = Hash(packed) & mask;
-      while (slots_[i] != 0) i = (i + 1) & mask;
-      slots_[i] = packed;
-      ++size_;
-    }
-  }
-  std::vector<std::uint64_t> slots_;
-  std::size_t size_ = 0;
-};
-
 }  // namespace
 
 // Per-slot values that live for one frame (stamped with the frame, reset lazily).
@@ -180,8 +68,9 @@ struct TerrainMap::Scratch {
   std::unordered_map<octomap::OcTreeKey, std::pair<int, int>, octomap::OcTreeKey::KeyHash>
       endpoints;  // key -> (obstacle returns, ground returns)
   octomap::KeySet far_ends;
-  FlatKeySet free_keys;
-  std::vector<std::uint64_t> morton, morton_scratch;
+  internal::KeyBricks endpoint_keys;  // the keys of `endpoints`
+  internal::KeyBricks free_keys;
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> brick_order;
   octomap::KeyRay ray;
   std::vector<CellIndex> ground_disc;  // cells that may hold a return within ground_radius
   std::vector<CellIndex> fit_disc;     // offsets within plane_fit_radius
@@ -445,6 +334,7 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
   };
   sc.endpoints.clear();
   sc.far_ends.clear();
+  sc.endpoint_keys.Clear();
   sc.free_keys.Clear();
   for (int i = 0; i < n; ++i) {
     const std::uint8_t cls = sc.point_class[i];
@@ -455,6 +345,7 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
     if (cls == kFar) {
       sc.far_ends.insert(key);
     } else {
+      sc.endpoint_keys.Insert(key);
       auto& counts = sc.endpoints[key];
       (cls == kObstacle ? counts.first : counts.second) += 1;
     }
@@ -468,11 +359,13 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
   };
   for (const auto& entry : sc.endpoints) cast(entry.first);
   for (const octomap::OcTreeKey& key : sc.far_ends) cast(key);
-  sc.free_keys.ForEachInMortonOrder(sc.morton, sc.morton_scratch,
+  // Endpoints win: their voxels are not updated as free.
+  TerrainOcTree::FreeCursor cursor;
+  sc.free_keys.ForEachInMortonOrder(&sc.endpoint_keys, sc.brick_order,
                                     [&](const octomap::OcTreeKey& key) {
-                                      if (sc.endpoints.count(key) != 0 || !in_window(key))
-                                        return;  // endpoints win
-                                      const TerrainOcTree::FreeUpdate update = tree.UpdateFree(key);
+                                      if (!in_window(key)) return;
+                                      const TerrainOcTree::FreeUpdate update =
+                                          tree.UpdateFree(key, cursor);
                                       if (update.changed) ++summary.voxels_free;
                                       if (update.was_obstacle) {
                                         // A ray went through where an obstacle was: evidence

@@ -63,14 +63,39 @@ TerrainOcTreeNode* TerrainOcTree::TouchLeaf(const octomap::OcTreeKey& key) {
 }
 
 TerrainOcTree::FreeUpdate TerrainOcTree::UpdateFree(const octomap::OcTreeKey& key) {
+  FreeCursor cursor;
+  return UpdateFree(key, cursor);
+}
+
+TerrainOcTree::FreeUpdate TerrainOcTree::UpdateFree(const octomap::OcTreeKey& key,
+                                                    FreeCursor& cursor) {
+  constexpr unsigned kBrickLevels = 3;
+  const std::uint64_t brick = static_cast<std::uint64_t>(key[0] >> kBrickLevels) |
+                              static_cast<std::uint64_t>(key[1] >> kBrickLevels) << 16 |
+                              static_cast<std::uint64_t>(key[2] >> kBrickLevels) << 32;
+  const unsigned brick_depth = tree_depth - kBrickLevels;
+  TerrainOcTreeNode* node = nullptr;
+  unsigned depth = 0;
+  // Whether `node` was created by this update (its missing children are then not a sign of
+  // pruning). A brick node reached again has children (the first update made one) unless
+  // it is a pruned leaf, so false is right for it.
   bool created = false;
-  if (root == nullptr) {
-    root = new TerrainOcTreeNode();
-    ++tree_size;
-    created = true;
+  if (brick == cursor.brick) {
+    if (cursor.node == nullptr) return {};  // inside a saturated free pruned node
+    node = cursor.node;
+    depth = brick_depth;
+  } else {
+    cursor.brick = brick;
+    cursor.node = nullptr;
+    if (root == nullptr) {
+      root = new TerrainOcTreeNode();
+      ++tree_size;
+      created = true;
+    }
+    node = root;
   }
-  TerrainOcTreeNode* node = root;
-  for (unsigned depth = 0; depth < tree_depth; ++depth) {
+  for (; depth < tree_depth; ++depth) {
+    if (depth == brick_depth && cursor.node == nullptr) cursor.node = node;
     const unsigned pos = octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth));
     if (nodeChildExists(node, pos)) {
       created = false;

@@ -8,10 +8,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <set>
+#include <sstream>
+#include <tuple>
 #include <vector>
 
+#include "cairn/map/terrain_octree.hpp"
 #include "cairn/sim/scene.hpp"
+#include "key_bricks.hpp"  // libmap/src: the free-space key set
 #include "sim_frames.hpp"
 
 namespace cairn::map {
@@ -419,6 +424,140 @@ TEST(TerrainMap, RejectsAFrameThatDoesNotMatchItsDetection) {
   const Expected<TerrainMap> invalid = TerrainMap::Create(bad);
   ASSERT_FALSE(invalid.ok());
   EXPECT_NE(invalid.error().message.find("'cell_size'"), std::string::npos);
+}
+
+// --- The octree's free-space update -----------------------------------------------------
+
+// The Morton code of a key (x at bit 3b, y at 3b + 1, z at 3b + 2), bit by bit.
+std::uint64_t MortonOf(const octomap::OcTreeKey& k) {
+  std::uint64_t code = 0;
+  for (int b = 0; b < 16; ++b) {
+    for (int axis = 0; axis < 3; ++axis) {
+      code |= static_cast<std::uint64_t>((k[axis] >> b) & 1u) << (3 * b + axis);
+    }
+  }
+  return code;
+}
+
+// Keys along rays from one origin, as a frame's free space is, with repeats, plus keys at
+// the ends of the key range.
+std::vector<octomap::OcTreeKey> RayKeys(std::mt19937& rng, int rays) {
+  const TerrainOcTree tree(0.1);
+  std::uniform_real_distribution<float> u(-15.0f, 15.0f);
+  octomap::KeyRay ray;
+  std::vector<octomap::OcTreeKey> keys;
+  for (int r = 0; r < rays; ++r) {
+    if (tree.computeRayKeys(octomap::point3d(0.3f, -0.2f, 1.0f),
+                            octomap::point3d(u(rng), u(rng), u(rng) / 5.0f), ray)) {
+      keys.insert(keys.end(), ray.begin(), ray.end());
+    }
+  }
+  for (const octomap::key_type a : {0, 1, 7, 8, 65527, 65535}) {
+    keys.emplace_back(a, static_cast<octomap::key_type>(65535 - a), static_cast<octomap::key_type>(a));
+  }
+  return keys;
+}
+
+TEST(KeyBricks, HoldsEveryKeyOnceAndGivesThemInMortonOrder) {
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 3; ++trial) {
+    const std::vector<octomap::OcTreeKey> keys = RayKeys(rng, 300 + 400 * trial);
+    internal::KeyBricks bricks, exclude;
+    std::set<std::uint64_t> reference, excluded;
+    for (int pass = 0; pass < 2; ++pass) {  // reused after Clear(), as from frame to frame
+      bricks.Clear();
+      exclude.Clear();
+      reference.clear();
+      excluded.clear();
+      for (std::size_t k = 0; k < keys.size(); ++k) {
+        bricks.Insert(keys[k]);
+        reference.insert(MortonOf(keys[k]));
+        if (k % 7 == 0) {
+          exclude.Insert(keys[k]);
+          excluded.insert(MortonOf(keys[k]));
+        }
+      }
+      EXPECT_EQ(bricks.size(), reference.size());
+      for (std::size_t k = 0; k < keys.size(); k += 13) EXPECT_TRUE(bricks.Contains(keys[k]));
+      std::vector<std::uint64_t> expected;
+      for (const std::uint64_t code : reference) {
+        if (excluded.count(code) == 0) expected.push_back(code);
+      }
+      std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+      std::vector<std::uint64_t> got, got_all;
+      bricks.ForEachInMortonOrder(&exclude, order,
+                                  [&](const octomap::OcTreeKey& k) { got.push_back(MortonOf(k)); });
+      bricks.ForEachInMortonOrder(nullptr, order,
+                                  [&](const octomap::OcTreeKey& k) { got_all.push_back(MortonOf(k)); });
+      EXPECT_EQ(got, expected) << "trial " << trial;  // sorted, each once, exclusions left out
+      EXPECT_EQ(got_all, std::vector<std::uint64_t>(reference.begin(), reference.end()));
+    }
+    // A key never inserted is not held.
+    EXPECT_FALSE(bricks.Contains(octomap::OcTreeKey(40000, 3, 9)));
+  }
+}
+
+// The free update started from a cursor (a walk in Morton order) changes the tree exactly as
+// the walk from the root, on a tree with occupied, free and pruned saturated regions.
+TEST(TerrainOcTree, FreeUpdatesFromACursorEqualThoseFromTheRoot) {
+  std::mt19937 rng(5);
+  TerrainOcTree a(0.1), b(0.1);
+  std::uniform_int_distribution<int> near(32700, 32835);
+  for (int k = 0; k < 4000; ++k) {  // occupied voxels, some obstacles
+    const octomap::OcTreeKey key(static_cast<octomap::key_type>(near(rng)),
+                                 static_cast<octomap::key_type>(near(rng)),
+                                 static_cast<octomap::key_type>(near(rng)));
+    for (TerrainOcTree* t : {&a, &b}) t->Update(t->TouchLeaf(key), true, k % 3 == 0);
+  }
+  // Saturate the free space of a 32-voxel cube around the rays' origin (which prunes to a
+  // few nodes), and some of it again along rays.
+  const octomap::OcTreeKey origin = a.coordToKey(0.3, -0.2, 1.0);
+  std::vector<octomap::OcTreeKey> keys;
+  for (int dx = 0; dx < 32; ++dx) {
+    for (int dy = 0; dy < 32; ++dy) {
+      for (int dz = 0; dz < 32; ++dz) {
+        keys.emplace_back(static_cast<octomap::key_type>((origin[0] & ~31) + dx),
+                          static_cast<octomap::key_type>((origin[1] & ~31) + dy),
+                          static_cast<octomap::key_type>((origin[2] & ~31) + dz));
+      }
+    }
+  }
+  const std::vector<octomap::OcTreeKey> along = RayKeys(rng, 200);
+  keys.insert(keys.end(), along.begin(), along.end());
+  for (const octomap::OcTreeKey& key : keys) {
+    for (int r = 0; r < 8; ++r) {
+      a.UpdateFree(key);
+      b.UpdateFree(key);
+    }
+  }
+  a.updateInnerOccupancy();
+  b.updateInnerOccupancy();
+  a.prune();
+  b.prune();
+  keys = RayKeys(rng, 900);
+  std::sort(keys.begin(), keys.end(), [](const octomap::OcTreeKey& x, const octomap::OcTreeKey& y) {
+    return MortonOf(x) < MortonOf(y);
+  });
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  TerrainOcTree::FreeCursor cursor;
+  int changed = 0, obstacles = 0, unchanged = 0;
+  for (const octomap::OcTreeKey& key : keys) {
+    const TerrainOcTree::FreeUpdate from_root = a.UpdateFree(key);
+    const TerrainOcTree::FreeUpdate from_cursor = b.UpdateFree(key, cursor);
+    ASSERT_EQ(from_root.changed, from_cursor.changed);
+    ASSERT_EQ(from_root.was_obstacle, from_cursor.was_obstacle);
+    changed += from_root.changed;
+    unchanged += !from_root.changed;
+    obstacles += from_root.was_obstacle;
+  }
+  EXPECT_GT(changed, 1000);
+  EXPECT_GT(unchanged, 100);  // inside the pruned saturated regions
+  EXPECT_GT(obstacles, 0);
+  EXPECT_EQ(a.size(), b.size());
+  std::ostringstream sa, sb;
+  a.writeData(sa);
+  b.writeData(sb);
+  EXPECT_EQ(sa.str(), sb.str());
 }
 
 }  // namespace

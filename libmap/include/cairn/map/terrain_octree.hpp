@@ -21,6 +21,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <cstdint>
 #include <istream>
 #include <ostream>
 #include <string>
@@ -89,6 +90,17 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
     bool was_obstacle = false;
   };
   FreeUpdate UpdateFree(const octomap::OcTreeKey& key);
+
+  /// Where the last free update left the tree, three levels above the leaves: successive
+  /// updates of keys that share that node (a brick of 8 x 8 x 8 voxels, as in a walk in
+  /// Morton order) start there instead of at the root. Valid while only UpdateFree changes
+  /// the tree; a default cursor starts at the root.
+  struct FreeCursor {
+    std::uint64_t brick = ~std::uint64_t{0};  // the keys >> 3, packed; ~0: none yet
+    TerrainOcTreeNode* node = nullptr;        // null: the brick lies in a saturated free node
+  };
+  /// The same update as UpdateFree(key), starting from the cursor when it holds key's brick.
+  FreeUpdate UpdateFree(const octomap::OcTreeKey& key, FreeCursor& cursor);
 
   /// Whether a node is saturated free in both values (a free update changes nothing).
   bool IsSaturatedFree(const TerrainOcTreeNode& node) const;
