@@ -265,6 +265,25 @@ Frame* FrameOrSkip(benchmark::State& state, const std::string& name) {
   return f;
 }
 
+// Runs `detect` once per iteration, timing each run into `ms`; returns the last result, or
+// null after an error (the benchmark is then skipped with it).
+template <typename F>
+std::unique_ptr<od::Detection> TimedRuns(benchmark::State& state, std::vector<double>& ms,
+                                         F&& detect) {
+  std::unique_ptr<od::Detection> last;
+  for (auto _ : state) {
+    const Clock::time_point start = Clock::now();
+    Expected<od::Detection> d = detect();
+    ms.push_back(MillisecondsSince(start));
+    if (!d) {
+      state.SkipWithError(d.error().message.c_str());
+      return nullptr;
+    }
+    last = std::make_unique<od::Detection>(std::move(*d));
+  }
+  return last;
+}
+
 // The exact detector (od::Detect); range(0): threads (1 or 0 = every core).
 void BM_Detect(benchmark::State& state, const std::string& name) {
   Frame* f = FrameOrSkip(state, name);
@@ -272,17 +291,9 @@ void BM_Detect(benchmark::State& state, const std::string& name) {
   od::DetectorConfig config = OneThread(*f);
   config.threads = static_cast<int>(state.range(0));
   std::vector<double> ms;
-  std::unique_ptr<od::Detection> last;
-  for (auto _ : state) {
-    const Clock::time_point start = Clock::now();
-    Expected<od::Detection> d = od::Detect(f->image, config);
-    ms.push_back(MillisecondsSince(start));
-    if (!d) {
-      state.SkipWithError(d.error().message.c_str());
-      return;
-    }
-    last = std::make_unique<od::Detection>(std::move(*d));
-  }
+  const std::unique_ptr<od::Detection> last =
+      TimedRuns(state, ms, [&] { return od::Detect(f->image, config); });
+  if (last == nullptr) return;
   if (!SameAsReference(*last, *f)) {
     g_differs = true;
     state.SkipWithError((name + ": the exact detector differs from " + f->reference_name).c_str());
@@ -312,12 +323,30 @@ void BM_PaperWindow(benchmark::State& state, const std::string& name) {
   for (auto _ : state) benchmark::DoNotOptimize(od::Detect(f->image, config));
 }
 
+// The column baseline, checked against its definition (od::DetectColumnsBruteForce, timed
+// once in the same process: the counter brute_force_x).
 void BM_Columns(benchmark::State& state, const std::string& name) {
   Frame* f = FrameOrSkip(state, name);
   if (f == nullptr) return;
   od::ColumnConfig config = od::ColumnConfig::From(f->settings.detector);
   config.min_blob_pixels = f->settings.min_blob_pixels;
-  for (auto _ : state) benchmark::DoNotOptimize(od::DetectColumns(f->image, config));
+  std::vector<double> ms;
+  const std::unique_ptr<od::Detection> last =
+      TimedRuns(state, ms, [&] { return od::DetectColumns(f->image, config); });
+  if (last == nullptr) return;
+  const Clock::time_point start = Clock::now();
+  const Expected<od::Detection> brute = od::DetectColumnsBruteForce(f->image, config);
+  const double brute_ms = MillisecondsSince(start);
+  if (!brute || last->labels != brute->labels || last->foot != brute->foot ||
+      last->stats.pairs_compatible != brute->stats.pairs_compatible) {
+    g_differs = true;
+    state.SkipWithError((name + ": the column baseline differs from its definition").c_str());
+    return;
+  }
+  Counters(state, *f, *last);
+  const double med = MedianMs(ms);
+  state.counters["brute_force_x"] = brute_ms / med;
+  state.counters["floor_x"] = med / f->floor_ms;
 }
 
 void BM_BruteForce(benchmark::State& state, const std::string& name) {

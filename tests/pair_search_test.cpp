@@ -5,6 +5,8 @@
 //  - points on a coarse lattice, where many pairs sit exactly on HT, Hmax or theta, so that
 //    the block bounds' rounding is put to the test;
 //  - the benchmark frames themselves (RELLIS-3D, KITTI, the demo frame);
+//  - on all of these, the column baseline's pass over each column against its own definition
+//    (DetectColumnsBruteForce);
 //  - the surface slope of a segment (detector.hpp) on planes of known inclination.
 #include <gtest/gtest.h>
 
@@ -49,6 +51,19 @@ void ExpectSame(const Detection& a, const Detection& b, const std::string& what)
   }
 }
 
+// The column baseline's pass over each column against its definition (every pair of each
+// column): the same result, every compatible pair counted, fewer tested one by one.
+void ExpectSameColumns(const RangeImage& image, const DetectorConfig& detector, int min_blob,
+                       const std::string& what) {
+  ColumnConfig config = ColumnConfig::From(detector);
+  config.min_blob_pixels = min_blob;
+  const Detection fast = *DetectColumns(image, config);
+  const Detection brute = *DetectColumnsBruteForce(image, config);
+  ExpectSame(fast, brute, what + " (columns)");
+  EXPECT_EQ(fast.stats.pairs_compatible, brute.stats.pairs_compatible) << what << " (columns)";
+  EXPECT_LE(fast.stats.pairs_tested, brute.stats.pairs_tested) << what << " (columns)";
+}
+
 DetectorConfig RandomConfig(std::mt19937& rng) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   DetectorConfig c;
@@ -88,6 +103,7 @@ TEST(PairSearch, EqualsTheDefinitionAndTheRegionScanOnRandomViews) {
     const std::string what = "view " + std::to_string(seed);
     ExpectSame(fast, brute, what + " (blocks vs definition)");
     ExpectSame(scan, brute, what + " (region scan vs definition)");
+    ExpectSameColumns(image, config, seed % 3, what);
     with_obstacles += brute.stats.obstacle_points > 0;
     // Blocks test fewer pairs one by one than the definition tests.
     EXPECT_LE(fast.stats.pairs_tested, brute.stats.pairs_tested) << what;
@@ -117,6 +133,7 @@ TEST(PairSearch, EqualsTheDefinitionOnThresholdsExactly) {
     config.threads = 1 + trial % 2;
     const Detection brute = *DetectBruteForce(image, config);
     ExpectSame(*Detect(image, config), brute, "lattice trial " + std::to_string(trial));
+    ExpectSameColumns(image, config, 0, "lattice trial " + std::to_string(trial));
     EXPECT_GT(brute.stats.pairs_compatible, 0);
   }
 }
@@ -152,6 +169,7 @@ TEST(PairSearch, EqualsTheDefinitionOnLidarScans) {
     const Detection brute = *DetectBruteForce(image, config);
     ExpectSame(*Detect(image, config), brute, "scan " + std::to_string(trial));
     ExpectSame(*DetectRegionScan(image, config), brute, "scan (region) " + std::to_string(trial));
+    ExpectSameColumns(image, config, 0, "scan " + std::to_string(trial));
     ColumnConfig columns = ColumnConfig::From(config);
     columns.min_blob_pixels = 0;
     // The column baseline keeps the pairs within each column: a subset of the definition's.
@@ -190,6 +208,7 @@ TEST(PairSearch, EqualsTheDefinitionOnTheRellisScan) {
     config.threads = threads;
     ExpectSame(*Detect(*image, config), brute, "RELLIS, " + std::to_string(threads) + " threads");
   }
+  ExpectSameColumns(*image, config, 0, "RELLIS");
 }
 
 TEST(PairSearch, EqualsTheRegionScanOnTheKittiScan) {
@@ -202,6 +221,7 @@ TEST(PairSearch, EqualsTheRegionScanOnTheKittiScan) {
   const Detection scan = *DetectRegionScan(*image, config);
   EXPECT_GT(scan.stats.pairs_compatible, 100000);
   ExpectSame(*Detect(*image, config), scan, "KITTI 00 scan 0");
+  ExpectSameColumns(*image, config, 0, "KITTI 00 scan 0");
 }
 
 TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
@@ -214,6 +234,7 @@ TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
   const Detection scan = *DetectRegionScan(image, config);
   EXPECT_GT(scan.segments.size(), 5u);
   ExpectSame(*Detect(image, config), scan, "demo frame");
+  ExpectSameColumns(image, config, 10, "demo frame");
 }
 
 // --- Surface slope -----------------------------------------------------------------------

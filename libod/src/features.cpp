@@ -105,11 +105,15 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
   det.stats.obstacle_points = 0;
 
   // Ids in row-major order of first pixels; id_of_rep maps a representative to its id.
+  // The segments' pixels, in row-major order: every later pass visits only them.
+  std::vector<std::int32_t> members;
+  for (int i = 0; i < n; ++i) {
+    if (component[i] >= 0) members.push_back(i);
+  }
   std::vector<std::int32_t> id_of_rep(n, 0);
   std::vector<SegmentSums> sums;
-  for (int i = 0; i < n; ++i) {
+  for (const int i : members) {
     const int rep = component[i];
-    if (rep < 0) continue;
     if (id_of_rep[rep] == 0) {
       id_of_rep[rep] = static_cast<std::int32_t>(det.segments.size()) + 1;
       SegmentFeatures f;
@@ -158,9 +162,8 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     t = (a ? at(after) : at(i)) - (b ? at(before) : at(i));
     return true;
   };
-  for (int i = 0; i < n; ++i) {
+  for (const int i : members) {
     const int id = det.labels[i];
-    if (id == 0) continue;
     const int r = i / width, c = i % width;
     int left = c > 0 ? i - 1 : (wraps ? i + width - 1 : -1);
     int right = c + 1 < width ? i + 1 : (wraps ? i - c : -1);
@@ -170,7 +173,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     Eigen::Vector3d tu, tv;
     if (!tangent(i, left, right, tu) || !tangent(i, up, down, tv)) continue;
     const Eigen::Vector3d normal = tu.cross(tv);
-    const double horizontal = std::hypot(normal.x(), normal.y());
+    const double horizontal = std::sqrt(normal.x() * normal.x() + normal.y() * normal.y());
     if (!(horizontal > 0.0 || normal.z() != 0.0)) continue;
     const double slope = std::atan2(horizontal, std::abs(normal.z()));
     SegmentFeatures& f = det.segments[id - 1];
@@ -193,9 +196,9 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     f.range_mean_m = s.s_range / np;
   }
   // Feet: not raised, and lower than HT above the segment's ground.
-  for (int i = 0; i < n; ++i) {
+  for (const int i : members) {
     const int id = det.labels[i];
-    if (id == 0 || raised[i] != 0) continue;
+    if (raised[i] != 0) continue;
     SegmentFeatures& f = det.segments[id - 1];
     if (level.z[i] - f.ground_height_m < min_height) {
       det.foot[i] = 1;

@@ -29,4 +29,9 @@ struct ColumnConfig {
 /// with the same definitions (slopes over the column pairs found inside each blob).
 Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& config);
 
+/// The same result by the definition: every pair of points of each column tested, O(H^2)
+/// per column. The reference the tests and benchmarks hold DetectColumns to (equal labels,
+/// feet, features and pairs_compatible; pairs_tested differs).
+Expected<Detection> DetectColumnsBruteForce(const RangeImage& image, const ColumnConfig& config);
+
 }  // namespace cairn::od
