@@ -57,10 +57,17 @@ class KeyBricks {
     return n;
   }
 
-  /// Calls f(key) for every key held and not in `exclude` (may be null), in the Morton order
-  /// of the keys. `order` is a reused buffer.
+  /// Calls f(key) for every key held, brick after brick in the order they were first
+  /// inserted into.
   template <typename F>
-  void ForEachInMortonOrder(const KeyBricks* exclude,
+  void ForEach(F&& f) const {
+    for (const Brick& brick : bricks_) Visit(brick, nullptr, f);
+  }
+
+  /// Calls f(key, in_other) for every key held, in the Morton order of the keys, with
+  /// whether `other` (may be null) holds it too. `order` is a reused buffer.
+  template <typename F>
+  void ForEachInMortonOrder(const KeyBricks* other,
                             std::vector<std::pair<std::uint64_t, std::uint32_t>>& order,
                             F&& f) const {
     order.clear();
@@ -68,19 +75,17 @@ class KeyBricks {
     std::sort(order.begin(), order.end());
     for (const auto& [code, index] : order) {
       const Brick& brick = bricks_[index];
-      const Brick* skip = exclude != nullptr ? exclude->Find(PackFromCode(code)) : nullptr;
-      const std::uint32_t bx = Compact3(code), by = Compact3(code >> 1), bz = Compact3(code >> 2);
-      for (int w = 0; w < 8; ++w) {
-        std::uint64_t word = brick.bits[w] & (skip != nullptr ? ~skip->bits[w] : ~std::uint64_t{0});
-        while (word != 0) {
-          const unsigned bit = static_cast<unsigned>(w * 64 + __builtin_ctzll(word));
-          word &= word - 1;
-          f(octomap::OcTreeKey(static_cast<octomap::key_type>(bx << 3 | Compact3(bit)),
-                               static_cast<octomap::key_type>(by << 3 | Compact3(bit >> 1)),
-                               static_cast<octomap::key_type>(bz << 3 | Compact3(bit >> 2))));
-        }
-      }
+      Visit(brick, other != nullptr ? other->Find(PackFromCode(code)) : nullptr, f);
     }
+  }
+
+  /// Adds the keys of `other`.
+  void Merge(const KeyBricks& other) {
+    for (const Brick& b : other.bricks_) {
+      Brick& mine = bricks_[FindOrAdd(PackFromCode(b.code))];
+      for (int w = 0; w < 8; ++w) mine.bits[w] |= b.bits[w];
+    }
+    last_ = kNone;
   }
 
  private:
@@ -131,6 +136,27 @@ class KeyBricks {
     return Spread3(packed & 0x1fff) | Spread3((packed >> 13) & 0x1fff) << 1 |
            Spread3((packed >> 26) & 0x1fff) << 2;
   }
+  // f(key, in_other) for the keys of one brick in Morton order; `other` is the same brick of
+  // another set, or null.
+  template <typename F>
+  static void Visit(const Brick& brick, const Brick* other, F& f) {
+    const std::uint32_t bx = Compact3(brick.code), by = Compact3(brick.code >> 1),
+                        bz = Compact3(brick.code >> 2);
+    for (int w = 0; w < 8; ++w) {
+      std::uint64_t word = brick.bits[w];
+      const std::uint64_t theirs = other != nullptr ? other->bits[w] : 0;
+      while (word != 0) {
+        const unsigned b = static_cast<unsigned>(__builtin_ctzll(word));
+        word &= word - 1;
+        const unsigned bit = static_cast<unsigned>(w * 64) + b;
+        f(octomap::OcTreeKey(static_cast<octomap::key_type>(bx << 3 | Compact3(bit)),
+                             static_cast<octomap::key_type>(by << 3 | Compact3(bit >> 1)),
+                             static_cast<octomap::key_type>(bz << 3 | Compact3(bit >> 2))),
+          (theirs >> b & 1) != 0);
+      }
+    }
+  }
+
   static std::size_t Hash(std::uint64_t x) {  // splitmix64's finaliser
     x ^= x >> 30;
     x *= 0xbf58476d1ce4e5b9ULL;

@@ -126,6 +126,9 @@ Status MapConfig::Validate() const {
   if (inflation_radius_m < robot_radius_m) {
     return Bad("inflation_radius", "must be >= robot_radius", inflation_radius_m);
   }
+  if (threads < 0 || threads > 256) {
+    return Bad("threads", "must be an integer in 0..256 (0: every hardware thread)", threads);
+  }
   return Status::Ok();
 }
 

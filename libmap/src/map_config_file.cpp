@@ -1,5 +1,7 @@
 #include "cairn/map/map_config_file.hpp"
 
+#include <cstdint>
+#include <string>
 #include <vector>
 
 #include "cairn/util/yaml.hpp"
@@ -57,9 +59,18 @@ Expected<MapConfig> ParseMapConfig(const std::string& yaml_text, const std::stri
   const std::vector<Field> fields = Fields(config);
   const YAML::Node section = (*root)["map"];
   if (section && !section.IsNull()) {
-    std::vector<std::string> keys;
+    std::vector<std::string> keys = {"threads"};
     for (const Field& f : fields) keys.emplace_back(f.key);
     if (Status s = reader.CheckMapping(section, "map", keys); !s) return s.error();
+    if (const YAML::Node value = section["threads"]) {
+      Expected<std::int64_t> v = reader.Integer(value, "map.threads");
+      if (!v) return v.error();
+      if (*v < 0 || *v > 256) {
+        return reader.Fail("map.threads", "expected an integer in 0..256 (0: every hardware "
+                                          "thread), got " + std::to_string(*v));
+      }
+      config.threads = static_cast<int>(*v);
+    }
     for (const Field& f : fields) {
       const YAML::Node value = section[f.key];
       if (!value) continue;

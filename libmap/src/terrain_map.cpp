@@ -10,7 +10,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
-#include <unordered_map>
+#include <thread>
 #include <utility>
 
 namespace cairn::map {
@@ -65,13 +65,13 @@ struct TerrainMap::Scratch {
   std::vector<CellIndex> touched;  // cells stamped this frame
   std::vector<std::uint8_t> point_class;
   std::vector<Eigen::Vector3d> world;  // per pixel: the return (or the clipped ray end)
-  std::unordered_map<octomap::OcTreeKey, std::pair<int, int>, octomap::OcTreeKey::KeyHash>
-      endpoints;  // key -> (obstacle returns, ground returns)
-  octomap::KeySet far_ends;
-  internal::KeyBricks endpoint_keys;  // the keys of `endpoints`
+  internal::KeyBricks endpoints;           // voxels where in-range returns end
+  internal::KeyBricks obstacle_endpoints;  // those where obstacle returns end
+  internal::KeyBricks far_ends;            // ends of the rays of returns beyond max_range
   internal::KeyBricks free_keys;
+  std::vector<octomap::OcTreeKey> ray_ends;        // the endpoints and the far ends
+  std::vector<internal::KeyBricks> worker_keys;    // free keys of the other ray workers
   std::vector<std::pair<std::uint64_t, std::uint32_t>> brick_order;
-  octomap::KeyRay ray;
   std::vector<CellIndex> ground_disc;  // cells that may hold a return within ground_radius
   std::vector<CellIndex> fit_disc;     // offsets within plane_fit_radius
   std::vector<CellIndex> merge_disc;   // offsets within merge_distance
@@ -332,9 +332,9 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
     return c.x() >= window_min.x() && c.x() < window_max.x() && c.y() >= window_min.y() &&
            c.y() < window_max.y();
   };
-  sc.endpoints.clear();
-  sc.far_ends.clear();
-  sc.endpoint_keys.Clear();
+  sc.endpoints.Clear();
+  sc.obstacle_endpoints.Clear();
+  sc.far_ends.Clear();
   sc.free_keys.Clear();
   for (int i = 0; i < n; ++i) {
     const std::uint8_t cls = sc.point_class[i];
@@ -343,44 +343,63 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
     const Eigen::Vector3d& p = sc.world[i];
     if (!tree.coordToKeyChecked(p.x(), p.y(), p.z(), key)) continue;  // beyond the tree
     if (cls == kFar) {
-      sc.far_ends.insert(key);
+      sc.far_ends.Insert(key);
     } else {
-      sc.endpoint_keys.Insert(key);
-      auto& counts = sc.endpoints[key];
-      (cls == kObstacle ? counts.first : counts.second) += 1;
+      sc.endpoints.Insert(key);
+      if (cls == kObstacle) sc.obstacle_endpoints.Insert(key);
     }
   }
   const octomap::point3d sensor(static_cast<float>(origin.x()), static_cast<float>(origin.y()),
                                 static_cast<float>(origin.z()));
-  const auto cast = [&](const octomap::OcTreeKey& end) {
-    if (tree.computeRayKeys(sensor, tree.keyToCoord(end), sc.ray)) {
-      for (const octomap::OcTreeKey& key : sc.ray) sc.free_keys.Insert(key);
+  // One ray per end voxel, cast by `threads` workers over interleaved ends, each into its
+  // own set; the union does not depend on the split.
+  sc.ray_ends.clear();
+  const auto collect = [&](const octomap::OcTreeKey& end, bool) { sc.ray_ends.push_back(end); };
+  sc.endpoints.ForEach(collect);
+  sc.far_ends.ForEach(collect);
+  const int wanted = config_.threads > 0
+                         ? config_.threads
+                         : static_cast<int>(std::thread::hardware_concurrency());
+  const int threads =  // at least 1,024 rays each
+      std::clamp(wanted, 1, std::max(1, static_cast<int>(sc.ray_ends.size() / 1024)));
+  if (static_cast<int>(sc.worker_keys.size()) < threads - 1) sc.worker_keys.resize(threads - 1);
+  const auto cast = [&](int worker, internal::KeyBricks& keys) {
+    octomap::KeyRay ray;
+    keys.Clear();
+    const std::size_t step = static_cast<std::size_t>(threads);
+    for (std::size_t e = static_cast<std::size_t>(worker); e < sc.ray_ends.size(); e += step) {
+      if (tree.computeRayKeys(sensor, tree.keyToCoord(sc.ray_ends[e]), ray)) {
+        for (const octomap::OcTreeKey& key : ray) keys.Insert(key);
+      }
     }
   };
-  for (const auto& entry : sc.endpoints) cast(entry.first);
-  for (const octomap::OcTreeKey& key : sc.far_ends) cast(key);
+  {
+    std::vector<std::thread> pool;
+    for (int t = 1; t < threads; ++t) pool.emplace_back(cast, t, std::ref(sc.worker_keys[t - 1]));
+    cast(0, sc.free_keys);
+    for (std::thread& thread : pool) thread.join();
+  }
+  for (int t = 1; t < threads; ++t) sc.free_keys.Merge(sc.worker_keys[t - 1]);
   // Endpoints win: their voxels are not updated as free.
   TerrainOcTree::FreeCursor cursor;
-  sc.free_keys.ForEachInMortonOrder(&sc.endpoint_keys, sc.brick_order,
-                                    [&](const octomap::OcTreeKey& key) {
-                                      if (!in_window(key)) return;
-                                      const TerrainOcTree::FreeUpdate update =
-                                          tree.UpdateFree(key, cursor);
-                                      if (update.changed) ++summary.voxels_free;
-                                      if (update.was_obstacle) {
-                                        // A ray went through where an obstacle was: evidence
-                                        // against the cell below it.
-                                        const octomap::point3d c = tree.keyToCoord(key);
-                                        const CellIndex cell = grid_.IndexOf({c.x(), c.y()});
-                                        if (grid_.Contains(cell))
-                                          stamp_cell(cell).seen_through = true;
-                                      }
-                                    });
-  for (const auto& [key, counts] : sc.endpoints) {
-    if (!in_window(key)) continue;
-    tree.Update(tree.TouchLeaf(key), true, counts.first > 0);
-    ++summary.voxels_occupied;
-  }
+  sc.free_keys.ForEachInMortonOrder(
+      &sc.endpoints, sc.brick_order, [&](const octomap::OcTreeKey& key, bool endpoint) {
+        if (endpoint || !in_window(key)) return;
+        const TerrainOcTree::FreeUpdate update = tree.UpdateFree(key, cursor);
+        if (update.changed) ++summary.voxels_free;
+        if (update.was_obstacle) {
+          // A ray went through where an obstacle was: evidence against the cell below it.
+          const octomap::point3d c = tree.keyToCoord(key);
+          const CellIndex cell = grid_.IndexOf({c.x(), c.y()});
+          if (grid_.Contains(cell)) stamp_cell(cell).seen_through = true;
+        }
+      });
+  sc.endpoints.ForEachInMortonOrder(
+      &sc.obstacle_endpoints, sc.brick_order, [&](const octomap::OcTreeKey& key, bool obstacle) {
+        if (!in_window(key)) return;
+        tree.Update(tree.TouchLeaf(key), true, obstacle);
+        ++summary.voxels_occupied;
+      });
   // Inner nodes and pruning cost a walk over the whole tree: done every few frames, and
   // whenever the tree is looked at (octree()); the leaves are always current.
   octree_stale_ = true;

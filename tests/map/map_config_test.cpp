@@ -69,7 +69,8 @@ TEST(MapConfigFile, ReadsTheMapSectionInFileUnits) {
       "  window_size: 30\n"
       "  slope_cost_max: 20\n"
       "  robot_radius: 0.7\n"
-      "  inflation_radius: 2\n",
+      "  inflation_radius: 2\n"
+      "  threads: 3\n",
       "test.yaml");
   ASSERT_TRUE(c.ok()) << c.error().message;
   EXPECT_DOUBLE_EQ(c->voxel_size_m, 0.05);
@@ -78,6 +79,7 @@ TEST(MapConfigFile, ReadsTheMapSectionInFileUnits) {
   EXPECT_NEAR(c->slope_cost_max_rad, 20.0 * kDeg, 1e-15);
   EXPECT_DOUBLE_EQ(c->robot_radius_m, 0.7);
   EXPECT_DOUBLE_EQ(c->inflation_radius_m, 2.0);
+  EXPECT_EQ(c->threads, 3);
   EXPECT_DOUBLE_EQ(c->max_range_m, MapConfig{}.max_range_m);  // absent: default
 }
 
@@ -102,6 +104,8 @@ TEST(MapConfigFile, ErrorsNameTheFileAndTheField) {
       {"map: {cell_size: -0.2}\n", "test.yaml: map.cell_size: map config: 'cell_size'"},
       {"map: {inflation_radius: 0.2}\n", "test.yaml: map.inflation_radius:"},
       {"map: {slope_cost_max: 90}\n", "test.yaml: map.slope_cost_max:"},
+      {"map: {threads: -1}\n", "test.yaml: map.threads: expected an integer in 0..256"},
+      {"map: {threads: 1.5}\n", "test.yaml: map.threads: expected an integer"},
       {"map: 3\n", "test.yaml: map: expected a mapping"},
       {"- 1\n- 2\n", "test.yaml: expected a mapping"},
       {"map: {cell_size: 0.2\n", "test.yaml:"},

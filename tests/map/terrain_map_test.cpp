@@ -426,6 +426,33 @@ TEST(TerrainMap, RejectsAFrameThatDoesNotMatchItsDetection) {
   EXPECT_NE(invalid.error().message.find("'cell_size'"), std::string::npos);
 }
 
+// The free-space rays cast by one thread or by several give the same map, voxel for voxel.
+TEST(TerrainMap, TheMapDoesNotDependOnTheThreads) {
+  sim::Scene scene;
+  scene.AddPole(6.0, 0.5, 0.15, 1.2, true, "pole");
+  scene.AddBox(8.0, -1.5, {0.6, 0.8, 0.7}, 0.3, true, "box");
+  const od::io::DetectSettings settings = Settings();
+  std::vector<std::string> trees;
+  for (const int threads : {1, 2, 3}) {
+    MapConfig config;
+    config.threads = threads;
+    TerrainMap map = NewMap(config);
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Isometry3d T = CameraPose({0.6 * k, 0.1 * k, 1.5}, 5.0 * k, 10.0);
+      const Expected<SimFrame> frame =
+          test::CameraFrame(scene, Camera(320), T, 0.2 * k, k, settings);
+      ASSERT_TRUE(frame.ok()) << frame.error().message;
+      Integrate(map, *frame);
+    }
+    std::ostringstream data;
+    map.octree().writeData(data);
+    trees.push_back(data.str());
+  }
+  EXPECT_GT(trees[0].size(), 10000u);
+  EXPECT_EQ(trees[0], trees[1]);
+  EXPECT_EQ(trees[0], trees[2]);
+}
+
 // --- The octree's free-space update -----------------------------------------------------
 
 // The Morton code of a key (x at bit 3b, y at 3b + 1, z at 3b + 2), bit by bit.
@@ -485,11 +512,26 @@ TEST(KeyBricks, HoldsEveryKeyOnceAndGivesThemInMortonOrder) {
       }
       std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
       std::vector<std::uint64_t> got, got_all;
-      bricks.ForEachInMortonOrder(&exclude, order,
-                                  [&](const octomap::OcTreeKey& k) { got.push_back(MortonOf(k)); });
-      bricks.ForEachInMortonOrder(nullptr, order,
-                                  [&](const octomap::OcTreeKey& k) { got_all.push_back(MortonOf(k)); });
-      EXPECT_EQ(got, expected) << "trial " << trial;  // sorted, each once, exclusions left out
+      bricks.ForEachInMortonOrder(&exclude, order, [&](const octomap::OcTreeKey& k, bool in) {
+        if (!in) got.push_back(MortonOf(k));
+      });
+      bricks.ForEachInMortonOrder(nullptr, order, [&](const octomap::OcTreeKey& k, bool in) {
+        EXPECT_FALSE(in);
+        got_all.push_back(MortonOf(k));
+      });
+      std::set<std::uint64_t> any_order;  // ForEach: the same keys, each once
+      std::size_t visits = 0;
+      bricks.ForEach([&](const octomap::OcTreeKey& k, bool) {
+        any_order.insert(MortonOf(k));
+        ++visits;
+      });
+      EXPECT_EQ(any_order, reference);
+      EXPECT_EQ(visits, reference.size());
+      // Merge: the union of two sets.
+      internal::KeyBricks merged = exclude;
+      merged.Merge(bricks);
+      EXPECT_EQ(merged.size(), reference.size());
+      EXPECT_EQ(got, expected) << "trial " << trial;  // sorted, each once, exclusions flagged
       EXPECT_EQ(got_all, std::vector<std::uint64_t>(reference.begin(), reference.end()));
     }
     // A key never inserted is not held.

@@ -70,11 +70,16 @@ struct MapConfig {
   double inflation_radius_m = 1.5;
   double cost_scaling_factor = 3.0;
 
+  // --- work ---
+  /// Threads casting the free-space rays (0: every hardware thread). Never changes the map.
+  int threads = 0;
+
   /// Names the first bad field by its config-file key ("map config: 'cell_size' ..."):
   /// sizes > 0, probabilities in (0, 1) with miss < 0.5 < hit and min < 0.5 < max,
   /// robot_radius <= inflation_radius, window_size 0 or 4..kMaxWindowCells cells,
   /// voxel_size in [0.001, 10] m, cell_size in [0.001, 100] m, max_range <= kMaxRangeM,
-  /// radii <= kMaxRadiusCells cells, angles in [0, 90) deg, everything finite.
+  /// radii <= kMaxRadiusCells cells, angles in [0, 90) deg, everything finite, threads in
+  /// 0..256.
   Status Validate() const;
 };
 
