@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <optional>
 #include <cmath>
 #include <string>
 #include <thread>
@@ -121,13 +122,25 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   const bool lidar = std::holds_alternative<SphericalModel>(image.model());
   const int leaf_rows = lidar ? 1 : 4, leaf_cols = lidar ? 16 : 8;
   const internal::Candidates candidates = internal::FindCandidates(level, test);
-  const internal::PointTree lower(level, candidates.lower, image.width(), image.height(),
-                                  leaf_rows, leaf_cols);
-  const internal::PointTree upper(level, candidates.upper, image.width(), image.height(),
-                                  leaf_rows, leaf_cols);
   internal::PairSearchOptions options;
   options.threads = ThreadCount(config);
-  const internal::PairSearchResult found = internal::SearchPairs(lower, upper, n, test, options);
+  // The two trees, side by side when there are threads for it.
+  std::optional<internal::PointTree> lower, upper;
+  {
+    const auto build_upper = [&] {
+      upper.emplace(level, candidates.upper, image.width(), image.height(), leaf_rows,
+                    leaf_cols);
+    };
+    std::thread other;
+    if (options.threads > 1) other = std::thread(build_upper);
+    lower.emplace(level, candidates.lower, image.width(), image.height(), leaf_rows, leaf_cols);
+    if (other.joinable()) {
+      other.join();
+    } else {
+      build_upper();
+    }
+  }
+  const internal::PairSearchResult found = internal::SearchPairs(*lower, *upper, n, test, options);
   std::vector<std::int32_t> component(n, -1);
   for (int i = 0; i < n; ++i) {
     if (found.lower[i] || found.raised[i]) component[i] = found.set[i];

@@ -39,10 +39,13 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test) {
   std::vector<float> high(static_cast<std::size_t>(nx) * ny, -kInf);
   std::vector<float> low(high.size(), kInf);
   std::vector<std::int32_t> cell(n, -1);
+  // Rounding may put a point lying on a cell boundary in the neighbouring cell (off by far
+  // less than a micrometre): the margin below covers it.
+  const double per_m = 1.0 / side;
   for (int i = 0; i < n; ++i) {
     if (std::isnan(level.z[i])) continue;
-    const int cx = std::clamp(static_cast<int>((level.x[i] - x_lo) / side), 0, nx - 1);
-    const int cy = std::clamp(static_cast<int>((level.y[i] - y_lo) / side), 0, ny - 1);
+    const int cx = std::clamp(static_cast<int>((level.x[i] - x_lo) * per_m), 0, nx - 1);
+    const int cy = std::clamp(static_cast<int>((level.y[i] - y_lo) * per_m), 0, ny - 1);
     cell[i] = cy * nx + cx;
     high[cell[i]] = std::max(high[cell[i]], level.z[i]);
     low[cell[i]] = std::min(low[cell[i]], level.z[i]);
