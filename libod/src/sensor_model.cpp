@@ -31,6 +31,7 @@ constexpr double kDeg = kPi / 180.0;
 
 // Wraps an angle into [0, 2 pi).
 double WrapPositive(double a) {
+  if (a >= 0.0 && a < 2.0 * kPi) return a;  // what fmod gives, without its cost
   a = std::fmod(a, 2.0 * kPi);
   return a < 0.0 ? a + 2.0 * kPi : a;
 }
@@ -70,8 +71,11 @@ double SphericalModel::ColumnAzimuth(double col) const {
 }
 
 int SphericalModel::Column(const Eigen::Vector3d& p) const {
-  const double steps =
-      WrapPositive(azimuth_start_rad - std::atan2(p.y(), p.x())) / azimuth_step_rad();
+  return ColumnAt(std::atan2(p.y(), p.x()));
+}
+
+int SphericalModel::ColumnAt(double azimuth_rad) const {
+  const double steps = WrapPositive(azimuth_start_rad - azimuth_rad) / azimuth_step_rad();
   const int col = static_cast<int>(std::floor(steps + 0.5));
   return col >= width ? col - width : col;
 }
@@ -154,22 +158,39 @@ std::string Degrees(double rad) {
 
 }  // namespace
 
+PointAngles::PointAngles(const std::vector<Eigen::Vector3f>& points)
+    : azimuth(points.size(), std::numeric_limits<double>::quiet_NaN()),
+      elevation(points.size(), std::numeric_limits<double>::quiet_NaN()) {
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!IsReturn(points[i])) continue;
+    azimuth[i] = Azimuth(points[i]);
+    elevation[i] = Elevation(points[i]);
+  }
+}
+
 Expected<RingFit> FitRings(const std::vector<Eigen::Vector3f>& points,
                            const std::vector<std::int32_t>& ring_of_point, int rings, int width) {
-  if (ring_of_point.size() != points.size()) {
+  return FitRings(PointAngles(points), ring_of_point, rings, width);
+}
+
+Expected<RingFit> FitRings(const PointAngles& angles,
+                           const std::vector<std::int32_t>& ring_of_point, int rings, int width) {
+  const std::vector<double>& elevation = angles.elevation;
+  const std::size_t n = elevation.size();
+  if (ring_of_point.size() != n) {
     return Error{"rings: " + std::to_string(ring_of_point.size()) + " ring ids for " +
-                 std::to_string(points.size()) + " points"};
+                 std::to_string(n) + " points"};
   }
   if (rings < 1) return Error{"rings: the ring count must be at least 1"};
   std::vector<std::vector<double>> elevations(static_cast<std::size_t>(rings));
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!IsReturn(points[i])) continue;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (std::isnan(elevation[i])) continue;  // no return
     const std::int32_t id = ring_of_point[i];
     if (id < 0 || id >= rings) {
       return Error{"rings: point " + std::to_string(i) + " has ring " + std::to_string(id) +
                    ", expected 0.." + std::to_string(rings - 1)};
     }
-    elevations[id].push_back(Elevation(points[i]));
+    elevations[id].push_back(elevation[i]);
   }
   std::vector<double> median(static_cast<std::size_t>(rings),
                              std::numeric_limits<double>::quiet_NaN());
@@ -220,9 +241,9 @@ Expected<RingFit> FitRings(const std::vector<Eigen::Vector3f>& points,
     }
   }
   if (Status s = fit.model.Validate(); !s) return s.error();
-  fit.rows.assign(points.size(), -1);
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (IsReturn(points[i])) fit.rows[i] = row_of_ring[ring_of_point[i]];
+  fit.rows.assign(n, -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isnan(elevation[i])) fit.rows[i] = row_of_ring[ring_of_point[i]];
   }
   return fit;
 }
@@ -391,9 +412,13 @@ Expected<int> MeasureAzimuthSteps(const std::vector<Eigen::Vector3f>& points,
 }
 
 double FitAzimuthStart(const std::vector<Eigen::Vector3f>& points, int width) {
+  return FitAzimuthStart(PointAngles(points), width);
+}
+
+double FitAzimuthStart(const PointAngles& angles, int width) {
   std::complex<double> sum(0.0, 0.0);
-  for (const Eigen::Vector3f& p : points) {
-    if (IsReturn(p)) sum += std::polar(1.0, width * Azimuth(p));
+  for (const double a : angles.azimuth) {
+    if (!std::isnan(a)) sum += std::polar(1.0, width * a);
   }
   return std::abs(sum) > 0.0 ? std::arg(sum) / width : 0.0;
 }

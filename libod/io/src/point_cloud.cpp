@@ -54,19 +54,19 @@ bool IsReturn(const Eigen::Vector3f& p) {
   return p.allFinite() && (p.x() != 0.f || p.y() != 0.f || p.z() != 0.f);
 }
 
-double WrapPi(double a) { return std::remainder(a, 2.0 * kPi); }
+double WrapPi(double a) {
+  if (a >= -kPi && a <= kPi) return a;  // what remainder gives, without its cost
+  return std::remainder(a, 2.0 * kPi);
+}
 
 // Wraps an angle into [0, 2 pi).
 double WrapPositive(double a) {
+  if (a >= 0.0 && a < 2.0 * kPi) return a;  // what fmod gives, without its cost
   a = std::fmod(a, 2.0 * kPi);
   return a < 0.0 ? a + 2.0 * kPi : a;
 }
 
 double Azimuth(const Eigen::Vector3f& p) { return std::atan2(double(p.y()), double(p.x())); }
-
-double Elevation(const Eigen::Vector3f& p) {
-  return std::atan2(double(p.z()), std::hypot(double(p.x()), double(p.y())));
-}
 
 bool EndsWith(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() &&
@@ -81,8 +81,10 @@ std::string Lower(std::string s) {
 // Appends a point read from a file under the non-finite rule of point_cloud.hpp: all-NaN
 // coordinates are a no return; any other non-finite value is an error. `where` locates the
 // point for the message ("point 5 (byte offset 80)", "line 7").
+// `where()` names the point in an error (built only then: a scan has 100,000 points).
+template <typename Where>
 Status AddPoint(PointCloud& cloud, const double xyz[3], double intensity, const std::string& name,
-                const std::string& where) {
+                const Where& where) {
   const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
   if (all_nan) {
     cloud.points.emplace_back(0.f, 0.f, 0.f);
@@ -92,13 +94,13 @@ Status AddPoint(PointCloud& cloud, const double xyz[3], double intensity, const 
   static const char* kAxis[3] = {"x", "y", "z"};
   for (int k = 0; k < 3; ++k) {
     if (!std::isfinite(xyz[k])) {
-      return Error{name + ": " + where + ": " + kAxis[k] + " is " + std::to_string(xyz[k]) +
+      return Error{name + ": " + where() + ": " + kAxis[k] + " is " + std::to_string(xyz[k]) +
                    ", expected finite x, y, z [m] (a no return is (0, 0, 0), or NaN in all "
                    "three)"};
     }
   }
   if (!std::isfinite(intensity)) {
-    return Error{name + ": " + where + ": intensity is " + std::to_string(intensity) +
+    return Error{name + ": " + where() + ": intensity is " + std::to_string(intensity) +
                  ", expected a finite value"};
   }
   cloud.points.emplace_back(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]),
@@ -136,10 +138,11 @@ Expected<PointCloud> ReadKittiBin(const std::filesystem::path& path) {
     std::memcpy(v, bytes->data() + i * kBinPointBytes, kBinPointBytes);
     const double xyz[3] = {v[0], v[1], v[2]};
     const bool all_nan = std::isnan(v[0]) && std::isnan(v[1]) && std::isnan(v[2]);
-    if (Status s = AddPoint(cloud, xyz, all_nan ? 0.0 : v[3], name,
-                            "point " + std::to_string(i) + " (byte offset " +
-                                std::to_string(i * kBinPointBytes) + ")");
-        !s) {
+    const auto where = [i] {
+      return "point " + std::to_string(i) + " (byte offset " + std::to_string(i * kBinPointBytes) +
+             ")";
+    };
+    if (Status s = AddPoint(cloud, xyz, all_nan ? 0.0 : v[3], name, where); !s) {
       return s.error();
     }
   }
@@ -384,9 +387,9 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
   cloud.points.reserve(vertex.count);
   cloud.intensity.reserve(vertex.count);
   if (ir >= 0) cloud.ring.reserve(vertex.count);
-  auto add_ring = [&](double value, const std::string& where) -> Status {
+  auto add_ring = [&](double value, const auto& where) -> Status {
     if (!(value >= 0.0 && value <= 65535.0) || value != std::floor(value)) {
-      return Error{name + ": " + where + ": ring is " + std::to_string(value) +
+      return Error{name + ": " + where() + ": ring is " + std::to_string(value) +
                    ", expected a whole number 0..65535"};
     }
     cloud.ring.push_back(static_cast<std::int32_t>(value));
@@ -414,8 +417,10 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
       const char* record = data.data() + pos + i * vertex.stride;
       auto get = [&](int k) { return DecodePly(props[k].type, record + props[k].offset); };
       const double xyz[3] = {get(ix), get(iy), get(iz)};
-      const std::string where = "vertex " + std::to_string(i) + " (byte offset " +
-                                std::to_string(pos + i * vertex.stride) + ")";
+      const auto where = [&] {
+        return "vertex " + std::to_string(i) + " (byte offset " +
+               std::to_string(pos + i * vertex.stride) + ")";
+      };
       const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
       if (Status s = AddPoint(cloud, xyz, ii >= 0 && !all_nan ? get(ii) : 0.0, name, where); !s) {
         return s.error();
@@ -467,11 +472,13 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
     }
     const double xyz[3] = {v[ix], v[iy], v[iz]};
     const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
-    if (Status s = AddPoint(cloud, xyz, ii >= 0 && !all_nan ? v[ii] : 0.0, name, where); !s) {
+    if (Status s = AddPoint(cloud, xyz, ii >= 0 && !all_nan ? v[ii] : 0.0, name,
+                            [&] { return where; });
+        !s) {
       return s.error();
     }
     if (ir >= 0) {
-      if (Status s = add_ring(v[ir], where); !s) return s.error();
+      if (Status s = add_ring(v[ir], [&] { return where; }); !s) return s.error();
     }
   }
   return cloud;
@@ -570,7 +577,9 @@ Expected<PointCloud> ReadXyzText(const std::filesystem::path& path) {
       }
     }
     const bool all_nan = std::isnan(v[0]) && std::isnan(v[1]) && std::isnan(v[2]);
-    if (Status s = AddPoint(cloud, v, all_nan ? 0.0 : v[3], name, where); !s) return s.error();
+    if (Status s = AddPoint(cloud, v, all_nan ? 0.0 : v[3], name, [&] { return where; }); !s) {
+      return s.error();
+    }
     if (cloud.points.size() > kMaxScanPoints) {
       return Error{name + ": " + where + ": more than the " + std::to_string(kMaxScanPoints) +
                    " points a scan may have (limits.hpp)"};
@@ -701,15 +710,20 @@ const char* RingSourceName(RingSource source) {
 }
 
 Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points) {
+  return FindRingBreaks(points, PointAngles(points));
+}
+
+Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points,
+                                    const PointAngles& angles) {
   constexpr int kMinRingPoints = 4;                 // a fall back within fewer points is jitter
   constexpr double kSmallStep = 5.0 * kPi / 180.0;  // [rad] between neighbouring returns
   std::vector<std::size_t> index;                   // returns, in storage order
   std::vector<double> azimuth, elevation;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!IsReturn(points[i]) || !points[i].allFinite()) continue;
+    if (std::isnan(angles.azimuth[i])) continue;  // no return
     index.push_back(i);
-    azimuth.push_back(Azimuth(points[i]));
-    elevation.push_back(Elevation(points[i]));
+    azimuth.push_back(angles.azimuth[i]);
+    elevation.push_back(angles.elevation[i]);
   }
   const std::size_t m = index.size();
   if (m < 3 * kMinRingPoints) {
@@ -958,7 +972,9 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
     }
     return layout;
   };
-  // Rows found in the data, columns from the azimuth unless given.
+  // Rows found in the data, columns from the azimuth unless given (point_angles is set
+  // before any finder runs).
+  const PointAngles* point_angles = nullptr;
   auto finish = [&](RingSource ring_source, RingFit fit,
                     std::vector<std::int32_t> cols) -> Expected<FoundLayout> {
     if (options.preset && fit.model.height() != options.preset->height()) {
@@ -983,10 +999,10 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
       // Column centres on the returns' azimuths; forward (+x) in the middle column, so
       // that range images read like the scene seen from the sensor.
       layout.model.azimuth_start_rad =
-          WrapPi(FitAzimuthStart(points, width) + (width / 2) * (2.0 * kPi / width));
+          WrapPi(FitAzimuthStart(*point_angles, width) + (width / 2) * (2.0 * kPi / width));
       cols.assign(n, -1);
       for (std::size_t i = 0; i < n; ++i) {
-        if (layout.rows[i] >= 0) cols[i] = layout.model.Column(points[i].cast<double>());
+        if (layout.rows[i] >= 0) cols[i] = layout.model.ColumnAt(point_angles->azimuth[i]);
       }
     }
     layout.cols = std::move(cols);
@@ -996,11 +1012,11 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
 
   if (options.preset && options.organised == OrganisedMode::kNo) return nominal();
 
-  std::vector<double> azimuth(n), elevation(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    azimuth[i] = Azimuth(points[i]);
-    elevation[i] = Elevation(points[i]);
-  }
+  // Every point's angles, once (NaN for no return): each finder below reads them.
+  const PointAngles angles(points);
+  point_angles = &angles;
+  const std::vector<double>& azimuth = angles.azimuth;
+  const std::vector<double>& elevation = angles.elevation;
 
   // 1. The file's ring field.
   if (!cloud.ring.empty()) {
@@ -1009,7 +1025,7 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
                    std::to_string(n) + " points"};
     }
     const std::int32_t rings = *std::max_element(cloud.ring.begin(), cloud.ring.end()) + 1;
-    Expected<RingFit> fit = FitRings(points, cloud.ring, rings, 1);
+    Expected<RingFit> fit = FitRings(angles, cloud.ring, rings, 1);
     if (!fit) return Error{source + ": ring field: " + fit.error().message};
     // Organised as well (Ouster): the columns are the storage order's.
     std::vector<std::int32_t> cols;
@@ -1061,7 +1077,7 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
     if (best_rings > 0) {
       std::vector<std::int32_t> ring(n);
       for (std::size_t i = 0; i < n; ++i) ring[i] = static_cast<std::int32_t>(i % best_rings);
-      Expected<RingFit> fit = FitRings(points, ring, static_cast<int>(best_rings), 1);
+      Expected<RingFit> fit = FitRings(angles, ring, static_cast<int>(best_rings), 1);
       if (fit) {
         std::vector<std::int32_t> cols;
         OrganisedColumns(cloud, best_rings, best.azimuth_decreasing, fit->model, cols);
@@ -1072,9 +1088,9 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
   }
 
   // 3. Ring after ring in the storage order.
-  Expected<RingBreaks> breaks = FindRingBreaks(points);
+  Expected<RingBreaks> breaks = FindRingBreaks(points, angles);
   if (breaks) {
-    Expected<RingFit> fit = FitRings(points, breaks->ring, breaks->rings, 1);
+    Expected<RingFit> fit = FitRings(angles, breaks->ring, breaks->rings, 1);
     if (fit) return finish(RingSource::kRingBreaks, std::move(*fit), {});
     add_note(fit.error().message);
   }

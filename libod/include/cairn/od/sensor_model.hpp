@@ -62,6 +62,8 @@ struct SphericalModel {
   double ColumnAzimuth(double col) const;
   /// Column of a point's azimuth, in [0, width).
   int Column(const Eigen::Vector3d& p) const;
+  /// The same for a direction's azimuth atan2(y, x) [rad], computed already.
+  int ColumnAt(double azimuth_rad) const;
   /// Row of the ring nearest to a point's elevation.
   int NearestRing(const Eigen::Vector3d& p) const;
 
@@ -83,6 +85,14 @@ using SensorModel = std::variant<PinholeModel, SphericalModel>;
 // point at the origin or with a non-finite coordinate is a no return and gets row -1.
 // Elevation = atan2(z, hypot(x, y)), azimuth = atan2(y, x).
 
+/// Every point's azimuth atan2(y, x) and elevation atan2(z, hypot(x, y)) [rad], NaN for a
+/// point that is no return: computed once for the layout finders below, which take them
+/// besides the points.
+struct PointAngles {
+  std::vector<double> azimuth, elevation;
+  explicit PointAngles(const std::vector<Eigen::Vector3f>& points);
+};
+
 /// A spherical model measured on a scan, and the row (ring, top first) of every point.
 struct RingFit {
   SphericalModel model;            ///< width as asked; elevations measured; azimuth_start 0
@@ -97,6 +107,9 @@ struct RingFit {
 /// `ring_of_point`: one id in [0, rings) or -1 (ignored) per point. Fails, naming the point,
 /// on a size mismatch or an id out of range, and when no point has a ring and a return.
 Expected<RingFit> FitRings(const std::vector<Eigen::Vector3f>& points,
+                           const std::vector<std::int32_t>& ring_of_point, int rings, int width);
+/// The same with the points' angles computed already.
+Expected<RingFit> FitRings(const PointAngles& angles,
                            const std::vector<std::int32_t>& ring_of_point, int rings, int width);
 
 /// How FindElevationRings tells rings apart.
@@ -140,5 +153,6 @@ Expected<int> MeasureAzimuthSteps(const std::vector<Eigen::Vector3f>& points,
 /// mean of the returns' azimuth phases modulo one step), so that returns fired at regular
 /// steps land one per column instead of straddling cell boundaries. 0 when no return.
 double FitAzimuthStart(const std::vector<Eigen::Vector3f>& points, int width);
+double FitAzimuthStart(const PointAngles& angles, int width);
 
 }  // namespace cairn::od

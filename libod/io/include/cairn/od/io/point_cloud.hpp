@@ -143,6 +143,9 @@ struct RingBreaks {
 /// turn (firing-order scans). A ring without any return cannot be seen, nor a break where
 /// one ring ends and the next starts on the same side of the seam with no return across.
 Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points);
+/// The same with the points' angles computed already.
+Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points,
+                                    const PointAngles& angles);
 
 /// A scan's layout: every point's row and column, and the model of its range image.
 struct FoundLayout {
