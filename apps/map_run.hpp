@@ -192,4 +192,7 @@ struct RunReport {
 Expected<std::string> WriteRunFiles(const RunReport& run, const std::filesystem::path& dir,
                                     StageTimes& times);
 
+/// The q-quantile (0..1) of `values` by the nearest rank; 0 when empty.
+double Quantile(std::vector<double> values, double q);
+
 }  // namespace cairn::apps

@@ -83,6 +83,43 @@ void TruthText(const TruthScore& truth, std::ostringstream& text) {
 
 }  // namespace
 
+double Quantile(std::vector<double> values, double q) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const double rank = std::clamp(q, 0.0, 1.0) * static_cast<double>(values.size() - 1);
+  return values[static_cast<std::size_t>(rank + 0.5)];
+}
+
+namespace {
+
+// Per fused frame, each stage's time [ms]: its median and 95th percentile, in the order
+// they are printed.
+struct StageStat {
+  const char* name;
+  double median_ms, p95_ms;
+};
+std::vector<StageStat> PerFrameStages(const std::vector<FrameRecord>& records) {
+  const std::pair<const char*, double (*)(const FrameRecord&)> stages[] = {
+      {"read", [](const FrameRecord& r) { return r.read_s; }},
+      {"detect", [](const FrameRecord& r) { return r.detect_s; }},
+      {"tilt", [](const FrameRecord& r) { return r.refine_s; }},
+      {"fuse", [](const FrameRecord& r) { return r.fuse_s; }},
+      {"octree", [](const FrameRecord& r) { return r.fused.octree_s; }},
+      {"classify", [](const FrameRecord& r) { return r.fused.classify_s; }},
+      {"grid", [](const FrameRecord& r) { return r.fused.grid_s; }},
+      {"frame", [](const FrameRecord& r) { return r.read_s + r.detect_s + r.refine_s + r.fuse_s; }},
+  };
+  std::vector<StageStat> out;
+  for (const auto& [name, of] : stages) {
+    std::vector<double> ms;
+    for (const FrameRecord& r : records) ms.push_back(1e3 * of(r));
+    out.push_back({name, Quantile(ms, 0.5), Quantile(ms, 0.95)});
+  }
+  return out;
+}
+
+}  // namespace
+
 Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, StageTimes& times) {
   const std::vector<FrameRecord>& records = run.state.records;
   const map::TerrainMap& terrain = run.mapper.map();
@@ -188,6 +225,14 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
                        {"write", times.write_s},   {"checkpoint", times.checkpoint_s},
                        {"total", wall_s}};
   summary["frames_per_s"] = wall_s > 0 ? n / wall_s : 0.0;
+  const std::vector<StageStat> stages = PerFrameStages(records);
+  for (const StageStat& st : stages) {
+    summary["per_frame_ms"][st.name] = {{"median", st.median_ms}, {"p95", st.p95_ms}};
+  }
+  const double frame_median_ms = stages.back().median_ms;
+  // The rate the pipeline keeps up with, frame after frame (the files written at the end
+  // left out).
+  summary["sustained_frames_per_s"] = frame_median_ms > 0 ? 1e3 / frame_median_ms : 0.0;
   // Of this process: a resumed run's peak is its own, not the interrupted run's.
   summary["peak_rss_mb"] = ReadProcessMemory().peak_rss_mb;
   if (run.truth) summary["truth"] = TruthJson(*run.truth);
@@ -238,6 +283,16 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
        << " s, write " << Fixed(times.write_s, 2) << " s; " << Fixed(wall_s, 2) << " s in all, "
        << Fixed(n / wall_s, 2) << " frames/s; peak memory "
        << Fixed(summary["peak_rss_mb"].get<double>(), 0) << " MiB\n";
+  // read, detect, tilt, fuse (octree, classify, grid), frame
+  const auto stat = [&](std::size_t k) {
+    return std::string(stages[k].name) + " " + Fixed(stages[k].median_ms, 1) + "/" +
+           Fixed(stages[k].p95_ms, 1);
+  };
+  text << "  per frame, median/95th percentile [ms]: " << stat(0) << ", " << stat(1) << ", "
+       << stat(2) << ", " << stat(3) << " (" << stat(4) << ", " << stat(5) << ", " << stat(6)
+       << "), " << stat(7) << "; "
+       << Fixed(summary["sustained_frames_per_s"].get<double>(), 1)
+       << " frames/s sustained\n";
   if (run.poses) {
     text << "  poses against " << run.poses->source << ": tilt error median "
          << Fixed(run.poses->tilt_median_deg, 2) << " deg, 95th percentile "

@@ -284,13 +284,9 @@ Expected<PoseTruth> ScorePoses(const std::string& tum_path,
   }
   if (tilt_deg.empty()) return out;
   out.frames = static_cast<int>(tilt_deg.size());
-  std::sort(tilt_deg.begin(), tilt_deg.end());
-  const auto at = [&](double q) {
-    return tilt_deg[std::min(tilt_deg.size() - 1, static_cast<std::size_t>(q * (tilt_deg.size() - 1) + 0.5))];
-  };
-  out.tilt_median_deg = at(0.5);
-  out.tilt_p95_deg = at(0.95);
-  out.tilt_max_deg = tilt_deg.back();
+  out.tilt_median_deg = Quantile(tilt_deg, 0.5);
+  out.tilt_p95_deg = Quantile(tilt_deg, 0.95);
+  out.tilt_max_deg = Quantile(tilt_deg, 1.0);
   out.height_rms_m = std::sqrt(sum2 / out.frames);
   return out;
 }
