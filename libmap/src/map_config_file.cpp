@@ -1,5 +1,6 @@
 #include "cairn/map/map_config_file.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -65,11 +66,8 @@ Expected<MapConfig> ParseMapConfig(const std::string& yaml_text, const std::stri
     if (const YAML::Node value = section["threads"]) {
       Expected<std::int64_t> v = reader.Integer(value, "map.threads");
       if (!v) return v.error();
-      if (*v < 0 || *v > 256) {
-        return reader.Fail("map.threads", "expected an integer in 0..256 (0: every hardware "
-                                          "thread), got " + std::to_string(*v));
-      }
-      config.threads = static_cast<int>(*v);
+      // Out of int's range: Validate() names it below.
+      config.threads = static_cast<int>(std::clamp<std::int64_t>(*v, -1, 1 << 20));
     }
     for (const Field& f : fields) {
       const YAML::Node value = section[f.key];
@@ -81,6 +79,9 @@ Expected<MapConfig> ParseMapConfig(const std::string& yaml_text, const std::stri
   }
   if (Status s = config.Validate(); !s) {
     // Validate() quotes the key it is about: 'cell_size'.
+    if (s.message().find("'threads'") != std::string::npos) {
+      return reader.Fail("map.threads", s.message());
+    }
     for (const Field& f : fields) {
       if (s.message().find(std::string("'") + f.key + "'") != std::string::npos) {
         return reader.Fail(std::string("map.") + f.key, s.message());

@@ -29,13 +29,6 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 
-// Wraps an angle into [0, 2 pi).
-double WrapPositive(double a) {
-  if (a >= 0.0 && a < 2.0 * kPi) return a;  // what fmod gives, without its cost
-  a = std::fmod(a, 2.0 * kPi);
-  return a < 0.0 ? a + 2.0 * kPi : a;
-}
-
 std::vector<double> Linear(double top_deg, double bottom_deg, int rings) {
   std::vector<double> e(rings);
   for (int i = 0; i < rings; ++i) {
@@ -117,6 +110,13 @@ Expected<SphericalModel> SphericalModel::Preset(const std::string& given, int wi
   }
   if (Status s = m.Validate(); !s) return s.error();
   return m;
+}
+
+double WrapPositive(double a) {
+  constexpr double kTurn = 2.0 * 3.14159265358979323846;
+  if (a >= 0.0 && a < kTurn) return a;  // what fmod gives, without its cost
+  a = std::fmod(a, kTurn);
+  return a < 0.0 ? a + kTurn : a;
 }
 
 namespace {

@@ -59,12 +59,6 @@ double WrapPi(double a) {
   return std::remainder(a, 2.0 * kPi);
 }
 
-// Wraps an angle into [0, 2 pi).
-double WrapPositive(double a) {
-  if (a >= 0.0 && a < 2.0 * kPi) return a;  // what fmod gives, without its cost
-  a = std::fmod(a, 2.0 * kPi);
-  return a < 0.0 ? a + 2.0 * kPi : a;
-}
 
 double Azimuth(const Eigen::Vector3f& p) { return std::atan2(double(p.y()), double(p.x())); }
 

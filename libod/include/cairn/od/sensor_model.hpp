@@ -85,6 +85,9 @@ using SensorModel = std::variant<PinholeModel, SphericalModel>;
 // point at the origin or with a non-finite coordinate is a no return and gets row -1.
 // Elevation = atan2(z, hypot(x, y)), azimuth = atan2(y, x).
 
+/// An angle wrapped into [0, 2 pi) [rad].
+double WrapPositive(double a);
+
 /// Every point's azimuth atan2(y, x) and elevation atan2(z, hypot(x, y)) [rad], NaN for a
 /// point that is no return: computed once for the layout finders below, which take them
 /// besides the points.
