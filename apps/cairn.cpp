@@ -10,6 +10,11 @@
 
 #include "subcommands.hpp"
 
+int cairn::apps::CommandFailure(const char* command, const std::string& message) {
+  std::cerr << "cairn " << command << ": error: " << message << "\n";
+  return kExitFailure;
+}
+
 int main(int argc, char** argv) {
   using namespace cairn::apps;
   try {

@@ -28,10 +28,7 @@ double MillisecondsSince(DetectClock::time_point start) {
   return std::chrono::duration<double, std::milli>(DetectClock::now() - start).count();
 }
 
-int DetectFail(const std::string& message) {
-  std::cerr << "cairn detect: error: " << message << "\n";
-  return kExitFailure;
-}
+int DetectFail(const std::string& message) { return CommandFailure("detect", message); }
 
 Expected<od::io::DetectSettings> LoadDetectSettingsOrDefaults(const DetectOptions& options) {
   if (options.config.empty()) return od::io::DetectSettings{};

@@ -214,7 +214,7 @@ int RunLabelEval(const EvalOptions& o) {
             << "       " << (dir / "results.csv").string() << "\n"
             << "       " << (dir / range_png).string() << "\n"
             << "       " << (dir / birds_eye_png).string() << "\n"
-            << "time: " << Fixed(SecondsSince(start), 1) << " s\n";
+            << "time: " << Fixed(util::SecondsSince(start), 1) << " s\n";
   return kExitOk;
 }
 

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/util/format.hpp"
 #include "subcommands.hpp"
 
 namespace cairn::apps::eval {
@@ -36,20 +37,9 @@ struct EvalOptions {
   int cell_width = 320;
 };
 
-inline int Fail(const std::string& message) {
-  std::cerr << "cairn eval: error: " << message << "\n";
-  return kExitFailure;
-}
+inline int Fail(const std::string& message) { return CommandFailure("eval", message); }
 
-inline double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-inline std::string Fixed(double v, int decimals) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(decimals) << v;
-  return out.str();
-}
+using util::Fixed;
 
 /// Synthetic worlds (--world, --worlds) or one depth frame with truth (--depth ...).
 int RunWorldEval(const EvalOptions& o);

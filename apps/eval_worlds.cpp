@@ -68,7 +68,7 @@ Status Evaluation::Add(const std::string& name, const std::string& description,
       Expected<ev::SweepScores> s =
           ev::SweepFrame(frame, settings_, *sweep_, methods_, score_options_, [&](int v) {
             std::cerr << "cairn eval:   sweep " << sweep_->key << " " << v + 1 << "/" << count
-                      << " (" << Fixed(SecondsSince(start), 1) << " s)\r" << std::flush;
+                      << " (" << Fixed(util::SecondsSince(start), 1) << " s)\r" << std::flush;
           });
       std::cerr << "\n";
       if (!s) return Error{"--sweep " + options_.sweep + ": " + s.error().message};
@@ -219,13 +219,13 @@ int RunWorldEval(const EvalOptions& o) {
       if (Status s = evaluation.Add(world->name, world->description, path, frames); !s) {
         return Fail(path + ": " + s.message());
       }
-      std::cerr << "cairn eval:   done in " << Fixed(SecondsSince(world_start), 1) << " s\n";
+      std::cerr << "cairn eval:   done in " << Fixed(util::SecondsSince(world_start), 1) << " s\n";
     }
   }
 
   Expected<std::string> summary = evaluation.Finish();
   if (!summary) return Fail(summary.error().message);
-  std::cout << *summary << "time: " << Fixed(SecondsSince(start), 1) << " s\n";
+  std::cout << *summary << "time: " << Fixed(util::SecondsSince(start), 1) << " s\n";
   return kExitOk;
 }
 

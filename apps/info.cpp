@@ -18,10 +18,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-int InfoFail(const std::string& message) {
-  std::cerr << "cairn info: error: " << message << "\n";
-  return kExitFailure;
-}
+int InfoFail(const std::string& message) { return CommandFailure("info", message); }
 
 std::string Bytes(std::uintmax_t bytes) {
   std::ostringstream out;

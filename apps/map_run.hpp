@@ -15,15 +15,14 @@
 #include "cairn/map/mapper.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/od/expected.hpp"
+#include "cairn/od/io/stereo.hpp"
 #include "cairn/sources/frame_source.hpp"
+#include "cairn/util/format.hpp"
 
 namespace cairn::apps {
 
 using Clock = std::chrono::steady_clock;
-inline double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-inline constexpr double kMapDeg = 3.14159265358979323846 / 180.0;
+using util::SecondsSince;
 
 /// The command line.
 struct MapOptions {
@@ -109,6 +108,11 @@ Expected<RunState> ResumeStateFromJson(const std::string& text, const std::strin
 /// (`config`: the --config path, empty for the defaults); the error names what differs.
 Status SameRun(const RunState& saved, const RunState& now, const std::string& checkpoint,
                const std::string& config);
+
+/// The frames of the input `o` names (--rawlog, --kitti or --frames), stereo pairs matched
+/// with `stereo`.
+Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(const MapOptions& o,
+                                                                const od::io::StereoConfig& stereo);
 
 /// The record of a fused frame.
 FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecord& r,

@@ -9,18 +9,14 @@
 #include "cairn/util/atomic_file.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"
+#include "cairn/od/units.hpp"
+#include "cairn/util/format.hpp"
 
 namespace cairn::apps {
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-std::string Fixed(double v, int decimals) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(decimals) << v;
-  return out.str();
-}
 
 std::string TumLine(double stamp_s, const Eigen::Isometry3d& T) {
   Eigen::Quaterniond q(T.linear());
@@ -69,14 +65,14 @@ void TruthText(const TruthScore& truth, std::ostringstream& text) {
   text << "  truth (" << truth.world << "): " << truth.found << "/" << truth.obstacles
        << " obstacles found, " << truth.marked_non_obstacles << " non-obstacles marked, "
        << truth.false_obstacles << " false obstacles; IoU of lethal cells and obstacle "
-       << "footprints " << Fixed(truth.iou, 2) << "; elevation RMS error "
-       << Fixed(truth.elevation_rms_m, 3) << " m over " << truth.elevation_cells << " cells\n";
+       << "footprints " << util::Fixed(truth.iou, 2) << "; elevation RMS error "
+       << util::Fixed(truth.elevation_rms_m, 3) << " m over " << truth.elevation_cells << " cells\n";
   for (const TruthObject& t : truth.objects) {
     text << "    " << std::left << std::setw(12) << t.name << std::right
          << (t.is_obstacle ? " obstacle     " : " not obstacle ") << "at ("
-         << Fixed(t.centre.x(), 1) << ", " << Fixed(t.centre.y(), 1)
+         << util::Fixed(t.centre.x(), 1) << ", " << util::Fixed(t.centre.y(), 1)
          << "): " << (t.found ? "found" : (t.is_obstacle ? "MISSED" : "clear"));
-    if (t.distance_m >= 0) text << ", nearest lethal cell " << Fixed(t.distance_m, 2) << " m";
+    if (t.distance_m >= 0) text << ", nearest lethal cell " << util::Fixed(t.distance_m, 2) << " m";
     text << "\n";
   }
 }
@@ -140,14 +136,14 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
           (r.T_world_body.translation() - records[k - 1].T_world_body.translation()).norm();
     }
     tum += TumLine(r.stamp_s, r.T_world_sensor) + "\n";
-    csv << r.index << "," << Fixed(r.stamp_s, 6) << "," << r.valid_points << "," << r.segments
+    csv << r.index << "," << util::Fixed(r.stamp_s, 6) << "," << r.valid_points << "," << r.segments
         << "," << r.kept << "," << r.fused.obstacle_points << "," << r.fused.obstacles_created
         << "," << r.fused.lethal_cells << "," << (r.refined ? 1 : 0) << ","
-        << Fixed(r.d_roll_rad / kMapDeg, 3) << "," << Fixed(r.d_pitch_rad / kMapDeg, 3) << ","
-        << Fixed(r.dz_m, 3) << "," << Fixed(r.rms_before_m, 4) << "," << Fixed(r.rms_after_m, 4)
-        << "," << Fixed(r.read_s * 1e3, 1) << "," << Fixed(r.detect_s * 1e3, 1) << ","
-        << Fixed(r.refine_s * 1e3, 1) << "," << Fixed(r.fuse_s * 1e3, 1) << ","
-        << Fixed(r.rss_mb, 1) << "," << Fixed(r.heap_mb, 1) << "\n";
+        << util::Fixed(r.d_roll_rad / kDegToRad, 3) << "," << util::Fixed(r.d_pitch_rad / kDegToRad, 3) << ","
+        << util::Fixed(r.dz_m, 3) << "," << util::Fixed(r.rms_before_m, 4) << "," << util::Fixed(r.rms_after_m, 4)
+        << "," << util::Fixed(r.read_s * 1e3, 1) << "," << util::Fixed(r.detect_s * 1e3, 1) << ","
+        << util::Fixed(r.refine_s * 1e3, 1) << "," << util::Fixed(r.fuse_s * 1e3, 1) << ","
+        << util::Fixed(r.rss_mb, 1) << "," << util::Fixed(r.heap_mb, 1) << "\n";
   }
   if (Status s = util::WriteFileAtomic(dir / "poses.tum", tum); !s) return s.error();
   if (Status s = util::WriteFileAtomic(dir / "frames.csv", csv.str()); !s) return s.error();
@@ -203,7 +199,7 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
                        {"mode", map::TiltModeName(config.tilt.mode)},
                        {"refined_frames", run.state.refined_frames},
                        {"final_correction_deg",
-                        {records.back().d_roll_rad / kMapDeg, records.back().d_pitch_rad / kMapDeg}},
+                        {records.back().d_roll_rad / kDegToRad, records.back().d_pitch_rad / kDegToRad}},
                        {"final_dz_m", records.back().dz_m},
                        {"mean_rms_before_m", counted ? sum_before / counted : 0.0},
                        {"mean_rms_after_m", counted ? sum_after / counted : 0.0}};
@@ -247,8 +243,8 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
 
   std::ostringstream text;
   text << "cairn map: " << n << " frames from " << summary["input"]["path"].get<std::string>()
-       << " (" << summary["input"]["kind"].get<std::string>() << "), " << Fixed(distance_m, 1)
-       << " m driven in " << Fixed(summary["duration_s"].get<double>(), 1) << " s of data\n"
+       << " (" << summary["input"]["kind"].get<std::string>() << "), " << util::Fixed(distance_m, 1)
+       << " m driven in " << util::Fixed(summary["duration_s"].get<double>(), 1) << " s of data\n"
        << "  poses: " << run.source.trajectory().source() << " (IMU tilt on " << imu_frames << "/"
        << n << " frames)\n";
   if (!run.state.skipped.empty()) {
@@ -269,35 +265,35 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
   if (refine) {
     text << "  tilt (" << map::TiltModeName(config.tilt.mode) << "): applied on "
          << run.state.refined_frames << "/" << n << " frames; correction at the end "
-         << Fixed(records.back().d_roll_rad / kMapDeg, 2) << " deg roll, "
-         << Fixed(records.back().d_pitch_rad / kMapDeg, 2) << " deg pitch, "
-         << Fixed(records.back().dz_m, 3) << " m height";
+         << util::Fixed(records.back().d_roll_rad / kDegToRad, 2) << " deg roll, "
+         << util::Fixed(records.back().d_pitch_rad / kDegToRad, 2) << " deg pitch, "
+         << util::Fixed(records.back().dz_m, 3) << " m height";
     if (config.tilt.mode == map::TiltMode::kRefineToMap) {
-      text << "; ground RMS " << Fixed(summary["tilt"]["mean_rms_before_m"].get<double>(), 3)
-           << " -> " << Fixed(summary["tilt"]["mean_rms_after_m"].get<double>(), 3) << " m";
+      text << "; ground RMS " << util::Fixed(summary["tilt"]["mean_rms_before_m"].get<double>(), 3)
+           << " -> " << util::Fixed(summary["tilt"]["mean_rms_after_m"].get<double>(), 3) << " m";
     }
     text << "\n";
   }
-  text << "  time: read " << Fixed(times.read_s, 2) << " s, detect " << Fixed(times.detect_s, 2)
-       << " s, refine " << Fixed(times.refine_s, 2) << " s, fuse " << Fixed(times.fuse_s, 2)
-       << " s, write " << Fixed(times.write_s, 2) << " s; " << Fixed(wall_s, 2) << " s in all, "
-       << Fixed(n / wall_s, 2) << " frames/s; peak memory "
-       << Fixed(summary["peak_rss_mb"].get<double>(), 0) << " MiB\n";
+  text << "  time: read " << util::Fixed(times.read_s, 2) << " s, detect " << util::Fixed(times.detect_s, 2)
+       << " s, refine " << util::Fixed(times.refine_s, 2) << " s, fuse " << util::Fixed(times.fuse_s, 2)
+       << " s, write " << util::Fixed(times.write_s, 2) << " s; " << util::Fixed(wall_s, 2) << " s in all, "
+       << util::Fixed(n / wall_s, 2) << " frames/s; peak memory "
+       << util::Fixed(summary["peak_rss_mb"].get<double>(), 0) << " MiB\n";
   // read, detect, tilt, fuse (octree, classify, grid), frame
   const auto stat = [&](std::size_t k) {
-    return std::string(stages[k].name) + " " + Fixed(stages[k].median_ms, 1) + "/" +
-           Fixed(stages[k].p95_ms, 1);
+    return std::string(stages[k].name) + " " + util::Fixed(stages[k].median_ms, 1) + "/" +
+           util::Fixed(stages[k].p95_ms, 1);
   };
   text << "  per frame, median/95th percentile [ms]: " << stat(0) << ", " << stat(1) << ", "
        << stat(2) << ", " << stat(3) << " (" << stat(4) << ", " << stat(5) << ", " << stat(6)
        << "), " << stat(7) << "; "
-       << Fixed(summary["sustained_frames_per_s"].get<double>(), 1)
+       << util::Fixed(summary["sustained_frames_per_s"].get<double>(), 1)
        << " frames/s sustained\n";
   if (run.poses) {
     text << "  poses against " << run.poses->source << ": tilt error median "
-         << Fixed(run.poses->tilt_median_deg, 2) << " deg, 95th percentile "
-         << Fixed(run.poses->tilt_p95_deg, 2) << " deg; height error RMS "
-         << Fixed(run.poses->height_rms_m, 3) << " m (" << run.poses->frames << " frames)\n";
+         << util::Fixed(run.poses->tilt_median_deg, 2) << " deg, 95th percentile "
+         << util::Fixed(run.poses->tilt_p95_deg, 2) << " deg; height error RMS "
+         << util::Fixed(run.poses->height_rms_m, 3) << " m (" << run.poses->frames << " frames)\n";
   }
   if (run.truth) TruthText(*run.truth, text);
   if (Status s = util::WriteFileAtomic(dir / "summary.json", summary.dump(2) + "\n"); !s) {

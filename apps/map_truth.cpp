@@ -17,6 +17,7 @@
 #ifdef CAIRN_HAVE_SYNTH
 #include "cairn/sim/shapes.hpp"
 #include "cairn/sim/world.hpp"
+#include "cairn/util/format.hpp"
 #endif
 
 namespace cairn::apps {
@@ -80,12 +81,6 @@ std::vector<cv::Point2f> Footprint(const sim::Shape& shape) {
   return hull;
 }
 #endif
-
-std::string Fixed(double v, int decimals) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(decimals) << v;
-  return out.str();
-}
 
 }  // namespace
 
@@ -255,7 +250,7 @@ Status WriteOverlay(const fs::path& cost_png, const fs::path& path, const map::T
     cv::line(canvas, cv::Point(700, y0 + 26), cv::Point(720, y0 + 26), cv::Scalar(220, 170, 0), 2);
     text("not obstacle", 726, y0 + 30);
   }
-  text("1 px = " + Fixed(s / scale, 3) + " m, north (+y) up", 10, y0 + 50);
+  text("1 px = " + util::Fixed(s / scale, 3) + " m, north (+y) up", 10, y0 + 50);
   std::vector<unsigned char> bytes;
   if (!cv::imencode(".png", canvas, bytes)) return Error{path.string() + ": cannot encode PNG"};
   return util::WriteFileAtomic(

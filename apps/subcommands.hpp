@@ -15,6 +15,9 @@ constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1;    ///< bad input, unreadable file, failed write
 constexpr int kExitInternal = 70;  ///< a bug: an exception escaped (EX_SOFTWARE)
 
+/// Prints "cairn <command>: error: <message>" on stderr and gives kExitFailure.
+int CommandFailure(const char* command, const std::string& message);
+
 /// The LiDAR presets of od::SphericalModel::Preset, for the --sensor options (any case:
 /// `->transform(CLI::IsMember(SensorPresets(), CLI::ignore_case))` gives the preset's name).
 inline const std::vector<std::string>& SensorPresets() {
@@ -37,7 +40,8 @@ Subcommand AddEvalCommand(CLI::App& parent);
 Subcommand AddInfoCommand(CLI::App& parent);
 /// `cairn map`: a whole sequence fused into an OctoMap and a 2.5-D cost grid.
 Subcommand AddMapCommand(CLI::App& parent);
-/// `cairn bench`: the detectors timed on one frame, checked against the definition.
+/// `cairn bench`: the detectors timed on one frame, checked against the definition; or the
+/// Mapper's stages timed over a sequence.
 Subcommand AddBenchCommand(CLI::App& parent);
 
 }  // namespace cairn::apps

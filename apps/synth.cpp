@@ -23,6 +23,7 @@
 #include "cairn/sim/mrpt/sequence.hpp"
 #include "cairn/sim/world.hpp"
 #include "subcommands.hpp"
+#include "cairn/util/format.hpp"
 
 namespace cairn::apps {
 namespace {
@@ -41,14 +42,7 @@ struct SynthOptions {
   bool raw_imu = false;
 };
 
-int Fail(const std::string& message) {
-  std::cerr << "cairn synth: error: " << message << "\n";
-  return kExitFailure;
-}
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+int SynthFail(const std::string& message) { return CommandFailure("synth", message); }
 
 std::string ViewDirName(int index) {
   char buf[16];
@@ -107,7 +101,7 @@ class ProgressLine {
   ProgressLine() : terminal_(::isatty(STDERR_FILENO) != 0) {}
 
   void Update(int done, int total) {
-    const double elapsed = SecondsSince(start_);
+    const double elapsed = util::SecondsSince(start_);
     if (terminal_) {
       if (done < total && elapsed - last_ < 0.25) return;
     } else if (done < total && done * 10 / total == last_tenth_) {
@@ -135,20 +129,20 @@ int RunSynth(const SynthOptions& options) {
   const Clock::time_point start = Clock::now();
   const bool lidar = options.sensor == "lidar";
   if (options.sensor != "camera" && !lidar) {
-    return Fail("--sensor: unknown sensor '" + options.sensor + "' (expected camera or lidar)");
+    return SynthFail("--sensor: unknown sensor '" + options.sensor + "' (expected camera or lidar)");
   }
   Expected<sim::World> loaded = sim::LoadWorld(options.world);
-  if (!loaded) return Fail(loaded.error().message);
+  if (!loaded) return SynthFail(loaded.error().message);
   const sim::World& world = *loaded;
   if (lidar && !world.lidar) {
-    return Fail(options.world +
+    return SynthFail(options.world +
                 ": lidar: missing (--sensor lidar needs the world's lidar section)");
   }
   const fs::path out = options.out;
 
   if (options.drive) {
     if (!world.drive) {
-      return Fail(options.world + ": drive: missing (--drive needs the world's drive section)");
+      return SynthFail(options.world + ": drive: missing (--drive needs the world's drive section)");
     }
     sim::SequenceOptions sequence;
     sequence.sensor = lidar ? sim::SensorFrame::kLidar : sim::SensorFrame::kCameraOptical;
@@ -160,9 +154,9 @@ int RunSynth(const SynthOptions& options) {
         world, out, sequence, [&progress](int done, int total) { progress.Update(done, total); });
     if (!summary) {
       std::cerr << "\n";
-      return Fail(options.world + ": " + summary.error().message);
+      return SynthFail(options.world + ": " + summary.error().message);
     }
-    const double seconds = SecondsSince(start);
+    const double seconds = util::SecondsSince(start);
     std::cout << std::fixed << std::setprecision(1) << "cairn synth: " << world.name
               << ", drive of " << summary->frames << " frames (" << summary->distance_m << " m, "
               << summary->duration_s << " s), " << (lidar ? "lidar" : "camera")
@@ -180,7 +174,7 @@ int RunSynth(const SynthOptions& options) {
 
   const int views = static_cast<int>(world.views.size());
   if (options.view >= views) {
-    return Fail(options.world + ": views: no view " + std::to_string(options.view) +
+    return SynthFail(options.world + ": views: no view " + std::to_string(options.view) +
                 " (the world has " + std::to_string(views) + ")");
   }
   std::cout << "cairn synth: " << world.name << ", " << (lidar ? "lidar" : "camera")
@@ -190,11 +184,11 @@ int RunSynth(const SynthOptions& options) {
     const fs::path dir = options.view >= 0 ? out : out / ViewDirName(index);
     Expected<std::string> line = WriteView(world, index, lidar, options.exact, dir);
     if (!line) {
-      return Fail(options.world + ": view " + std::to_string(index) + ": " + line.error().message);
+      return SynthFail(options.world + ": view " + std::to_string(index) + ": " + line.error().message);
     }
     std::cout << "  " << *line << "\n";
   }
-  std::cout << std::fixed << std::setprecision(2) << "  time: " << SecondsSince(start) << " s\n";
+  std::cout << std::fixed << std::setprecision(2) << "  time: " << util::SecondsSince(start) << " s\n";
   return kExitOk;
 }
 

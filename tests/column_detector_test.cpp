@@ -12,6 +12,7 @@
 
 #include "cairn/od/detector.hpp"
 #include "cairn/od/range_image.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/random_scene.hpp"
 #include "cairn/sim/render.hpp"
@@ -19,8 +20,6 @@
 
 namespace cairn {
 namespace {
-
-constexpr double kDeg = 3.141592653589793 / 180.0;
 
 od::Detection Columns(const od::RangeImage& image, const od::ColumnConfig& config) {
   Expected<od::Detection> d = od::DetectColumns(image, config);
@@ -59,10 +58,10 @@ TEST(ColumnDetector, FrontalWallIsFoundByBothDetectors) {
   // crossing it sees a vertical profile.
   sim::Scene scene;
   const int wall = scene.Add(sim::Box{{6.0, 0.0, 0.4}, {0.3, 3.0, 0.8}, 0.0}, true);
-  const od::PinholeModel model = sim::PinholeFromFov(160, 120, 60.0 * kDeg);
+  const od::PinholeModel model = sim::PinholeFromFov(160, 120, 60.0 * kDegToRad);
   for (const auto& [pitch, roll] : {std::pair{8.0, 0.0}, {15.0, 10.0}}) {
     const sim::Camera camera = sim::Camera::AboveGround(model, scene.terrain(), 0.0, 0.0, 1.6, 0.0,
-                                                        pitch * kDeg, roll * kDeg);
+                                                        pitch * kDegToRad, roll * kDegToRad);
     const Rendered r = Render(scene, camera);
     const od::DetectorConfig config;  // HT 0.3, Hmax 1.0, theta 45 deg
     const od::Detection cone = Cone(r.image, config);
@@ -129,7 +128,7 @@ TEST(ColumnDetector, ObstaclePointsAreThoseOfTheColumnPairs) {
     od::DetectorConfig config;
     config.min_height_m = rng.Uniform(0.1, 0.5);
     config.max_height_m = config.min_height_m + rng.Uniform(0.2, 1.5);
-    config.min_slope_rad = rng.Uniform(25.0, 70.0) * kDeg;
+    config.min_slope_rad = rng.Uniform(25.0, 70.0) * kDegToRad;
     const od::ColumnConfig column_config = od::ColumnConfig::From(config);
     EXPECT_EQ(column_config.min_blob_pixels, 0);
     const od::Detection columns = Columns(r.image, column_config);
@@ -238,7 +237,7 @@ TEST(ColumnConfig, ValidationNamesTheBadField) {
               m.find("max_height") != std::string::npos)
       << m;
   c = od::ColumnConfig();
-  c.min_slope_rad = 100.0 * kDeg;
+  c.min_slope_rad = 100.0 * kDegToRad;
   ASSERT_FALSE(c.Validate().ok());
   EXPECT_NE(c.Validate().message().find("min_slope"), std::string::npos) << c.Validate().message();
   EXPECT_FALSE(od::DetectColumns(HandMade(), c).ok());

@@ -20,6 +20,7 @@
 
 #include "cairn/od/column_detector.hpp"
 #include "cairn/od/range_image.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/random_scene.hpp"
 #include "cairn/sim/render.hpp"
@@ -28,10 +29,6 @@
 namespace cairn {
 namespace {
 
-constexpr double kPi = 3.141592653589793;
-constexpr double kDeg = kPi / 180.0;
-
-// A rendered frame and the range image made from it.
 struct View {
   sim::Camera camera;
   sim::DepthFrame frame;
@@ -86,7 +83,7 @@ od::DetectorConfig Config(double ht, double hmax, double theta_deg) {
   od::DetectorConfig c;
   c.min_height_m = ht;
   c.max_height_m = hmax;
-  c.min_slope_rad = theta_deg * kDeg;
+  c.min_slope_rad = theta_deg * kDegToRad;
   return c;
 }
 
@@ -171,7 +168,7 @@ od::DetectorConfig RandomConfig(sim::Random& rng) {
   od::DetectorConfig c;
   c.min_height_m = rng.Uniform(0.1, 0.6);
   c.max_height_m = c.min_height_m + rng.Uniform(0.1, 1.5);
-  c.min_slope_rad = rng.Uniform(20.0, 75.0) * kDeg;
+  c.min_slope_rad = rng.Uniform(20.0, 75.0) * kDegToRad;
   c.region_slabs = rng.UniformInt(1, 6);  // exactness must not depend on it
   return c;
 }
@@ -204,7 +201,7 @@ RandomCase MakeRandomCase(int seed) {
   c.name += " (" + std::to_string(options.width) + "x" + std::to_string(options.height) + ", HT " +
             std::to_string(c.config.min_height_m) + ", Hmax " +
             std::to_string(c.config.max_height_m) + ", theta " +
-            std::to_string(c.config.min_slope_rad / kDeg) + " deg, slabs " +
+            std::to_string(c.config.min_slope_rad / kDegToRad) + " deg, slabs " +
             std::to_string(c.config.region_slabs) + ")";
   return c;
 }
@@ -259,12 +256,12 @@ TEST(Detector, PaperWindowFindsASubsetOfTheExactPairs) {
 // Analytic scenes. Unless said otherwise: HT 0.3 m, Hmax 1.0 m, theta 45 deg; a camera 1.6 m
 // above the ground at the world origin looking along +x.
 
-const od::PinholeModel kModel = sim::PinholeFromFov(160, 120, 60.0 * kDeg);
+const od::PinholeModel kModel = sim::PinholeFromFov(160, 120, 60.0 * kDegToRad);
 
 sim::Camera Eye(const sim::Terrain& terrain, double pitch_deg, double roll_deg,
                 const od::PinholeModel& model = kModel) {
-  return sim::Camera::AboveGround(model, terrain, 0.0, 0.0, 1.6, 0.0, pitch_deg * kDeg,
-                                  roll_deg * kDeg);
+  return sim::Camera::AboveGround(model, terrain, 0.0, 0.0, 1.6, 0.0, pitch_deg * kDegToRad,
+                                  roll_deg * kDegToRad);
 }
 
 TEST(Detector, FlatGroundHasNoObstacle) {
@@ -294,7 +291,7 @@ TEST(Detector, SlopeBelowThetaIsNoObstacle) {
   // A 30 deg plane (theta 45) seen uphill, across and downhill, the camera pitched 30 deg
   // down so that most rays meet it.
   for (double heading : {0.0, 90.0, 200.0}) {
-    const sim::Scene scene(sim::Terrain::Slope(0.0, 30.0 * kDeg, heading * kDeg));
+    const sim::Scene scene(sim::Terrain::Slope(0.0, 30.0 * kDegToRad, heading * kDegToRad));
     const View v = Look(scene, Eye(scene.terrain(), 30.0, 0.0));
     ASSERT_GT(v.image.valid_count(), v.image.size() / 2);
     const od::Detection d = RunCone(v.image, Config(0.3, 1.0, 45.0));
@@ -304,7 +301,7 @@ TEST(Detector, SlopeBelowThetaIsNoObstacle) {
 
 // Flat ground, then from x = 6 m a bank rising at `slope_deg` to a 1.2 m plateau.
 sim::Scene Bank(double slope_deg) {
-  const double g = std::tan(slope_deg * kDeg);
+  const double g = std::tan(slope_deg * kDegToRad);
   return sim::Scene(sim::Terrain::FromFunction(
       [g](double x, double) { return std::clamp((x - 6.0) * g, 0.0, 1.2); }, g));
 }
@@ -570,7 +567,7 @@ TEST(Detector, TiltedCameraSeesTheSameObstacles) {
   obstacles.insert(scene.AddPole(10.0, 2.8, 0.15, 1.5, true));
   obstacles.insert(scene.AddBox(8.5, -2.0, {0.8, 0.8, 0.5}, 0.3, true));
   scene.AddRock(4.0, 1.8, {0.3, 0.3, 0.2}, 0.2, 0.0, false);  // lower than HT
-  const od::PinholeModel model = sim::PinholeFromFov(160, 120, 70.0 * kDeg);
+  const od::PinholeModel model = sim::PinholeFromFov(160, 120, 70.0 * kDegToRad);
   const od::DetectorConfig config = Config(0.3, 1.0, 45.0);
   for (const auto& [pitch, roll] :
        {std::pair{5.0, 0.0}, {20.0, 12.0}, {12.0, -10.0}, {2.0, 20.0}}) {
@@ -598,16 +595,16 @@ TEST(Detector, SidewaysSteepFaceIsFoundByTheConeAndMissedByColumns) {
   ridge.top_length_m = 30.0;  // from behind the camera to far ahead: no end face in view
   ridge.top_width_m = 0.3;
   ridge.height_m = 0.7;
-  ridge.right_slope_rad = 65.0 * kDeg;  // local -y: faces the camera's line of sight
-  ridge.left_slope_rad = 25.0 * kDeg;
-  ridge.end_slope_rad = 30.0 * kDeg;
+  ridge.right_slope_rad = 65.0 * kDegToRad;  // local -y: faces the camera's line of sight
+  ridge.left_slope_rad = 25.0 * kDegToRad;
+  ridge.end_slope_rad = 30.0 * kDegToRad;
   const int id = scene.AddRidge(ridge, true);
   const View v = Look(scene, Eye(scene.terrain(), 8.0, 0.0));
   const od::DetectorConfig config = Config(0.3, 1.0, 45.0);
   const od::Detection cone = RunCone(v.image, config);
   const od::Detection columns = RunColumns(v.image, config);
-  const Eigen::Vector3f face_normal(0.0f, static_cast<float>(-std::sin(65.0 * kDeg)),
-                                    static_cast<float>(std::cos(65.0 * kDeg)));
+  const Eigen::Vector3f face_normal(0.0f, static_cast<float>(-std::sin(65.0 * kDegToRad)),
+                                    static_cast<float>(std::cos(65.0 * kDegToRad)));
   int face = 0, by_cone = 0, by_columns = 0;
   for (int i = 0; i < v.image.size(); ++i) {
     if (v.frame.object_id[i] != id || (v.frame.normal[i] - face_normal).norm() > 1e-4f) continue;
@@ -635,7 +632,7 @@ TEST(Detector, FeaturesOfABoxOnFlatGround) {
   sim::Scene scene;
   const int box = scene.Add(sim::Box{{4.0, 0.0, 0.25}, {0.6, 1.0, 0.5}, 0.0}, true);
   const View v = Look(scene, Eye(scene.terrain(), 15.0, 0.0, model));
-  const double ht = 0.3, hmax = 1.0, theta = 45.0 * kDeg;
+  const double ht = 0.3, hmax = 1.0, theta = 45.0 * kDegToRad;
   const od::Detection d = RunCone(v.image, Config(ht, hmax, 45.0));
   ASSERT_EQ(d.segments.size(), 1u);
   const od::SegmentFeatures& f = d.segments[0];
@@ -716,12 +713,12 @@ TEST(Detector, FeaturesOfABoxOnFlatGround) {
   // Surface slopes (detector.hpp): the front face is vertical, the top and the ground are
   // level, so the mean is 90 deg times the front face's share of the points with a slope,
   // but for the mixed slopes on the face's two edges.
-  EXPECT_GT(f.slope_max_rad, 89.9 * kDeg);
+  EXPECT_GT(f.slope_max_rad, 89.9 * kDegToRad);
   EXPECT_LE(f.slope_max_rad, kPi / 2) << std::setprecision(17) << f.slope_max_rad << " rad";
   int front_face = 0;
   for (int b : box_pixels) front_face += d.labels[b] == f.id && p[b].x() < 3.7 + 1e-6;
   ASSERT_GT(f.slope_points, f.point_count * 9 / 10);
-  EXPECT_NEAR(f.slope_mean_rad, kPi / 2 * front_face / f.slope_points, 3.0 * kDeg);
+  EXPECT_NEAR(f.slope_mean_rad, kPi / 2 * front_face / f.slope_points, 3.0 * kDegToRad);
 
   // Bounding box: the box plus the ground compatible with it, which lies within
   // 0.5 m (box height / tan 45) of the footprint [3.7, 4.3] x [-0.5, 0.5]. Slack: the
@@ -781,7 +778,7 @@ TEST(Detector, FeaturesOfABoxOnFlatGround) {
 }
 
 TEST(Detector, ExactModeEqualsBruteForceOnAnalyticScenes) {
-  const od::PinholeModel small = sim::PinholeFromFov(80, 60, 60.0 * kDeg);
+  const od::PinholeModel small = sim::PinholeFromFov(80, 60, 60.0 * kDegToRad);
   std::vector<std::pair<std::string, sim::Scene>> scenes;
   scenes.emplace_back("flat", sim::Scene());
   scenes.emplace_back("bank 60 deg", Bank(60.0));
@@ -797,7 +794,7 @@ TEST(Detector, ExactModeEqualsBruteForceOnAnalyticScenes) {
     sim::Ridge ridge;
     ridge.base_centre = {10.0, 1.2, 0.0};
     ridge.top_length_m = 30.0;
-    ridge.right_slope_rad = 65.0 * kDeg;
+    ridge.right_slope_rad = 65.0 * kDegToRad;
     s.AddRidge(ridge, true);
     scenes.emplace_back("sideways ridge", std::move(s));
   }
@@ -807,7 +804,7 @@ TEST(Detector, ExactModeEqualsBruteForceOnAnalyticScenes) {
       for (const od::DetectorConfig& config :
            {Config(0.3, 1.0, 45.0), Config(0.1, 0.5, 70.0), Config(0.2, 2.0, 20.0)}) {
         const std::string what = name + ", pitch " + std::to_string(pitch) + ", theta " +
-                                 std::to_string(config.min_slope_rad / kDeg);
+                                 std::to_string(config.min_slope_rad / kDegToRad);
         const od::Detection exact = RunCone(v.image, config);
         ExpectSameDetection(exact, RunBruteForce(v.image, config), what);
         od::DetectorConfig window = config;

@@ -20,6 +20,7 @@
 #include "cairn/od/column_detector.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/rules.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/eval/figures.hpp"
 #include "cairn/sim/eval/methods.hpp"
@@ -33,9 +34,6 @@
 namespace cairn::sim::eval {
 namespace {
 
-constexpr double kDeg = 3.141592653589793 / 180.0;
-
-// ---------------------------------------------------------------------------------------
 // Hand-made frames: truth ids and segment labels drawn as text, one character per pixel.
 //   truth: '.' terrain, '#' no return, '1'..'9' object ids
 //   labels: '.' none, '1'..'9' segment ids
@@ -302,10 +300,11 @@ Rendered Render(const Scene& scene, const Camera& camera) {
 TEST(FootBand, MatchesTheDefinitionAroundARenderedPole) {
   Scene scene(Terrain::Flat());
   const int pole = scene.AddPole(6.0, 0.3, 0.1, 2.0, true);
-  const Camera camera = Camera::FromAttitude(PinholeFromFov(160, 120, 50.0 * kDeg),
-                                             Eigen::Vector3d(0.0, 0.0, 1.5), 0.0, 12.0 * kDeg, 0.0);
+  const Camera camera =
+      Camera::FromAttitude(PinholeFromFov(160, 120, 50.0 * kDegToRad),
+                           Eigen::Vector3d(0.0, 0.0, 1.5), 0.0, 12.0 * kDegToRad, 0.0);
   const Rendered r = Render(scene, camera);
-  const double hmax = 1.0, theta = 45.0 * kDeg;
+  const double hmax = 1.0, theta = 45.0 * kDegToRad;
   const std::vector<std::int32_t> band = FootBand(r.eval.image, r.eval.truth, hmax, theta);
 
   // The definition, pixel against pixel, in world coordinates made here.
@@ -364,8 +363,9 @@ TEST(FootBand, MatchesTheDefinitionAroundARenderedPole) {
 TEST(FootBand, ExplainsTheTerrainTheConeDetectorMarksAtAPolesFoot) {
   Scene scene(Terrain::Flat());
   scene.AddPole(6.0, 0.0, 0.1, 2.0, true);
-  const Camera camera = Camera::FromAttitude(PinholeFromFov(160, 120, 50.0 * kDeg),
-                                             Eigen::Vector3d(0.0, 0.0, 1.5), 0.0, 12.0 * kDeg, 0.0);
+  const Camera camera =
+      Camera::FromAttitude(PinholeFromFov(160, 120, 50.0 * kDegToRad),
+                           Eigen::Vector3d(0.0, 0.0, 1.5), 0.0, 12.0 * kDegToRad, 0.0);
   const Rendered r = Render(scene, camera);
   od::io::DetectSettings settings;
   Expected<FrameEvaluation> e =
@@ -383,7 +383,7 @@ TEST(FootBand, ExplainsTheTerrainTheConeDetectorMarksAtAPolesFoot) {
 
 // Poles and rocks of several heights, a ridge with a steep sideways face, on a gentle slope.
 Scene Clutter() {
-  Scene scene(Terrain::Slope(0.0, 4.0 * kDeg, 0.0));
+  Scene scene(Terrain::Slope(0.0, 4.0 * kDegToRad, 0.0));
   scene.AddPole(5.0, -1.2, 0.08, 0.45, true);
   scene.AddPole(7.0, 1.0, 0.12, 0.9, true);
   scene.AddPole(11.0, -2.0, 0.2, 2.5, true);
@@ -394,15 +394,15 @@ Scene Clutter() {
   ridge.top_length_m = 3.0;
   ridge.top_width_m = 0.3;
   ridge.height_m = 0.7;
-  ridge.right_slope_rad = 65.0 * kDeg;
-  ridge.left_slope_rad = 25.0 * kDeg;
+  ridge.right_slope_rad = 65.0 * kDegToRad;
+  ridge.left_slope_rad = 25.0 * kDegToRad;
   scene.AddRidge(ridge, true);
   return scene;
 }
 
 Camera ClutterCamera() {
-  return Camera::FromAttitude(PinholeFromFov(120, 90, 60.0 * kDeg), Eigen::Vector3d(0, 0, 1.6), 0.0,
-                              10.0 * kDeg, 2.0 * kDeg);
+  return Camera::FromAttitude(PinholeFromFov(120, 90, 60.0 * kDegToRad), Eigen::Vector3d(0, 0, 1.6),
+                              0.0, 10.0 * kDegToRad, 2.0 * kDegToRad);
 }
 
 std::vector<Method> NoRules() {
@@ -477,7 +477,7 @@ TEST(Sweep, ParsesTheSpecAndAppliesFileUnits) {
   EXPECT_TRUE(s->ChangesDetection());
   od::io::DetectSettings settings;
   ASSERT_TRUE(ApplySetting(settings, "min_slope", 30.0).ok());
-  EXPECT_NEAR(settings.detector.min_slope_rad, 30.0 * kDeg, 1e-12);  // degrees in, radians in
+  EXPECT_NEAR(settings.detector.min_slope_rad, 30.0 * kDegToRad, 1e-12);  // degrees in, radians in
   ASSERT_TRUE(ApplySetting(settings, "rules.min_volume", 0.02).ok());
   EXPECT_DOUBLE_EQ(settings.rules.min_volume_m3, 0.02);
   EXPECT_FALSE(ParseSweep("rules.min_volume=0:0.1:3")->ChangesDetection());

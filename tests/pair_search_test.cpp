@@ -24,16 +24,13 @@
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/leveling.hpp"
 #include "cairn/od/range_image.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/random_scene.hpp"
 #include "cairn/sim/render.hpp"
 
 namespace cairn::od {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
-
-// Same obstacle points and segments (numbering is deterministic), feet, pair counts and
 // features derived from them.
 void ExpectSame(const Detection& a, const Detection& b, const std::string& what) {
   ASSERT_EQ(a.labels.size(), b.labels.size()) << what;
@@ -69,7 +66,7 @@ DetectorConfig RandomConfig(std::mt19937& rng) {
   DetectorConfig c;
   c.min_height_m = 0.05 + 0.5 * u(rng);
   c.max_height_m = c.min_height_m + 0.1 + 1.5 * u(rng);
-  c.min_slope_rad = (15.0 + 65.0 * u(rng)) * kDeg;
+  c.min_slope_rad = (15.0 + 65.0 * u(rng)) * kDegToRad;
   c.threads = 1 + static_cast<int>(rng() % 3);
   return c;
 }
@@ -250,7 +247,7 @@ TEST(SegmentSlope, IsTheInclinationOfThePlane) {
     model.fx = model.fy = 60.0;
     model.cx = 39.5;
     model.cy = 29.5;
-    const double t = std::tan(slope_deg * kDeg);
+    const double t = std::tan(slope_deg * kDegToRad);
     std::vector<float> depth(model.width * model.height, 0.0f);
     for (int r = 0; r < model.height; ++r) {
       const double v = (r - model.cy) / model.fy;
@@ -265,13 +262,13 @@ TEST(SegmentSlope, IsTheInclinationOfThePlane) {
     DetectorConfig config;
     config.min_height_m = 0.3;
     config.max_height_m = 1.0;
-    config.min_slope_rad = 45.0 * kDeg;
+    config.min_slope_rad = 45.0 * kDegToRad;
     const Detection d = *Detect(image, config);
     ASSERT_EQ(d.segments.size(), 1u) << slope_deg << " deg";
     const SegmentFeatures& plane = d.segments[0];
     EXPECT_EQ(plane.slope_points, plane.point_count) << slope_deg << " deg";
-    EXPECT_NEAR(plane.slope_max_rad, slope_deg * kDeg, 1e-4) << slope_deg << " deg";
-    EXPECT_NEAR(plane.slope_mean_rad, slope_deg * kDeg, 1e-4) << slope_deg << " deg";
+    EXPECT_NEAR(plane.slope_max_rad, slope_deg * kDegToRad, 1e-4) << slope_deg << " deg";
+    EXPECT_NEAR(plane.slope_mean_rad, slope_deg * kDegToRad, 1e-4) << slope_deg << " deg";
   }
 }
 

@@ -4,15 +4,13 @@
 #include <cmath>
 #include <vector>
 
+#include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/drive.hpp"
 #include "cairn/sim/terrain.hpp"
 
 namespace cairn::sim {
 namespace {
-
-constexpr double kPi = 3.141592653589793;
-constexpr double kDeg = kPi / 180.0;
 
 DriveSpec NoiselessSpec(std::vector<Eigen::Vector2d> waypoints) {
   DriveSpec spec;
@@ -73,11 +71,11 @@ TEST(SimDrive, FlatGroundGivesZeroPitchAndRoll) {
 }
 
 TEST(SimDrive, PlanarSlopeGivesAnalyticPitchAndRoll) {
-  const double slope = 15.0 * kDeg, uphill = 30.0 * kDeg;
+  const double slope = 15.0 * kDegToRad, uphill = 30.0 * kDegToRad;
   const Terrain terrain = Terrain::Slope(0.5, slope, uphill);
   const Eigen::Vector3d normal = terrain.Normal(0.0, 0.0);
   for (double heading_deg = -180.0; heading_deg < 180.0; heading_deg += 22.5) {
-    const double h = heading_deg * kDeg;
+    const double h = heading_deg * kDegToRad;
     const Eigen::Vector2d dir(std::cos(h), std::sin(h));
     const Expected<Drive> drive = SimulateDrive(
         terrain,
@@ -105,7 +103,7 @@ TEST(SimDrive, PlanarSlopeGivesAnalyticPitchAndRoll) {
   ASSERT_TRUE(up.ok());
   EXPECT_NEAR(up->samples[3].attitude.pitch_rad, -slope, 1e-12);
   EXPECT_NEAR(up->samples[3].attitude.roll_rad, 0.0, 1e-12);
-  const double across = uphill - 90.0 * kDeg;
+  const double across = uphill - 90.0 * kDegToRad;
   const Expected<Drive> side = SimulateDrive(
       terrain, NoiselessSpec({{0.0, 0.0}, {5.0 * std::cos(across), 5.0 * std::sin(across)}}),
       SensorFrame::kLidar, 3);
@@ -289,7 +287,7 @@ TEST(SimImu, AtRestOnASlopeTheAccelerometerReadsGravityRotatedBySlope) {
 
   // Driving straight up a 15 deg slope at constant speed: no acceleration, the nose-up
   // accelerometer reads g (sin 15, 0, cos 15) at every sample.
-  const double slope = 15.0 * kDeg;
+  const double slope = 15.0 * kDegToRad;
   const Expected<Drive> drive = SimulateDrive(Terrain::Slope(0.0, slope, 0.0),
                                               NoiselessSpec({{0.0, 0.0}, {10.0, 0.0}}),
                                               SensorFrame::kLidar, 3, 0, NoiselessImu());
@@ -341,7 +339,7 @@ TEST(SimImu, TheGyroIntegratesToTheTrueRotationBetweenFrames) {
         drive->samples[k + 5].attitude.yaw_rad - drive->samples[k].attitude.yaw_rad, 2 * kPi);
     largest_turn = std::max(largest_turn, std::abs(heading));
   }
-  EXPECT_GT(largest_turn, 20.0 * kDeg);  // the path turns
+  EXPECT_GT(largest_turn, 20.0 * kDegToRad);  // the path turns
 }
 
 TEST(SimImu, ASpeedWaveGivesTheAlongTrackAcceleration) {
@@ -382,7 +380,7 @@ TEST(SimImu, EachErrorSourceIsSeparate) {
   const Expected<Drive> noisy =
       SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 9, 0, imu);
   imu = NoiselessImu();
-  imu.misalignment_rad << 2.5 * kDeg, -1.0 * kDeg, 0.0;
+  imu.misalignment_rad << 2.5 * kDegToRad, -1.0 * kDegToRad, 0.0;
   const Expected<Drive> tilted =
       SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 9, 0, imu);
   ASSERT_TRUE(ideal.ok() && biased.ok() && noisy.ok() && tilted.ok());
@@ -404,8 +402,8 @@ TEST(SimImu, EachErrorSourceIsSeparate) {
   EXPECT_NEAR(std::sqrt(sum_sq_f / (3.0 * n)), 0.05, 0.003);
   EXPECT_NEAR(std::sqrt(sum_sq_w / (3.0 * n)), 0.01, 0.0006);
   // Its attitude output is its own frame's; the frames, odometry and body are untouched.
-  EXPECT_NEAR(tilted->samples[4].imu.roll_rad, 2.5 * kDeg, 1e-9);
-  EXPECT_NEAR(tilted->samples[4].imu.pitch_rad, -1.0 * kDeg, 1e-9);
+  EXPECT_NEAR(tilted->samples[4].imu.roll_rad, 2.5 * kDegToRad, 1e-9);
+  EXPECT_NEAR(tilted->samples[4].imu.pitch_rad, -1.0 * kDegToRad, 1e-9);
   for (std::size_t k = 0; k < ideal->samples.size(); ++k) {
     for (const Drive* d : {&*biased, &*noisy, &*tilted}) {
       EXPECT_TRUE(d->samples[k].T_world_sensor.isApprox(ideal->samples[k].T_world_sensor, 0.0));
@@ -416,13 +414,13 @@ TEST(SimImu, EachErrorSourceIsSeparate) {
 
 TEST(SimImu, ASensorMisalignmentMovesTheTrueSensorPoseOnly) {
   DriveSpec spec = NoiselessSpec({{0.0, 0.0}, {10.0, 0.0}});
-  spec.sensor_misalignment_rad << 0.0, 2.5 * kDeg, 0.0;
+  spec.sensor_misalignment_rad << 0.0, 2.5 * kDegToRad, 0.0;
   const Expected<Drive> drive = SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 1);
   ASSERT_TRUE(drive.ok()) << drive.error().message;
   EXPECT_TRUE(drive->T_body_sensor.isApprox(BodyToSensor(spec, SensorFrame::kLidar)));
   const Eigen::Matrix3d extra =
       drive->T_body_sensor.linear().transpose() * drive->T_body_sensor_true.linear();
-  EXPECT_NEAR(Eigen::AngleAxisd(extra).angle(), 2.5 * kDeg, 1e-12);
+  EXPECT_NEAR(Eigen::AngleAxisd(extra).angle(), 2.5 * kDegToRad, 1e-12);
   const DriveSample& s = drive->samples[3];
   EXPECT_TRUE(s.T_world_sensor.isApprox(s.T_world_body * drive->T_body_sensor_true, 1e-12));
   spec.speed_wave_mps = 3.0;  // faster than the speed: the vehicle would back up

@@ -14,14 +14,12 @@
 
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/sensor_model.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/scene.hpp"
 #include "cairn/sim/world.hpp"
 
 namespace cairn::sim {
 namespace {
-
-constexpr double kPi = 3.141592653589793;
-constexpr double kDeg = kPi / 180.0;
 
 LidarSpec Noiseless(const std::string& preset) {
   Expected<LidarSpec> spec = LidarSpec::Preset(preset);
@@ -60,16 +58,17 @@ TEST(SphericalModel, PresetNamesAreAcceptedInAnyCase) {
 TEST(LidarSpec, PresetsHaveTheirRings) {
   const LidarSpec vlp = Noiseless("VLP-16");
   ASSERT_EQ(vlp.rings(), 16);
-  for (int r = 0; r < 16; ++r) EXPECT_NEAR(vlp.elevations_rad[r], (15.0 - 2.0 * r) * kDeg, 1e-12);
+  for (int r = 0; r < 16; ++r)
+    EXPECT_NEAR(vlp.elevations_rad[r], (15.0 - 2.0 * r) * kDegToRad, 1e-12);
   EXPECT_EQ(vlp.azimuth_steps, 1024);
   EXPECT_TRUE(vlp.Validate().ok());
 
   const LidarSpec hdl = Noiseless("HDL-64E");
   ASSERT_EQ(hdl.rings(), 64);
-  EXPECT_NEAR(hdl.elevations_rad.front(), 2.0 * kDeg, 1e-12);
-  EXPECT_NEAR(hdl.elevations_rad.back(), -24.8 * kDeg, 1e-12);
-  EXPECT_NEAR(hdl.elevations_rad[1] - hdl.elevations_rad[0], -kDeg / 3.0, 1e-12);  // upper
-  EXPECT_NEAR(hdl.elevations_rad[32], -8.83 * kDeg, 1e-12);                        // lower
+  EXPECT_NEAR(hdl.elevations_rad.front(), 2.0 * kDegToRad, 1e-12);
+  EXPECT_NEAR(hdl.elevations_rad.back(), -24.8 * kDegToRad, 1e-12);
+  EXPECT_NEAR(hdl.elevations_rad[1] - hdl.elevations_rad[0], -kDegToRad / 3.0, 1e-12);  // upper
+  EXPECT_NEAR(hdl.elevations_rad[32], -8.83 * kDegToRad, 1e-12);                        // lower
   for (int r = 1; r < 64; ++r) EXPECT_LT(hdl.elevations_rad[r], hdl.elevations_rad[r - 1]);
   EXPECT_EQ(hdl.azimuth_steps, 2048);
   EXPECT_TRUE(hdl.Validate().ok());
@@ -86,8 +85,9 @@ TEST(LidarSpec, ColumnsSweepClockwiseFromBehind) {
   EXPECT_NEAR(spec.AzimuthRad(3 * n / 4), -0.5 * kPi, 1e-12);  // right
   const Eigen::Vector3d forward_top = spec.RayDirection(0, n / 2);
   EXPECT_NEAR(forward_top.norm(), 1.0, 1e-12);
-  EXPECT_LT((forward_top - Eigen::Vector3d(std::cos(15 * kDeg), 0, std::sin(15 * kDeg))).norm(),
-            1e-12);
+  EXPECT_LT(
+      (forward_top - Eigen::Vector3d(std::cos(15 * kDegToRad), 0, std::sin(15 * kDegToRad))).norm(),
+      1e-12);
 }
 
 TEST(LidarSpec, ValidateNamesTheField) {
@@ -191,7 +191,7 @@ TEST(RenderLidar, APointLandsInTheRingAndColumnOfItsDirection) {
   // far from it.
   const LidarSpec spec = Noiseless("VLP-16");
   const Eigen::Vector3d dir = spec.RayDirection(5, 300);
-  EXPECT_NEAR(std::asin(dir.z()), 5.0 * kDeg, 1e-12);
+  EXPECT_NEAR(std::asin(dir.z()), 5.0 * kDegToRad, 1e-12);
   EXPECT_NEAR(std::atan2(dir.y(), dir.x()), kPi * (1.0 - 600.0 / 1024.0), 1e-12);
   const Eigen::Vector3d sensor(3.0, -1.0, 1.8);
   Scene scene(Terrain::Flat(-200.0));
@@ -239,7 +239,7 @@ TEST(RenderLidar, RangeNoiseIsSeededAndHasItsSigma) {
 Scene TrunkRing() {
   Scene scene(Terrain::Flat(0.0));
   for (int k = 0; k < 36; ++k) {
-    const double a = k * 10.0 * kDeg;
+    const double a = k * 10.0 * kDegToRad;
     scene.Add(Cylinder{Eigen::Vector3d(14.0 * std::cos(a), 14.0 * std::sin(a), 0.0), 1.0, 30.0},
               true);
   }

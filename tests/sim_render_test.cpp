@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "cairn/od/leveling.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/random_scene.hpp"
 #include "cairn/sim/render.hpp"
@@ -13,8 +14,6 @@
 
 namespace cairn::sim {
 namespace {
-
-constexpr double kDeg = 3.141592653589793 / 180.0;
 
 od::PinholeModel Model(int width, int height, double f, double cx, double cy) {
   od::PinholeModel m;
@@ -74,7 +73,7 @@ TEST(Render, PixelLandsWhereTheProjectionSays) {
   // Level camera 1.5 m up. A ball centred at camera-frame (2, -1, 10) projects onto
   // col = 50 * 2 / 10 + 50 = 60, row = 50 * -1 / 10 + 40 = 35, whatever the heading.
   const od::PinholeModel m = Model(101, 81, 50.0, 50.0, 40.0);
-  for (double heading : {0.0, 90.0 * kDeg}) {
+  for (double heading : {0.0, 90.0 * kDegToRad}) {
     const Eigen::Vector3d forward(std::cos(heading), std::sin(heading), 0.0);
     const Eigen::Vector3d right(std::sin(heading), -std::cos(heading), 0.0);
     const Eigen::Vector3d centre =
@@ -106,8 +105,8 @@ TEST(Render, PixelLandsWhereTheProjectionSays) {
 
 TEST(Render, OpticalAxisMeetsFlatGroundAtHeightOverSinPitch) {
   const od::PinholeModel m = Model(81, 61, 60.0, 40.0, 30.0);
-  for (double pitch : {5.0 * kDeg, 20.0 * kDeg, 60.0 * kDeg}) {
-    for (double roll : {0.0, 10.0 * kDeg, -25.0 * kDeg}) {
+  for (double pitch : {5.0 * kDegToRad, 20.0 * kDegToRad, 60.0 * kDegToRad}) {
+    for (double roll : {0.0, 10.0 * kDegToRad, -25.0 * kDegToRad}) {
       const Camera camera = Camera::FromAttitude(m, {3, -1, 1.6}, 0.7, pitch, roll);
       const DepthFrame frame = Render(Scene(), camera, 200.0);
       const int centre = 30 * m.width + 40;
@@ -119,12 +118,12 @@ TEST(Render, OpticalAxisMeetsFlatGroundAtHeightOverSinPitch) {
 
 TEST(Render, RaysHitAPlaneAtTheAnalyticDistance) {
   // Terrain z = 0.2 + g . (x, y), rising at 20 deg towards heading 1.0; tilted camera.
-  const double slope = 20.0 * kDeg, uphill = 1.0;
+  const double slope = 20.0 * kDegToRad, uphill = 1.0;
   const Eigen::Vector2d g = std::tan(slope) * Eigen::Vector2d(std::cos(uphill), std::sin(uphill));
   const Scene scene(Terrain::Slope(0.2, slope, uphill));
   const od::PinholeModel m = Model(64, 48, 40.0, 31.5, 23.5);
-  const Camera camera =
-      Camera::AboveGround(m, scene.terrain(), 0.5, -0.3, 1.7, 2.0, 12.0 * kDeg, -7.0 * kDeg);
+  const Camera camera = Camera::AboveGround(m, scene.terrain(), 0.5, -0.3, 1.7, 2.0,
+                                            12.0 * kDegToRad, -7.0 * kDegToRad);
   const double max_range = 80.0;
   const DepthFrame frame = Render(scene, camera, max_range);
   const Eigen::Vector3d o = camera.Position();
@@ -160,7 +159,7 @@ TEST(Render, RaysHitASphereAtTheAnalyticDistance) {
   Scene scene(Terrain::Flat(-100.0));  // out of range: only the sphere is seen
   const int id = scene.Add(Ellipsoid{centre, Eigen::Vector3d::Constant(radius), 0.4}, true);
   const od::PinholeModel m = Model(64, 48, 45.0, 31.5, 23.5);
-  const Camera camera = Camera::FromAttitude(m, {0, 0, 1.5}, 0.1, 3.0 * kDeg, 5.0 * kDeg);
+  const Camera camera = Camera::FromAttitude(m, {0, 0, 1.5}, 0.1, 3.0 * kDegToRad, 5.0 * kDegToRad);
   const DepthFrame frame = Render(scene, camera, 50.0);
   const Eigen::Vector3d o = camera.Position();
   int hits = 0;
@@ -192,7 +191,8 @@ TEST(Render, RaysHitACylinderAtTheAnalyticDistance) {
   Scene scene(Terrain::Flat(-100.0));
   const int id = scene.Add(Cylinder{base, radius, height}, true);
   const od::PinholeModel m = Model(64, 48, 40.0, 31.5, 23.5);
-  const Camera camera = Camera::FromAttitude(m, {0, 0, 1.5}, -0.1, 2.0 * kDeg, -4.0 * kDeg);
+  const Camera camera =
+      Camera::FromAttitude(m, {0, 0, 1.5}, -0.1, 2.0 * kDegToRad, -4.0 * kDegToRad);
   const DepthFrame frame = Render(scene, camera, 50.0);
   const Eigen::Vector3d o = camera.Position();
   int hits = 0;
@@ -244,7 +244,7 @@ TEST(Render, MarchedHeightfieldHitsLieOnTheSurface) {
   Scene scene(Terrain::Hills(0.0, {{0.5, 6.0, 0.4, 0.3}, {0.2, 2.5, 2.0, 1.0}}));
   const od::PinholeModel m = Model(96, 72, 60.0, 47.5, 35.5);
   const Camera camera =
-      Camera::AboveGround(m, scene.terrain(), 0, 0, 1.2, 0.3, 15.0 * kDeg, 4.0 * kDeg);
+      Camera::AboveGround(m, scene.terrain(), 0, 0, 1.2, 0.3, 15.0 * kDegToRad, 4.0 * kDegToRad);
   const DepthFrame frame = Render(scene, camera, 60.0);
   int pixels = 0;
   // Bisection to 1e-6 m along the ray, then float depth (7 digits at <= 60 m).
@@ -269,7 +269,8 @@ TEST(Render, GridOfAPlaneRendersLikeThePlane) {
   ASSERT_TRUE(marched.ok());
   EXPECT_FALSE(marched->IsPlanar());
   const od::PinholeModel m = Model(64, 48, 40.0, 31.5, 23.5);
-  const Camera camera = Camera::FromAttitude(m, {0, 0, 2.0}, 0.4, 10.0 * kDeg, 3.0 * kDeg);
+  const Camera camera =
+      Camera::FromAttitude(m, {0, 0, 2.0}, 0.4, 10.0 * kDegToRad, 3.0 * kDegToRad);
   const DepthFrame a = Render(Scene(*marched), camera, 18.0);  // stays inside the grid
   const DepthFrame b = Render(Scene(Terrain::Plane(0.3, g)), camera, 18.0);
   int both = 0;
@@ -291,12 +292,12 @@ TEST(Render, BoxAndRidgeHitsLieOnTheirFaces) {
   ridge.top_length_m = 2.0;
   ridge.top_width_m = 0.3;
   ridge.height_m = 0.7;
-  ridge.left_slope_rad = 70.0 * kDeg;
-  ridge.right_slope_rad = 40.0 * kDeg;
-  ridge.end_slope_rad = 25.0 * kDeg;
+  ridge.left_slope_rad = 70.0 * kDegToRad;
+  ridge.right_slope_rad = 40.0 * kDegToRad;
+  ridge.end_slope_rad = 25.0 * kDegToRad;
   const int ridge_id = scene.Add(ridge, true);
   const od::PinholeModel m = Model(96, 72, 70.0, 47.5, 35.5);
-  const Camera camera = Camera::FromAttitude(m, {0, 0, 1.6}, 0.0, 12.0 * kDeg, 0.0);
+  const Camera camera = Camera::FromAttitude(m, {0, 0, 1.6}, 0.0, 12.0 * kDegToRad, 0.0);
   const DepthFrame frame = Render(scene, camera);
   // Faces in each solid's frame: n . (p - origin) = d, with the yaw undone.
   auto local = [](const Eigen::Vector3d& p, const Eigen::Vector3d& origin, double yaw) {

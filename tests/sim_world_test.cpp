@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/od/units.hpp"
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
 #include "cairn/sim/world.hpp"
@@ -17,8 +18,6 @@
 
 namespace cairn::sim {
 namespace {
-
-constexpr double kDeg = 3.141592653589793 / 180.0;
 
 std::filesystem::path GalleryDir() {
   return std::filesystem::path(CAIRN_SOURCE_DIR) / "datasets" / "worlds";
@@ -88,8 +87,8 @@ TEST(Gallery, DefaultCameraAndDriveOfTheUphillWorld) {
   ASSERT_TRUE(world->drive.has_value());
   EXPECT_TRUE(world->drive->Validate().ok());
   EXPECT_EQ(world->drive->waypoints.size(), 3u);
-  EXPECT_NEAR(world->drive->sensor_pitch_rad, 8.0 * kDeg, 1e-12);
-  EXPECT_NEAR(world->drive->odom_yaw_sigma_rad_per_m, 0.1 * kDeg, 1e-12);
+  EXPECT_NEAR(world->drive->sensor_pitch_rad, 8.0 * kDegToRad, 1e-12);
+  EXPECT_NEAR(world->drive->odom_yaw_sigma_rad_per_m, 0.1 * kDegToRad, 1e-12);
   // Views on the slope are tilted: the up vector is not the image's -y.
   const Camera camera = ViewCamera(*world, 0);
   EXPECT_GT((camera.UpOptical() - Eigen::Vector3d(0, -1, 0)).norm(), 0.1);
@@ -128,7 +127,7 @@ TEST_F(WorldFile, MinimalWorldTakesTheDefaults) {
   EXPECT_FALSE(world->drive.has_value());
   EXPECT_EQ(world->camera.model.width, 320);
   EXPECT_DOUBLE_EQ(world->camera.model.cx, 159.5);
-  EXPECT_NEAR(world->views[0].pitch_rad, 10.0 * kDeg, 1e-12);
+  EXPECT_NEAR(world->views[0].pitch_rad, 10.0 * kDegToRad, 1e-12);
   EXPECT_TRUE(world->camera.noise.IsZero());
 }
 
@@ -141,15 +140,15 @@ TEST_F(WorldFile, DegreesInTheFileRadiansInTheStructs) {
       "     height: 0.5, left_slope: 70, right_slope: 50, end_slope: 20}\n"));
   ASSERT_TRUE(world.ok()) << world.error().message;
   const auto& ridge = std::get<Ridge>(world->scene.objects()[0].shape);
-  EXPECT_NEAR(ridge.yaw_rad, 30 * kDeg, 1e-12);
-  EXPECT_NEAR(ridge.left_slope_rad, 70 * kDeg, 1e-12);
-  EXPECT_NEAR(ridge.right_slope_rad, 50 * kDeg, 1e-12);
-  EXPECT_NEAR(ridge.end_slope_rad, 20 * kDeg, 1e-12);
+  EXPECT_NEAR(ridge.yaw_rad, 30 * kDegToRad, 1e-12);
+  EXPECT_NEAR(ridge.left_slope_rad, 70 * kDegToRad, 1e-12);
+  EXPECT_NEAR(ridge.right_slope_rad, 50 * kDegToRad, 1e-12);
+  EXPECT_NEAR(ridge.end_slope_rad, 20 * kDegToRad, 1e-12);
   EXPECT_NEAR(world->camera.model.fx, 32.0, 1e-9);  // 90 deg across 64 px
   ASSERT_TRUE(world->lidar.has_value());
-  EXPECT_NEAR(world->lidar->elevations_rad[2], -10 * kDeg, 1e-12);
+  EXPECT_NEAR(world->lidar->elevations_rad[2], -10 * kDegToRad, 1e-12);
   // The terrain rises at 10 deg towards +y.
-  EXPECT_NEAR(world->scene.terrain().Height(0, 1), std::tan(10 * kDeg), 1e-12);
+  EXPECT_NEAR(world->scene.terrain().Height(0, 1), std::tan(10 * kDegToRad), 1e-12);
   EXPECT_NEAR(world->scene.terrain().Height(1, 0), 0.0, 1e-12);
 }
 
@@ -271,7 +270,7 @@ World FlatWorld() {
 
 TEST(View, FollowTerrainTiltsTheCameraWithTheGround) {
   World world = FlatWorld();
-  world.scene = Scene(Terrain::Slope(0.0, 12.0 * kDeg, 0.5));
+  world.scene = Scene(Terrain::Slope(0.0, 12.0 * kDegToRad, 0.5));
   Viewpoint& v = world.views[0];
   v.x_m = 3.0;
   v.y_m = -2.0;
@@ -286,13 +285,14 @@ TEST(View, FollowTerrainTiltsTheCameraWithTheGround) {
   EXPECT_LT((-R.col(1) - normal).norm(), 1e-12);
   EXPECT_NEAR(camera.Position().z(), world.scene.terrain().Height(3.0, -2.0) + 1.6, 1e-12);
   // Pitched by 10 deg relative to the ground.
-  v.pitch_rad = 10.0 * kDeg;
+  v.pitch_rad = 10.0 * kDegToRad;
   camera = ViewCamera(world, 0);
-  EXPECT_NEAR(camera.T_world_camera.linear().col(2).dot(normal), -std::sin(10.0 * kDeg), 1e-12);
+  EXPECT_NEAR(camera.T_world_camera.linear().col(2).dot(normal), -std::sin(10.0 * kDegToRad),
+              1e-12);
   // Without follow_terrain the attitude is absolute.
   v.follow_terrain = false;
   camera = ViewCamera(world, 0);
-  EXPECT_NEAR(camera.T_world_camera.linear().col(2).z(), -std::sin(10.0 * kDeg), 1e-12);
+  EXPECT_NEAR(camera.T_world_camera.linear().col(2).z(), -std::sin(10.0 * kDegToRad), 1e-12);
 }
 
 TEST(View, RenderViewRejectsAMissingView) {
@@ -428,7 +428,7 @@ TEST(StereoNoise, ValidateNamesTheField) {
 // ---- geometry the gallery needs -------------------------------------------------------
 
 Camera LevelCamera(const od::PinholeModel& model, const Eigen::Vector3d& at, double pitch_deg) {
-  return Camera::FromAttitude(model, at, 0.0, pitch_deg * kDeg, 0.0);
+  return Camera::FromAttitude(model, at, 0.0, pitch_deg * kDegToRad, 0.0);
 }
 
 TEST(Rod, RaysHitATiltedRodAtTheAnalyticDistance) {
@@ -503,25 +503,25 @@ TEST(Ditch, ProfileWallsAndGroundTruth) {
   ditch.end = {10.0, 20.0};
   ditch.depth_m = 1.0;
   ditch.top_width_m = 3.0;
-  ditch.wall_slope_rad = 60.0 * kDeg;
+  ditch.wall_slope_rad = 60.0 * kDegToRad;
   ASSERT_TRUE(ValidateDitch(ditch).ok());
   Scene scene;
   const int id = scene.AddDitch(ditch, true);
   const Terrain& terrain = scene.terrain();
   const double half_floor = 0.5 * ditch.FloorWidth();  // 1.5 - 1 / tan(60 deg)
-  EXPECT_NEAR(half_floor, 1.5 - 1.0 / std::tan(60.0 * kDeg), 1e-12);
+  EXPECT_NEAR(half_floor, 1.5 - 1.0 / std::tan(60.0 * kDegToRad), 1e-12);
   EXPECT_NEAR(terrain.Height(10.0, 0.0), -1.0, 1e-12);
   EXPECT_NEAR(terrain.Height(10.0 + half_floor, 3.0), -1.0, 1e-12);
   EXPECT_NEAR(terrain.Height(10.0 + 1.5, 0.0), 0.0, 1e-12);
-  EXPECT_NEAR(terrain.Height(10.0 + 1.5 - 0.1, 0.0), -0.1 * std::tan(60.0 * kDeg), 1e-12);
-  EXPECT_NEAR(terrain.Height(10.0, 21.0), -(1.5 - 1.0) * std::tan(60.0 * kDeg), 1e-12);  // end
+  EXPECT_NEAR(terrain.Height(10.0 + 1.5 - 0.1, 0.0), -0.1 * std::tan(60.0 * kDegToRad), 1e-12);
+  EXPECT_NEAR(terrain.Height(10.0, 21.0), -(1.5 - 1.0) * std::tan(60.0 * kDegToRad), 1e-12);  // end
   EXPECT_NEAR(terrain.Height(14.0, 0.0), 0.0, 1e-12);
   EXPECT_EQ(terrain.IdAt(10.0 + 1.2, 0.0), id);    // wall
   EXPECT_EQ(terrain.IdAt(10.0, 0.0), kTerrainId);  // floor
   EXPECT_EQ(terrain.IdAt(12.0, 0.0), kTerrainId);  // beyond the rim
-  EXPECT_NEAR(
-      terrain.Normal(11.2, 0.0).dot(Eigen::Vector3d(-std::sin(60 * kDeg), 0, std::cos(60 * kDeg))),
-      1.0, 1e-9);
+  EXPECT_NEAR(terrain.Normal(11.2, 0.0).dot(
+                  Eigen::Vector3d(-std::sin(60 * kDegToRad), 0, std::cos(60 * kDegToRad))),
+              1.0, 1e-9);
   EXPECT_TRUE(std::isfinite(Bound(Shape(ditch)).radius_m));
 
   // Rendered: hits lie on the surface; the far wall is seen and carries the id, the floor
@@ -557,7 +557,7 @@ TEST(Bank, RaisesTheGroundAndMarksItsFace) {
   bank.centre = {20.0, 0.0};
   bank.uphill_heading_rad = 0.0;
   bank.rise_m = 1.2;
-  bank.face_slope_rad = 70.0 * kDeg;
+  bank.face_slope_rad = 70.0 * kDegToRad;
   Scene scene(Terrain::Flat(0.3));
   const int id = scene.AddBank(bank, true);
   const Terrain& terrain = scene.terrain();
@@ -568,7 +568,7 @@ TEST(Bank, RaisesTheGroundAndMarksItsFace) {
   EXPECT_NEAR(terrain.Height(20.0 + 0.5 * half, 0.0), 0.3 + 0.75 * 1.2, 1e-12);
   EXPECT_EQ(terrain.IdAt(20.0, 7.0), id);
   EXPECT_EQ(terrain.IdAt(20.0 + half + 0.01, 7.0), kTerrainId);
-  EXPECT_NEAR(terrain.MaxGradient(), std::tan(70.0 * kDeg), 1e-12);
+  EXPECT_NEAR(terrain.MaxGradient(), std::tan(70.0 * kDegToRad), 1e-12);
   EXPECT_NEAR(terrain.MaxGradientNear({0.0, 0.0}, 1.0), 0.0, 1e-12);
   // The base terrain can be replaced; the bank is carved in again.
   scene.set_terrain(Terrain::Flat(-1.0));

@@ -9,7 +9,7 @@
 namespace cairn::map {
 namespace {
 
-Status FieldError(const std::string& field, const std::string& what) {
+Status VerticalsError(const std::string& field, const std::string& what) {
   return Error{"tilt.verticals." + field + ": " + what};
 }
 
@@ -44,25 +44,25 @@ Shape ShapeOf(const std::vector<Eigen::Vector3d>& points) {
 
 Status VerticalCueConfig::Validate() const {
   if (!(min_height_m >= 0.0 && std::isfinite(min_height_m))) {
-    return FieldError("min_height", "must be >= 0 m");
+    return VerticalsError("min_height", "must be >= 0 m");
   }
-  if (min_points < 3) return FieldError("min_points", "must be >= 3");
+  if (min_points < 3) return VerticalsError("min_points", "must be >= 3");
   if (!(min_elongation >= 1.0 && std::isfinite(min_elongation))) {
-    return FieldError("min_elongation", "must be >= 1");
+    return VerticalsError("min_elongation", "must be >= 1");
   }
   if (!(max_radius_m > 0.0 && std::isfinite(max_radius_m))) {
-    return FieldError("max_radius", "must be > 0 m");
+    return VerticalsError("max_radius", "must be > 0 m");
   }
   if (!(min_wall_width_m > 0.0 && std::isfinite(min_wall_width_m))) {
-    return FieldError("min_wall_width", "must be > 0 m");
+    return VerticalsError("min_wall_width", "must be > 0 m");
   }
   if (!(min_flatness >= 1.0 && std::isfinite(min_flatness))) {
-    return FieldError("min_flatness", "must be >= 1");
+    return VerticalsError("min_flatness", "must be >= 1");
   }
   if (!(max_angle_rad > 0.0 && max_angle_rad <= 0.5 * M_PI)) {
-    return FieldError("max_angle", "must be in (0, 90] deg");
+    return VerticalsError("max_angle", "must be in (0, 90] deg");
   }
-  if (!(max_range_m > 0.0)) return FieldError("max_range", "must be > 0 m");
+  if (!(max_range_m > 0.0)) return VerticalsError("max_range", "must be > 0 m");
   return {};
 }
 

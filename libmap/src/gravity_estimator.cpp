@@ -7,22 +7,20 @@
 #include <cmath>
 #include <cstdio>
 #include <deque>
-#include <memory>
 #include <map>
+#include <memory>
 #include <set>
 #include <utility>
 
+#include "cairn/od/units.hpp"
 #include "gravity_terms.hpp"
 
 namespace cairn::map {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
-
 double Wrap(double a) { return std::remainder(a, 2.0 * kPi); }
 
-Error FieldError(const std::string& field, const std::string& what) {
+Error GravityError(const std::string& field, const std::string& what) {
   return Error{"gravity." + field + ": " + what};
 }
 
@@ -98,6 +96,7 @@ struct GravityEstimator::State {
 };
 
 namespace {
+
 using gravity::ImuSegment;
 
 // Pieces of the window's samples within [a, b], in time order (forward) or reverse.
@@ -360,19 +359,19 @@ void GravityEstimator::State::Marginalise() {
 
 Status GravityEstimatorConfig::Validate() const {
   if (accel_warmup_spans < 0) {
-    return FieldError("accel_warmup_spans", "must be >= 0, got " + std::to_string(accel_warmup_spans));
+    return GravityError("accel_warmup_spans", "must be >= 0, got " + std::to_string(accel_warmup_spans));
   }
   if (accel_half_span_frames < 1) {
-    return FieldError("accel_half_span_frames",
+    return GravityError("accel_half_span_frames",
                       "must be >= 1, got " + std::to_string(accel_half_span_frames));
   }
   if (window_frames < 2 * accel_half_span_frames + 2) {
-    return FieldError("window_frames", "must be >= 2 accel_half_span_frames + 2 = " +
+    return GravityError("window_frames", "must be >= 2 accel_half_span_frames + 2 = " +
                                            std::to_string(2 * accel_half_span_frames + 2) +
                                            ", got " + std::to_string(window_frames));
   }
   if (!(std::isfinite(odometry_sigma_m) && odometry_sigma_m >= 0.0)) {
-    return FieldError("odometry_sigma_m", "must be a finite number >= 0");
+    return GravityError("odometry_sigma_m", "must be a finite number >= 0");
   }
   const struct {
     const char* name;
@@ -397,13 +396,13 @@ Status GravityEstimatorConfig::Validate() const {
                   {"observable_ratio", observable_ratio}};
   for (const auto& p : positive) {
     if (!(std::isfinite(p.value) && p.value > 0.0)) {
-      return FieldError(p.name, "must be a finite number > 0, got " + std::to_string(p.value));
+      return GravityError(p.name, "must be a finite number > 0, got " + std::to_string(p.value));
     }
   }
   if (!(std::isfinite(height_step_sigma_per_m) && height_step_sigma_per_m >= 0.0)) {
-    return FieldError("height_step_sigma_per_m", "must be a finite number >= 0");
+    return GravityError("height_step_sigma_per_m", "must be a finite number >= 0");
   }
-  if (max_iterations < 1) return FieldError("max_iterations", "must be >= 1");
+  if (max_iterations < 1) return GravityError("max_iterations", "must be >= 1");
   return {};
 }
 
@@ -414,16 +413,16 @@ bool GravityEstimate::Degenerate(GravityDegeneracy::State state) const {
 
 std::string GravityEstimate::BriefReport() const {
   char line[512];
-  std::snprintf(line, sizeof(line),
-                "roll %.3f pitch %.3f deg (sigma %.3f %.3f), ba (%.3f %.3f %.3f) m/s^2, "
-                "mount (%.3f %.3f) deg; cues: %d accel (%d out), %d gyro, %d verticals (%d out), "
-                "%d priors; %d iterations, cost %.3g -> %.3g",
-                roll_rad / kDeg, pitch_rad / kDeg, std::sqrt(attitude_covariance(0, 0)) / kDeg,
-                std::sqrt(attitude_covariance(1, 1)) / kDeg, accel_bias_mps2.x(),
-                accel_bias_mps2.y(), accel_bias_mps2.z(), mount_rad.x() / kDeg,
-                mount_rad.y() / kDeg, cues.accel_terms, cues.accel_outliers, cues.gyro_terms,
-                cues.verticals, cues.vertical_outliers, cues.attitude_priors, iterations,
-                initial_cost, final_cost);
+  std::snprintf(
+      line, sizeof(line),
+      "roll %.3f pitch %.3f deg (sigma %.3f %.3f), ba (%.3f %.3f %.3f) m/s^2, "
+      "mount (%.3f %.3f) deg; cues: %d accel (%d out), %d gyro, %d verticals (%d out), "
+      "%d priors; %d iterations, cost %.3g -> %.3g",
+      roll_rad / kDegToRad, pitch_rad / kDegToRad, std::sqrt(attitude_covariance(0, 0)) / kDegToRad,
+      std::sqrt(attitude_covariance(1, 1)) / kDegToRad, accel_bias_mps2.x(), accel_bias_mps2.y(),
+      accel_bias_mps2.z(), mount_rad.x() / kDegToRad, mount_rad.y() / kDegToRad, cues.accel_terms,
+      cues.accel_outliers, cues.gyro_terms, cues.verticals, cues.vertical_outliers,
+      cues.attitude_priors, iterations, initial_cost, final_cost);
   std::string out = line;
   for (const GravityDegeneracy& d : degeneracies) out += "; not observable: " + d.reason;
   return out;
@@ -478,31 +477,31 @@ Expected<GravityEstimator> GravityEstimator::Create(const GravityEstimatorConfig
 Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) {
   State& st = *state_;
   const GravityEstimatorConfig& c = st.config;
-  if (!std::isfinite(frame.stamp_s)) return FieldError("frame.stamp_s", "must be finite");
+  if (!std::isfinite(frame.stamp_s)) return GravityError("frame.stamp_s", "must be finite");
   if (!st.window.empty() && !(frame.stamp_s > st.window.back()->input.stamp_s)) {
-    return FieldError("frame.stamp_s", "must be after the previous frame's (" +
+    return GravityError("frame.stamp_s", "must be after the previous frame's (" +
                                            std::to_string(st.window.back()->input.stamp_s) +
                                            " s), got " + std::to_string(frame.stamp_s));
   }
   if (!frame.odometry_xy_yaw.allFinite()) {
-    return FieldError("frame.odometry_xy_yaw", "must be finite");
+    return GravityError("frame.odometry_xy_yaw", "must be finite");
   }
   if (frame.velocity_world_mps && !frame.velocity_world_mps->allFinite()) {
-    return FieldError("frame.velocity_world_mps", "must be finite");
+    return GravityError("frame.velocity_world_mps", "must be finite");
   }
   if (frame.attitude_prior_rad && !frame.attitude_prior_rad->allFinite()) {
-    return FieldError("frame.attitude_prior_rad", "must be finite");
+    return GravityError("frame.attitude_prior_rad", "must be finite");
   }
   for (std::size_t i = 0; i < frame.verticals.size(); ++i) {
     if (!(frame.verticals[i].direction_sensor.allFinite() &&
           frame.verticals[i].direction_sensor.norm() > 0.0)) {
-      return FieldError("frame.verticals[" + std::to_string(i) + "]",
+      return GravityError("frame.verticals[" + std::to_string(i) + "]",
                         "must be a finite, non-zero direction");
     }
   }
   if (frame.ground_height_m &&
       !(std::isfinite(*frame.ground_height_m) && frame.ground_height_sigma_m > 0.0)) {
-    return FieldError("frame.ground_height_m", "must be finite, with a sigma > 0");
+    return GravityError("frame.ground_height_m", "must be finite, with a sigma > 0");
   }
 
   auto wf = std::make_unique<WindowFrame>();
@@ -512,10 +511,10 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
     const GravityImuSample& s = frame.imu[j];
     if (!(std::isfinite(s.stamp_s) && s.specific_force_mps2.allFinite() &&
           s.angular_rate_radps.allFinite())) {
-      return FieldError("frame.imu[" + std::to_string(j) + "]", "must be finite");
+      return GravityError("frame.imu[" + std::to_string(j) + "]", "must be finite");
     }
     if (std::isfinite(st.last_sample_stamp_s) && !(s.stamp_s > st.last_sample_stamp_s)) {
-      return FieldError("frame.imu[" + std::to_string(j) + "].stamp_s",
+      return GravityError("frame.imu[" + std::to_string(j) + "].stamp_s",
                         "must increase, got " + std::to_string(s.stamp_s) + " after " +
                             std::to_string(st.last_sample_stamp_s));
     }
@@ -696,8 +695,8 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
                         "changed %.0f deg so far; on a straight drive a bias and a tilt look "
                         "alike, a turn or a change of attitude tells them apart (tilt uncertain by "
                         "up to %.2f deg)",
-                        sx, sy, c.accel_bias_sigma_mps2, cues.heading_change_rad / kDeg,
-                        std::max(sx, sy) / c.gravity_mps2 / kDeg);
+                        sx, sy, c.accel_bias_sigma_mps2, cues.heading_change_rad / kDegToRad,
+                        std::max(sx, sy) / c.gravity_mps2 / kDegToRad);
           est.degeneracies.push_back({GravityDegeneracy::State::kAccelBias, why});
         }
       }
@@ -712,10 +711,11 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
       if (c.estimate_mount) {
         const double s = std::sqrt(est.mount_covariance.diagonal().maxCoeff());
         if (s > limit * c.mount_sigma_rad) {
-          std::snprintf(why, sizeof(why),
-                        "sensor mount tilt (sigma %.2f deg of %.2f a priori): %d vertical cues seen "
-                        "so far; the mount needs trunks, poles or walls in view",
-                        s / kDeg, c.mount_sigma_rad / kDeg, st.verticals_seen);
+          std::snprintf(
+              why, sizeof(why),
+              "sensor mount tilt (sigma %.2f deg of %.2f a priori): %d vertical cues seen "
+              "so far; the mount needs trunks, poles or walls in view",
+              s / kDegToRad, c.mount_sigma_rad / kDegToRad, st.verticals_seen);
           est.degeneracies.push_back({GravityDegeneracy::State::kMount, why});
         }
       }

@@ -4,11 +4,10 @@
 #include <sstream>
 #include <string>
 
+#include "cairn/od/units.hpp"
+
 namespace cairn::map {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kRadToDeg = 180.0 / kPi;
 
 Error Bad(const char* key, const std::string& what, double value, double scale = 1.0) {
   std::ostringstream message;

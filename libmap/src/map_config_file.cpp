@@ -5,15 +5,13 @@
 #include <string>
 #include <vector>
 
+#include "cairn/od/units.hpp"
 #include "cairn/util/yaml.hpp"
 
 namespace cairn::map {
 namespace {
 
 namespace detail = util;  // the strict field reader
-
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
-
 struct Field {
   const char* key;
   double* target;

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "cairn/map/checkpoint.hpp"
+#include "cairn/util/format.hpp"
 
 namespace cairn::map {
 namespace {
@@ -18,10 +19,6 @@ using Clock = std::chrono::steady_clock;
 
 constexpr const char* kStateFormat = "cairn mapper state 1";
 constexpr double kMinJumpDt = 0.01;  // [s]: stamps closer than this count as 10 ms apart
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 Eigen::Vector3d UpIn(const Eigen::Isometry3d& T_world_sensor) {
   return T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
@@ -41,14 +38,6 @@ Eigen::Isometry3d PoseFromJson(const json& m) {
     for (int c = 0; c < 4; ++c) T.matrix()(r, c) = m.at(4 * r + c).get<double>();
   }
   return T;
-}
-
-std::string Fixed(double v, int decimals) {
-  std::ostringstream out;
-  out.setf(std::ios::fixed);
-  out.precision(decimals);
-  out << v;
-  return out.str();
 }
 
 }  // namespace
@@ -106,12 +95,12 @@ struct Mapper::State {
     const double turned =
         Eigen::AngleAxisd(previous->second.linear().transpose() * T.linear()).angle();
     if (moved > config.frames.max_speed_mps * dt) {
-      return "the odometry moved " + Fixed(moved, 2) + " m in " + Fixed(dt, 3) + " s (frames.max_speed " +
-             Fixed(config.frames.max_speed_mps, 1) + " m/s)";
+      return "the odometry moved " + util::Fixed(moved, 2) + " m in " + util::Fixed(dt, 3) + " s (frames.max_speed " +
+             util::Fixed(config.frames.max_speed_mps, 1) + " m/s)";
     }
     if (turned > config.frames.max_turn_rate_radps * dt) {
-      return "the odometry turned " + Fixed(turned * 180.0 / M_PI, 1) + " deg in " + Fixed(dt, 3) +
-             " s (frames.max_turn_rate " + Fixed(config.frames.max_turn_rate_radps * 180.0 / M_PI, 0) +
+      return "the odometry turned " + util::Fixed(turned * 180.0 / M_PI, 1) + " deg in " + util::Fixed(dt, 3) +
+             " s (frames.max_turn_rate " + util::Fixed(config.frames.max_turn_rate_radps * 180.0 / M_PI, 0) +
              " deg/s)";
     }
     return {};
@@ -178,7 +167,7 @@ Expected<MapperRecord> Mapper::Process(od::RangeImage image,
   if (!detection) return detection.error();
   Expected<od::Classification> classification = od::Classify(*detection, s.config.rules);
   if (!classification) return classification.error();
-  r.detect_s = SecondsSince(t);
+  r.detect_s = util::SecondsSince(t);
   r.segments = static_cast<int>(detection->segments.size());
   r.kept = classification->kept;
   r.rejected = r.segments - r.kept;
@@ -201,14 +190,14 @@ Expected<MapperRecord> Mapper::Process(od::RangeImage image,
   if (!tilt) return Error{"tilt: " + tilt.error().message};
   r.tilt = std::move(*tilt);
   r.T_world_sensor = r.tilt.T_world_sensor;
-  r.tilt_s = SecondsSince(t);
+  r.tilt_s = util::SecondsSince(t);
 
   // --- fuse ---
   t = Clock::now();
   Expected<FrameSummary> fused =
       s.map.Integrate(image, *detection, *classification, r.T_world_sensor, stamp_s, s.fused);
   if (!fused) return fused.error();
-  r.fuse_s = SecondsSince(t);
+  r.fuse_s = util::SecondsSince(t);
   r.fused = *fused;
   s.previous.emplace(stamp_s, T_world_sensor);
   ++s.processed;

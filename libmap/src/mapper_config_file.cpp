@@ -5,15 +5,13 @@
 
 #include "cairn/map/map_config_file.hpp"
 #include "cairn/od/io/detect_config.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/util/yaml.hpp"
 
 namespace cairn::map {
 namespace {
 
 namespace yaml = util;  // the strict field reader
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
-
 struct DoubleField {
   const char* key;
   double* target;
@@ -56,7 +54,7 @@ Status ParseTilt(const yaml::FieldReader& reader, const YAML::Node& root, TiltCo
   const YAML::Node section = root["tilt"];
   if (!section || section.IsNull()) return {};
   TiltRefinerConfig& c = tilt.refiner;
-  const std::vector<DoubleField> doubles = {{"prior_sigma", &c.prior_sigma_rad, kDeg},
+  const std::vector<DoubleField> doubles = {{"prior_sigma", &c.prior_sigma_rad, kDegToRad},
                                             {"prior_sigma_z", &c.prior_sigma_z_m, 1.0},
                                             {"huber", &c.huber_m, 1.0},
                                             {"max_range", &c.max_range_m, 1.0}};
@@ -97,8 +95,9 @@ Status ParseFrames(const yaml::FieldReader& reader, const YAML::Node& root,
                    FrameCheckConfig& frames) {
   const YAML::Node section = root["frames"];
   if (!section || section.IsNull()) return {};
-  const std::vector<DoubleField> doubles = {{"max_speed", &frames.max_speed_mps, 1.0},
-                                            {"max_turn_rate", &frames.max_turn_rate_radps, kDeg}};
+  const std::vector<DoubleField> doubles = {
+      {"max_speed", &frames.max_speed_mps, 1.0},
+      {"max_turn_rate", &frames.max_turn_rate_radps, kDegToRad}};
   const std::vector<IntField> ints = {{"min_valid_points", &frames.min_valid_points, 1, 1000000000}};
   if (Status s = ReadFields(reader, section, "frames", doubles, ints, {}); !s) return s;
   if (Status s = frames.Validate(); !s) {

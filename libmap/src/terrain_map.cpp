@@ -1,6 +1,7 @@
 #include "cairn/map/terrain_map.hpp"
 
 #include "key_bricks.hpp"
+#include "cairn/util/format.hpp"
 
 #include <octomap/OcTreeKey.h>
 
@@ -21,10 +22,6 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr std::int64_t kOctreeFlushFrames = 8;
 
 float LogOdds(double p) { return static_cast<float>(std::log(p / (1.0 - p))); }
-
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 /// Cell offsets whose centres lie within `radius_m` of the centre cell's (itself included).
 std::vector<CellIndex> DiscOffsets(double radius_m, double cell_size_m) {
@@ -319,7 +316,7 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
     }
     cell.observed = true;
   }
-  summary.classify_s = SecondsSince(start);
+  summary.classify_s = util::SecondsSince(start);
   start = std::chrono::steady_clock::now();
 
   // --- octree: OctoMap's discretised update, one ray per endpoint voxel ---
@@ -404,7 +401,7 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
   // whenever the tree is looked at (octree()); the leaves are always current.
   octree_stale_ = true;
   if (stamp % kOctreeFlushFrames == 0) FlushOctree();
-  summary.octree_s = SecondsSince(start);
+  summary.octree_s = util::SecondsSince(start);
   start = std::chrono::steady_clock::now();
 
   // --- grid: obstacle evidence, one update per touched cell ---
@@ -447,7 +444,7 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
     // Inflation from cells that left the window is gone everywhere near its edges.
     UpdateCosts(grid_.min_index(), grid_.min_index() + grid_.extent() - CellIndex::Ones());
   }
-  summary.grid_s = SecondsSince(start);
+  summary.grid_s = util::SecondsSince(start);
   start = std::chrono::steady_clock::now();
 
   // --- persistent obstacles ---
@@ -464,7 +461,7 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
   FuseObstacles(kept, stamp_s, frame_id, summary);
   RetireObstacles(summary);
   for (const Obstacle& o : obstacles_) summary.lethal_cells += static_cast<int>(o.cells.size());
-  summary.obstacles_s = SecondsSince(start);
+  summary.obstacles_s = util::SecondsSince(start);
   return summary;
 }
 

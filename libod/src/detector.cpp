@@ -2,20 +2,19 @@
 
 #include <algorithm>
 #include <atomic>
-#include <optional>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <thread>
 #include <variant>
 
+#include "cairn/od/units.hpp"
 #include "detection_internal.hpp"
 #include "pair_search.hpp"
 #include "search_region.hpp"
 
 namespace cairn::od {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 Error BadField(const char* field, const std::string& expected, double value) {
   return Error{std::string("detector config: '") + field + "' must be " + expected + " (got " +

@@ -3,12 +3,11 @@
 #include <cmath>
 #include <sstream>
 
+#include "cairn/od/units.hpp"
+
 namespace cairn::od {
 namespace {
 
-constexpr double kRadToDeg = 57.29577951308232;
-
-// One rule: a measure, its threshold, and how both read in a reason.
 struct Rule {
   const char* name;
   double value;

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include "cairn/od/units.hpp"
+
 namespace cairn::od::internal {
 namespace {
 
@@ -178,10 +180,6 @@ double NearestDepth(const RangeImage& image) {
   // Stored coordinates are floats: step just below the nearest so that nothing is clipped.
   return z_near * (1.0 - 1e-6);
 }
-
-constexpr double kPi = 3.14159265358979323846;
-
-// Wraps an angle into (-pi, pi].
 double WrapPi(double a) {
   a = std::remainder(a, 2.0 * kPi);
   return a <= -kPi ? a + 2.0 * kPi : a;

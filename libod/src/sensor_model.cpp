@@ -9,6 +9,8 @@
 #include <string>
 #include <utility>
 
+#include "cairn/od/units.hpp"
+
 namespace cairn::od {
 
 Status PinholeModel::Validate() const {
@@ -26,13 +28,10 @@ Status PinholeModel::Validate() const {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
-
 std::vector<double> Linear(double top_deg, double bottom_deg, int rings) {
   std::vector<double> e(rings);
   for (int i = 0; i < rings; ++i) {
-    e[i] = (top_deg + (bottom_deg - top_deg) * i / (rings - 1)) * kDeg;
+    e[i] = (top_deg + (bottom_deg - top_deg) * i / (rings - 1)) * kDegToRad;
   }
   return e;
 }
@@ -103,7 +102,7 @@ Expected<SphericalModel> SphericalModel::Preset(const std::string& given, int wi
                             1.0,    0.667,  0.333,  0.0,    -0.333, -0.667, -1.0,    -1.333,
                             -1.667, -2.0,   -2.333, -2.667, -3.0,   -3.333, -3.667,  -4.0,
                             -4.667, -5.333, -6.148, -7.254, -8.843, -11.31, -15.639, -25.0};
-    for (double e : table) m.ring_elevation_rad.push_back(e * kDeg);
+    for (double e : table) m.ring_elevation_rad.push_back(e * kDegToRad);
   } else {
     return Error{"unknown sensor preset '" + given +
                  "' (expected HDL-64E, VLP-16, VLP-32C or OS1-64)"};
@@ -149,7 +148,7 @@ double ClampElevation(double e) {
 }
 
 std::string Degrees(double rad) {
-  const double d = std::round(rad / kDeg * 1000.0) / 1000.0;
+  const double d = std::round(rad / kDegToRad * 1000.0) / 1000.0;
   std::string s = std::to_string(d);
   s.erase(s.find_last_not_of('0') + 1);
   if (!s.empty() && s.back() == '.') s.pop_back();
@@ -214,7 +213,7 @@ Expected<RingFit> FitRings(const PointAngles& angles,
     // those beyond them extrapolated with the mean spacing.
     const int first = measured.front(), last = measured.back();
     const double spacing =
-        last > first ? (median[first] - median[last]) / (last - first) : 1.0 * kDeg;
+        last > first ? (median[first] - median[last]) / (last - first) : 1.0 * kDegToRad;
     std::size_t next = 0;  // index into `measured` of the first measured ring >= r
     for (int r = 0; r < rings; ++r) {
       while (next < measured.size() && measured[next] < r) ++next;

@@ -4,12 +4,11 @@
 #include <cmath>
 #include <string>
 
+#include "cairn/od/units.hpp"
 #include "cairn/sim/random_scene.hpp"
 
 namespace cairn::sim {
 namespace {
-
-constexpr double kPi = 3.141592653589793;
 
 double WrapAngle(double a) {
   a = std::remainder(a, 2.0 * kPi);  // in [-pi, pi]
@@ -24,20 +23,20 @@ double Gaussian(Random& rng) {
   return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
 }
 
-Status FieldError(const std::string& field, const std::string& what) {
+Status DriveError(const std::string& field, const std::string& what) {
   return Error{"drive." + field + ": " + what};
 }
 
 Status CheckPositive(const std::string& field, double value) {
   if (!std::isfinite(value) || value <= 0.0) {
-    return FieldError(field, "must be a finite number > 0, got " + std::to_string(value));
+    return DriveError(field, "must be a finite number > 0, got " + std::to_string(value));
   }
   return {};
 }
 
 Status CheckSigma(const std::string& field, double value) {
   if (!std::isfinite(value) || value < 0.0) {
-    return FieldError(field, "must be a finite number >= 0, got " + std::to_string(value));
+    return DriveError(field, "must be a finite number >= 0, got " + std::to_string(value));
   }
   return {};
 }
@@ -54,26 +53,26 @@ Status CheckDrivable(const DriveSpec& spec) {
     return s;
   }
   if (Status s = CheckSigma("imu_sigma_rad", spec.imu_sigma_rad); !s) return s;
-  if (!std::isfinite(spec.imu_bias_rad)) return FieldError("imu_bias_rad", "must be finite");
+  if (!std::isfinite(spec.imu_bias_rad)) return DriveError("imu_bias_rad", "must be finite");
   if (!std::isfinite(spec.sensor_pitch_rad)) {
-    return FieldError("sensor_pitch_rad", "must be finite");
+    return DriveError("sensor_pitch_rad", "must be finite");
   }
   if (!spec.T_body_sensor_xyz.allFinite()) {
-    return FieldError("T_body_sensor_xyz", "must be finite");
+    return DriveError("T_body_sensor_xyz", "must be finite");
   }
   for (std::size_t i = 0; i < spec.waypoints.size(); ++i) {
     if (!spec.waypoints[i].allFinite()) {
-      return FieldError("waypoints[" + std::to_string(i) + "]", "must be finite");
+      return DriveError("waypoints[" + std::to_string(i) + "]", "must be finite");
     }
   }
   if (!std::isfinite(spec.speed_wave_mps) || spec.speed_wave_mps < 0.0 ||
       spec.speed_wave_mps >= spec.speed_mps) {
-    return FieldError("speed_wave_mps", "must be in [0, speed_mps), got " +
+    return DriveError("speed_wave_mps", "must be in [0, speed_mps), got " +
                                             std::to_string(spec.speed_wave_mps));
   }
   if (Status s = CheckPositive("speed_wave_period_s", spec.speed_wave_period_s); !s) return s;
   if (!spec.sensor_misalignment_rad.allFinite()) {
-    return FieldError("sensor_misalignment_rad", "must be finite");
+    return DriveError("sensor_misalignment_rad", "must be finite");
   }
   return {};
 }

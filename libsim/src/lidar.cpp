@@ -3,17 +3,13 @@
 #include <string>
 #include <vector>
 
+#include "cairn/od/units.hpp"
 #include "cairn/sim/world.hpp"
 #include "parallel.hpp"
 #include "sampling.hpp"
 
 namespace cairn::sim {
-namespace {
-
-constexpr double kPi = 3.141592653589793;
-constexpr double kDeg = kPi / 180.0;
-
-}  // namespace
+namespace {}  // namespace
 
 Expected<LidarSpec> LidarSpec::Preset(const std::string& name) {
   // Ring elevations come from the detector's sensor model, so that rendered scans and the

@@ -2,11 +2,10 @@
 
 #include <cmath>
 
+#include "cairn/od/units.hpp"
+
 namespace cairn::sim {
 namespace {
-
-constexpr double kPi = 3.141592653589793;
-constexpr double kDeg = kPi / 180.0;
 
 Terrain RandomTerrain(Random& rng, const RandomSceneOptions& options) {
   const double base = rng.Uniform(-1.0, 1.0);
@@ -73,9 +72,9 @@ Shape RandomShape(Random& rng, Scene& scene, double x, double y, bool& is_obstac
       ridge.top_length_m = rng.Uniform(0.5, 6.0);
       ridge.top_width_m = rng.Uniform(0.1, 1.0);
       ridge.height_m = rng.Uniform(0.2, 1.2);
-      ridge.left_slope_rad = rng.Uniform(15.0, 90.0) * kDeg;
-      ridge.right_slope_rad = rng.Uniform(15.0, 90.0) * kDeg;
-      ridge.end_slope_rad = rng.Uniform(15.0, 90.0) * kDeg;
+      ridge.left_slope_rad = rng.Uniform(15.0, 90.0) * kDegToRad;
+      ridge.right_slope_rad = rng.Uniform(15.0, 90.0) * kDegToRad;
+      ridge.end_slope_rad = rng.Uniform(15.0, 90.0) * kDegToRad;
       is_obstacle = ridge.height_m >= 0.3;
       const double base = terrain.MinHeightOver({x, y}, Bound(ridge).radius_m);
       ridge.height_m += ground - base;

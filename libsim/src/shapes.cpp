@@ -6,12 +6,11 @@
 #include <limits>
 #include <string>
 
+#include "cairn/od/units.hpp"
 #include "cairn/sim/random_scene.hpp"
 
 namespace cairn::sim {
 namespace {
-
-constexpr double kHalfPi = 1.5707963267948966;
 
 template <class... Ts>
 struct Overloaded : Ts... {
@@ -282,7 +281,7 @@ Status ValidateShape(const Shape& shape) {
             if (!Positive(r.top_length_m)) return Error{"ridge: top_length_m must be > 0"};
             if (!Positive(r.top_width_m)) return Error{"ridge: top_width_m must be > 0"};
             if (!Positive(r.height_m)) return Error{"ridge: height_m must be > 0"};
-            const auto slope_ok = [](double a) { return a > 0.0 && a <= kHalfPi + 1e-12; };
+            const auto slope_ok = [](double a) { return a > 0.0 && a <= (0.5 * kPi) + 1e-12; };
             if (!slope_ok(r.left_slope_rad))
               return Error{"ridge: left_slope_rad must be in (0, 90 deg]"};
             if (!slope_ok(r.right_slope_rad))

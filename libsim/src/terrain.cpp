@@ -7,10 +7,10 @@
 #include <string>
 #include <utility>
 
+#include "cairn/od/units.hpp"
+
 namespace cairn::sim {
 namespace {
-
-constexpr double kTwoPi = 6.283185307179586;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
@@ -78,7 +78,7 @@ Terrain Terrain::Slope(double height_m, double slope_rad, double uphill_heading_
 }
 
 Terrain::Wave Terrain::Prepare(const SineWave& w) {
-  const double k = kTwoPi / w.wavelength_m;
+  const double k = (2.0 * kPi) / w.wavelength_m;
   return {w.amplitude_m, k * std::cos(w.direction_rad), k * std::sin(w.direction_rad), w.phase_rad};
 }
 

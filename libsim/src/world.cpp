@@ -11,7 +11,7 @@
 namespace cairn::sim {
 namespace {
 
-Status FieldError(const std::string& field, const std::string& what) {
+Status WorldError(const std::string& field, const std::string& what) {
   return Error{field + ": " + what};
 }
 
@@ -21,16 +21,16 @@ bool Finite(double v) { return std::isfinite(v); }
 
 Status StereoNoise::Validate() const {
   if (!(Finite(depth_sigma_per_m2) && depth_sigma_per_m2 >= 0.0)) {
-    return FieldError("depth_sigma_per_m2", "must be a finite number >= 0");
+    return WorldError("depth_sigma_per_m2", "must be a finite number >= 0");
   }
   if (!(Finite(dropout_probability) && dropout_probability >= 0.0 && dropout_probability < 1.0)) {
-    return FieldError("dropout_probability", "must be in [0, 1)");
+    return WorldError("dropout_probability", "must be in [0, 1)");
   }
   if (edge_smear_px < 0 || edge_smear_px > 32) {
-    return FieldError("edge_smear_px", "must be in 0..32");
+    return WorldError("edge_smear_px", "must be in 0..32");
   }
   if (!(Finite(edge_jump_m) && edge_jump_m > 0.0)) {
-    return FieldError("edge_jump", "must be a finite number > 0");
+    return WorldError("edge_jump", "must be a finite number > 0");
   }
   return Status::Ok();
 }
@@ -39,7 +39,7 @@ Status RangeCameraSpec::Validate() const {
   if (Status s = model.Validate(); !s.ok()) return s;
   if (Status s = noise.Validate(); !s.ok()) return Error{"noise." + s.message()};
   if (!(Finite(max_range_m) && max_range_m > 0.0)) {
-    return FieldError("max_range", "must be a finite number > 0");
+    return WorldError("max_range", "must be a finite number > 0");
   }
   return Status::Ok();
 }
@@ -55,15 +55,15 @@ RangeCameraSpec RangeCameraSpec::Default() {
 }
 
 Status DriveSpec::Validate() const {
-  if (waypoints.size() < 2) return FieldError("waypoints", "needs at least two points");
+  if (waypoints.size() < 2) return WorldError("waypoints", "needs at least two points");
   bool moves = false;
   for (std::size_t i = 0; i < waypoints.size(); ++i) {
     if (!waypoints[i].allFinite()) {
-      return FieldError("waypoints[" + std::to_string(i) + "]", "must be finite");
+      return WorldError("waypoints[" + std::to_string(i) + "]", "must be finite");
     }
     moves = moves || (waypoints[i] - waypoints[0]).norm() > 0.0;
   }
-  if (!moves) return FieldError("waypoints", "are all the same point");
+  if (!moves) return WorldError("waypoints", "are all the same point");
   const struct {
     const char* key;
     double value;
@@ -73,7 +73,7 @@ Status DriveSpec::Validate() const {
                   {"track", track_m}};
   for (const auto& p : positive) {
     if (!(Finite(p.value) && p.value > 0.0)) {
-      return FieldError(p.key, "must be a finite number > 0");
+      return WorldError(p.key, "must be a finite number > 0");
     }
   }
   const struct {
@@ -84,22 +84,22 @@ Status DriveSpec::Validate() const {
                 {"imu_sigma", imu_sigma_rad}};
   for (const auto& p : sigmas) {
     if (!(Finite(p.value) && p.value >= 0.0)) {
-      return FieldError(p.key, "must be a finite number >= 0");
+      return WorldError(p.key, "must be a finite number >= 0");
     }
   }
-  if (!Finite(imu_bias_rad)) return FieldError("imu_bias", "must be finite");
+  if (!Finite(imu_bias_rad)) return WorldError("imu_bias", "must be finite");
   if (!(Finite(speed_wave_mps) && speed_wave_mps >= 0.0 && speed_wave_mps < speed_mps)) {
-    return FieldError("speed_wave", "must be in [0, speed)");
+    return WorldError("speed_wave", "must be in [0, speed)");
   }
   if (!(Finite(speed_wave_period_s) && speed_wave_period_s > 0.0)) {
-    return FieldError("speed_wave_period", "must be a finite number > 0");
+    return WorldError("speed_wave_period", "must be a finite number > 0");
   }
   if (!sensor_misalignment_rad.allFinite()) {
-    return FieldError("sensor_misalignment", "must be finite");
+    return WorldError("sensor_misalignment", "must be finite");
   }
-  if (!T_body_sensor_xyz.allFinite()) return FieldError("sensor_xyz", "must be finite");
+  if (!T_body_sensor_xyz.allFinite()) return WorldError("sensor_xyz", "must be finite");
   if (!(Finite(sensor_pitch_rad) && std::abs(sensor_pitch_rad) < 1.5707963267948966)) {
-    return FieldError("sensor_pitch", "must be in (-90, 90) deg");
+    return WorldError("sensor_pitch", "must be in (-90, 90) deg");
   }
   return Status::Ok();
 }

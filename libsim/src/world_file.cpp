@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/od/units.hpp"
 #include "cairn/sim/world.hpp"
 #include "sampling.hpp"
 #include "yaml_reader.hpp"
@@ -19,10 +20,6 @@ namespace {
 
 using detail::ErrorSink;
 using detail::MapReader;
-
-constexpr double kPi = 3.141592653589793;
-constexpr double kDeg = kPi / 180.0;
-
 Expected<std::string> ReadText(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) return Error{path + ": no such file"};
@@ -44,7 +41,7 @@ Terrain ReadTerrain(ErrorSink& sink, const YAML::Node& node, std::uint64_t world
               {"height", "slope", "uphill_heading", "waves", "roughness", "grid"});
   const double height = m.Number("height", 0.0);
   const double slope = m.Degrees("slope", 0.0);
-  m.Check(std::abs(slope) < 80.0 * kDeg, "slope", "must be in (-80, 80) deg");
+  m.Check(std::abs(slope) < 80.0 * kDegToRad, "slope", "must be in (-80, 80) deg");
   const double uphill = m.Degrees("uphill_heading", 0.0);
   Terrain terrain = Terrain::Slope(height, slope, uphill);
 
@@ -130,7 +127,7 @@ RangeCameraSpec ReadCamera(ErrorSink& sink, const YAML::Node& node) {
   m.Check(!(m.Has("fx") && m.Has("hfov")), "hfov", "give either fx or hfov, not both");
   if (m.Has("hfov")) {
     const double hfov = m.Degrees("hfov");
-    m.Check(hfov > 0.0 && hfov < 170.0 * kDeg, "hfov", "must be in (0, 170) deg");
+    m.Check(hfov > 0.0 && hfov < 170.0 * kDegToRad, "hfov", "must be in (0, 170) deg");
     model.fx = 0.5 * model.width / std::tan(0.5 * hfov);
   } else {
     model.fx = m.Number("fx", 260.0 * model.width / 320.0);
@@ -187,7 +184,7 @@ LidarSpec ReadLidar(ErrorSink& sink, const YAML::Node& node) {
     }
   } else {
     spec.preset = "custom";
-    for (double e : m.Numbers("elevations")) spec.elevations_rad.push_back(e * kDeg);
+    for (double e : m.Numbers("elevations")) spec.elevations_rad.push_back(e * kDegToRad);
   }
   spec.azimuth_steps = static_cast<int>(m.Integer("azimuth_steps", spec.azimuth_steps));
   spec.range_sigma_m = m.Number("range_sigma", spec.range_sigma_m);
@@ -216,9 +213,9 @@ std::vector<Viewpoint> ReadViews(ErrorSink& sink, const YAML::Node& node) {
     m.Check(v.height_m > 0.0, "height", "must be > 0 (above the ground)");
     v.heading_rad = m.Degrees("heading", 0.0);
     v.pitch_rad = m.Degrees("pitch", 0.0);
-    m.Check(std::abs(v.pitch_rad) < 90.0 * kDeg, "pitch", "must be in (-90, 90) deg");
+    m.Check(std::abs(v.pitch_rad) < 90.0 * kDegToRad, "pitch", "must be in (-90, 90) deg");
     v.roll_rad = m.Degrees("roll", 0.0);
-    m.Check(std::abs(v.roll_rad) < 90.0 * kDeg, "roll", "must be in (-90, 90) deg");
+    m.Check(std::abs(v.roll_rad) < 90.0 * kDegToRad, "roll", "must be in (-90, 90) deg");
     v.follow_terrain = m.Bool("follow_terrain", false);
     views.push_back(v);
   }
@@ -307,7 +304,7 @@ std::string KindList() {
 // A slope of a face read in degrees: (0, max] deg.
 double ReadSlope(MapReader& m, const std::string& key, double fallback_rad, double max_deg) {
   const double slope = m.Degrees(key, fallback_rad);
-  m.Check(slope > 0.0 && slope <= max_deg * kDeg + 1e-12, key,
+  m.Check(slope > 0.0 && slope <= max_deg * kDegToRad + 1e-12, key,
           "must be in (0, " + std::to_string(static_cast<int>(max_deg)) + "] deg");
   return slope;
 }

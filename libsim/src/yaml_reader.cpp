@@ -3,10 +3,9 @@
 #include <cmath>
 #include <set>
 
+#include "cairn/od/units.hpp"
+
 namespace cairn::sim::detail {
-
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
-
 void ErrorSink::Fail(const std::string& field, const std::string& what) {
   if (error_) return;
   std::string message = file_;

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "cairn/od/io/intrinsics.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
@@ -26,8 +27,7 @@ namespace {
 
 namespace fs = std::filesystem;
 namespace sim = cairn::sim;
-
-constexpr double kDeg = 3.141592653589793 / 180.0;
+using cairn::kDegToRad;
 constexpr double kDepthScale = 0.001;  // m per unit in depth.png
 constexpr int kNoHitLabel = 255;
 
@@ -59,9 +59,9 @@ sim::Scene MakeScene(std::vector<DemoObject>& heights) {
   mound.top_length_m = 5.0;
   mound.top_width_m = 0.5;
   mound.height_m = 0.8;
-  mound.right_slope_rad = 65.0 * kDeg;  // the steep face, turned towards the image centre
-  mound.left_slope_rad = 20.0 * kDeg;
-  mound.end_slope_rad = 18.0 * kDeg;
+  mound.right_slope_rad = 65.0 * kDegToRad;  // the steep face, turned towards the image centre
+  mound.left_slope_rad = 20.0 * kDegToRad;
+  mound.end_slope_rad = 18.0 * kDegToRad;
   add(scene.AddRidge(mound, true, "mound, steep side face"), 0.8);
   add(scene.AddBox(5.5, 2.0, {2.0, 0.3, 0.35}, -0.4, true, "log"), 0.35);
   return scene;
@@ -111,8 +111,8 @@ int main(int argc, char** argv) {
   model.fx = model.fy = 525.0;
   model.cx = 319.5;
   model.cy = 239.5;
-  const sim::Camera camera =
-      sim::Camera::AboveGround(model, scene.terrain(), 0.0, 0.0, 1.6, 0.0, 8.0 * kDeg, 2.0 * kDeg);
+  const sim::Camera camera = sim::Camera::AboveGround(model, scene.terrain(), 0.0, 0.0, 1.6, 0.0,
+                                                      8.0 * kDegToRad, 2.0 * kDegToRad);
   sim::RenderOptions options;
   options.max_range_m = 60.0;  // keeps every depth below 65.535 m, the PNG's limit
   const auto frame = sim::RenderDepth(scene, camera, options);

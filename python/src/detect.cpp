@@ -11,6 +11,7 @@
 #include "cairn/od/rules.hpp"
 #include "cairn/od/sensor_model.hpp"
 #include "types.hpp"
+#include "cairn/util/format.hpp"
 
 namespace cairn::python {
 
@@ -55,10 +56,6 @@ DetectionResult DetectOn(od::RangeImage image, const Settings& settings,
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
 const Settings& SettingsOrDefaults(const Settings* settings) {
   static const Settings kDefaults;
   return settings != nullptr ? *settings : kDefaults;
@@ -116,7 +113,7 @@ std::shared_ptr<DetectionResult> DetectPoints(const InArray<float>& points,
                         std::to_string(placed.image.width()) + " columns";
   auto result = std::make_shared<DetectionResult>(
       DetectOn(std::move(placed.image), s, options, std::move(run)));
-  result->cpp_s = SecondsSince(start);
+  result->cpp_s = util::SecondsSince(start);
   return result;
 }
 
@@ -139,7 +136,7 @@ std::shared_ptr<DetectionResult> DetectDepth(const InArray<float>& depth_m, doub
   od::io::RunDescription run;
   run.depth_file = source;
   auto result = std::make_shared<DetectionResult>(DetectOn(std::move(image), s, options, run));
-  result->cpp_s = SecondsSince(start);
+  result->cpp_s = util::SecondsSince(start);
   return result;
 }
 

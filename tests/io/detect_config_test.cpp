@@ -4,12 +4,11 @@
 
 #include <string>
 
+#include "cairn/od/units.hpp"
 #include "temp_dir.hpp"
 
 namespace cairn::od::io {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 testing::AssertionResult StartsWith(const std::string& text, const std::string& prefix) {
   if (text.rfind(prefix, 0) == 0) return testing::AssertionSuccess();

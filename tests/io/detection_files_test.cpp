@@ -10,15 +10,13 @@
 #include <opencv2/imgcodecs.hpp>
 #include <set>
 
+#include "cairn/od/units.hpp"
 #include "cairn/util/atomic_file.hpp"
 #include "temp_dir.hpp"
 
 namespace cairn::od::io {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-/// A 5x4 detection with two segments: 1 (kept) and 2 (rejected), ids as given.
 Detection SmallDetection(std::int32_t first_id = 1, std::int32_t second_id = 2) {
   Detection d;
   d.width = 5;

@@ -6,12 +6,11 @@
 #include <string>
 
 #include "cairn/od/leveling.hpp"
+#include "cairn/od/units.hpp"
 #include "temp_dir.hpp"
 
 namespace cairn::od::io {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 const std::string kSize =
     "width: 640\nheight: 480\nfx: 525.0\nfy: 520.0\ncx: 319.5\ncy: 239.5\n"

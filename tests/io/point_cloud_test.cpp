@@ -33,6 +33,7 @@
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
 #include "cairn/od/sensor_model.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn_command.hpp"
 #include "temp_dir.hpp"
 
@@ -41,9 +42,6 @@ namespace {
 
 using od::io::OrganisedMode;
 using od::io::PointCloud;
-
-constexpr double kPi = 3.14159265358979323846;
-
 bool Contains(const std::string& haystack, const std::string& needle) {
   return haystack.find(needle) != std::string::npos;
 }

@@ -20,6 +20,7 @@
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/scene.hpp"
 #include "cairn/sim/stereo.hpp"
@@ -31,7 +32,6 @@
 namespace cairn::od::io {
 namespace {
 
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 const std::filesystem::path kDatasets = CAIRN_SHARED_DATASETS;
 
 #define SKIP_WITHOUT_DATASET(folder)                                                      \
@@ -77,8 +77,9 @@ TEST(StereoCalibrationYaml, ReadsEveryField) {
   EXPECT_DOUBLE_EQ(c->baseline_m, 0.12);
   EXPECT_DOUBLE_EQ(c->fx_baseline(), 60.0);
   ASSERT_TRUE(c->up.has_value());
-  EXPECT_LT((*c->up - Eigen::Vector3d(0.0, -std::cos(10 * kDeg), -std::sin(10 * kDeg))).norm(),
-            1e-12);
+  EXPECT_LT(
+      (*c->up - Eigen::Vector3d(0.0, -std::cos(10 * kDegToRad), -std::sin(10 * kDegToRad))).norm(),
+      1e-12);
   EXPECT_FALSE(c->rectification.has_value());
 }
 
@@ -385,7 +386,7 @@ struct RenderedScene {
     rig.baseline_m = 0.3;
     rig.image.supersampling = 2;
     rig.image.texture.plain_ids = {plain_id};
-    camera = sim::Camera::AboveGround(rig.model, scene.terrain(), 0, 0, 1.5, 0.0, 8 * kDeg, 0);
+    camera = sim::Camera::AboveGround(rig.model, scene.terrain(), 0, 0, 1.5, 0.0, 8 * kDegToRad, 0);
   }
 };
 
@@ -572,11 +573,11 @@ TEST(StereoDepth, RawCamerasAreRectifiedByTheOpenCvCalibration) {
   const PinholeModel raw1 = Model(320, 240, 256.0);
   PinholeModel raw2 = Model(320, 240, 248.0);
   raw2.cx = 162.0;
-  const sim::Camera left = sim::Camera::AboveGround(raw1, s.scene.terrain(), 0, 0, 1.5, 1.5 * kDeg,
-                                                    8 * kDeg, 0.5 * kDeg);
+  const sim::Camera left = sim::Camera::AboveGround(
+      raw1, s.scene.terrain(), 0, 0, 1.5, 1.5 * kDegToRad, 8 * kDegToRad, 0.5 * kDegToRad);
   sim::Camera right = sim::Camera::FromAttitude(
       raw2, left.Position() + left.T_world_camera.linear() * Eigen::Vector3d(0.3, 0.01, -0.005),
-      -1.0 * kDeg, 7.5 * kDeg, -0.3 * kDeg);
+      -1.0 * kDegToRad, 7.5 * kDegToRad, -0.3 * kDegToRad);
   sim::TexturedImageSpec image = s.rig.image;
   Expected<sim::GreyImage> left_raw = sim::RenderGrey(s.scene, left, image, 1);
   Expected<sim::GreyImage> right_raw = sim::RenderGrey(s.scene, right, image, 2);

@@ -5,8 +5,8 @@
 #include "cairn/map/checkpoint.hpp"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 #include <octomap/OcTreeKey.h>
+#include <unistd.h>
 
 #include <cstring>
 #include <filesystem>
@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "cairn/map/terrain_map.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/scene.hpp"
 #include "io/temp_dir.hpp"
@@ -26,8 +27,6 @@ namespace cairn::map {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
-
 fs::path TempDir(const std::string& name) {
   return test::FreshDir("cairn_checkpoint_test", name);
 }
@@ -47,9 +46,10 @@ std::vector<test::SimFrame> DriveFrames() {
   const sim::RangeCameraSpec spec = test::SmallCamera(sim::RangeCameraSpec::Default(), 120);
   for (int k = 0; k < 14; ++k) {
     const Eigen::Vector3d position(0.5 * k, 0.1 * k, 1.5);
-    const Eigen::Isometry3d T = sim::Camera::FromAttitude(od::PinholeModel{}, position,
-                                                          (2.0 * k - 8.0) * kDeg, 20.0 * kDeg, 0.0)
-                                    .T_world_camera;
+    const Eigen::Isometry3d T =
+        sim::Camera::FromAttitude(od::PinholeModel{}, position, (2.0 * k - 8.0) * kDegToRad,
+                                  20.0 * kDegToRad, 0.0)
+            .T_world_camera;
     Expected<test::SimFrame> frame =
         test::CameraFrame(scene, spec, T, 0.1 * k, 100 + k, *settings, 7 + k);
     EXPECT_TRUE(frame.ok()) << (frame ? "" : frame.error().message);

@@ -5,21 +5,21 @@
 // cairn_euroc_gravity program and its test.
 #pragma once
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
-#include <Eigen/Eigenvalues>
-#include <cstdlib>
-#include <random>
-#include <sstream>
-
-#include "cairn/map/gravity_estimator.hpp"
-#include "cairn/od/io/stereo.hpp"
 #include "../io/plane_fit.hpp"
+#include "cairn/map/gravity_estimator.hpp"
 #include "cairn/od/expected.hpp"
+#include "cairn/od/io/stereo.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sources/asl_dataset.hpp"
 
 namespace cairn::test {
@@ -58,7 +58,6 @@ inline Eigen::Matrix3d EurocBodyFromImu() {
 /// `root` holds mav0/ and ov_data/euroc_mav/V1_01_easy.csv. `max_frames` > 0 stops early.
 inline Expected<EurocGravityResult> RunEurocGravity(const std::filesystem::path& root,
                                                     int max_frames = 0) {
-  constexpr double kDeg = 3.14159265358979323846 / 180.0;
   Expected<sources::AslImu> imu = sources::ReadAslImu(root / "mav0");
   if (!imu) return imu.error();
   Expected<std::vector<sources::AslGroundTruth>> truth =
@@ -113,12 +112,13 @@ inline Expected<EurocGravityResult> RunEurocGravity(const std::filesystem::path&
     ++result.frames;
     result.duration_s = frame.stamp_s;
     const Eigen::Vector3d up = R_world_body.transpose() * Eigen::Vector3d::UnitZ();
-    tilt.push_back(std::atan2(up.cross(est->up_body).norm(), up.dot(est->up_body)) / kDeg);
+    tilt.push_back(std::atan2(up.cross(est->up_body).norm(), up.dot(est->up_body)) / kDegToRad);
     const double true_roll = std::atan2(R_world_body(2, 1), R_world_body(2, 2));
     const double true_pitch =
         std::atan2(-R_world_body(2, 0), std::hypot(R_world_body(0, 0), R_world_body(1, 0)));
-    roll.push_back(std::abs(std::remainder(est->roll_rad - true_roll, 2.0 * 3.14159265358979)) / kDeg);
-    pitch.push_back(std::abs(est->pitch_rad - true_pitch) / kDeg);
+    roll.push_back(std::abs(std::remainder(est->roll_rad - true_roll, 2.0 * 3.14159265358979)) /
+                   kDegToRad);
+    pitch.push_back(std::abs(est->pitch_rad - true_pitch) / kDegToRad);
     result.accel_bias_mps2 = est->accel_bias_mps2;
     result.gyro_bias_radps = est->gyro_bias_radps;
     result.truth_accel_bias_mps2 = g.accel_bias_mps2;
@@ -133,11 +133,10 @@ inline Expected<EurocGravityResult> RunEurocGravity(const std::filesystem::path&
   result.pitch_p95_deg = EurocPercentile(pitch, 0.95);
   if (rest_sum.norm() > 0.0 && rest_up.norm() > 0.0) {
     const Eigen::Vector3d a = rest_sum.normalized(), b = rest_up.normalized();
-    result.rest_accel_tilt_deg = std::atan2(a.cross(b).norm(), a.dot(b)) / kDeg;
+    result.rest_accel_tilt_deg = std::atan2(a.cross(b).norm(), a.dot(b)) / kDegToRad;
   }
   return result;
 }
-
 
 /// The up vector at rest from the stereo pairs' floor and from the accelerometer, each
 /// against the truth, in the rectified left camera's frame [deg].
@@ -191,7 +190,6 @@ inline bool FloorNormal(const std::vector<Eigen::Vector3d>& points, Eigen::Vecto
 /// od::io::ComputeStereoDepth, the floor's normal and the accelerometer's mean direction
 /// (+-25 ms around each pair) against the true up (OpenVINS' attitude).
 inline Expected<EurocStereoUpResult> RunEurocStereoUp(const std::filesystem::path& root) {
-  constexpr double kDeg = 3.14159265358979323846 / 180.0;
   Expected<sources::AslDataset> data = sources::ReadAslDataset(root / "mav0");
   if (!data) return data.error();
   if (data->cameras.size() < 2) return Error{"EuRoC: cam0 and cam1 needed"};
@@ -268,7 +266,7 @@ inline Expected<EurocStereoUpResult> RunEurocStereoUp(const std::filesystem::pat
     }
     const Eigen::Vector3d up_accel = R_rect_body * data->imu.T_body_imu.linear() * f.normalized();
     auto angle = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-      return std::atan2(a.cross(b).norm(), a.dot(b)) / kDeg;
+      return std::atan2(a.cross(b).norm(), a.dot(b)) / kDegToRad;
     };
     floor_err.push_back(angle(floor, up_true));
     accel_err.push_back(angle(up_accel, up_true));

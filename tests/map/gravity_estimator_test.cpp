@@ -2,9 +2,10 @@
 // slope from a biased IMU attitude; an accelerometer bias observed when the vehicle turns and
 // flagged when it drives straight; a sensor mount misalignment recovered from trunks and
 // flagged in an open field; the error terms' derivatives against numeric ones.
-#include <gtest/gtest.h>
+#include "cairn/map/gravity_estimator.hpp"
 
 #include <ceres/gradient_checker.h>
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
@@ -13,7 +14,7 @@
 #include <random>
 #include <vector>
 
-#include "cairn/map/gravity_estimator.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/drive.hpp"
 #include "cairn/sim/terrain.hpp"
 #include "gravity_terms.hpp"
@@ -21,10 +22,6 @@
 namespace cairn::map {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
-
-// A drive's frames as the estimator takes them, and the truth beside them.
 struct Truth {
   Eigen::Matrix3d R_world_body;
   Eigen::Matrix3d R_world_sensor;
@@ -32,8 +29,8 @@ struct Truth {
 
 struct Cues {
   bool trunks = true;         // four trunks per frame, leaning N(0, 1 deg), one in ten 12 deg
-  double attitude_bias_rad = 2.5 * kDeg;  // the IMU attitude output's bias (roll and pitch)
-  double attitude_sigma_rad = 0.4 * kDeg;
+  double attitude_bias_rad = 2.5 * kDegToRad;  // the IMU attitude output's bias (roll and pitch)
+  double attitude_sigma_rad = 0.4 * kDegToRad;
   std::uint64_t seed = 1;
 };
 
@@ -46,7 +43,7 @@ struct DriveRun {
 
 // Tilt of `est_up` against the true up in the same frame [deg].
 double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b)) / kDeg;
+  return std::atan2(a.cross(b).norm(), a.dot(b)) / kDegToRad;
 }
 
 double Percentile(std::vector<double> v, double q) {
@@ -87,7 +84,8 @@ DriveRun Estimate(const GravityEstimatorConfig& config, const Eigen::Matrix3d& R
     frame.attitude_prior_rad = prior;
     if (cues.trunks) {
       for (int t = 0; t < 4; ++t) {
-        const double lean = (k * 4 + t) % 10 == 3 ? 12.0 * kDeg : 1.0 * kDeg * normal(rng);
+        const double lean =
+            (k * 4 + t) % 10 == 3 ? 12.0 * kDegToRad : 1.0 * kDegToRad * normal(rng);
         const double towards = uniform(rng);
         const Eigen::Vector3d axis(std::sin(lean) * std::cos(towards),
                                    std::sin(lean) * std::sin(towards), std::cos(lean));
@@ -202,7 +200,7 @@ TEST(GravityEstimator, RecoversAKnownTiltOnASideSlopeFromABiasedPrior) {
   // 8 deg side slope (uphill to the left), speed changes, the IMU's attitude output 2.5 deg
   // off in roll and pitch, an accelerometer bias, trunks in view and a calibrated mount:
   // the trunks see the tilt itself, so even driving straight the bias is told from a tilt.
-  const sim::Terrain terrain = sim::Terrain::Slope(0.0, 8.0 * kDeg, 90.0 * kDeg);
+  const sim::Terrain terrain = sim::Terrain::Slope(0.0, 8.0 * kDegToRad, 90.0 * kDegToRad);
   sim::DriveSpec spec = SideSlopeDrive(40.0);
   spec.speed_wave_mps = 0.5;
   sim::ImuSpec imu;
@@ -225,10 +223,10 @@ TEST(GravityEstimator, RecoversAKnownTiltOnASideSlopeFromABiasedPrior) {
   EXPECT_NEAR(last.accel_bias_mps2.x(), 0.05, 0.02) << last.BriefReport();
   EXPECT_NEAR(last.accel_bias_mps2.y(), -0.05, 0.02) << last.BriefReport();
   // The attitude output's bias is found too (it is what the prior got wrong).
-  EXPECT_NEAR(last.attitude_bias_rad.x(), 2.5 * kDeg, 0.3 * kDeg);
-  EXPECT_NEAR(last.attitude_bias_rad.y(), 2.5 * kDeg, 0.3 * kDeg);
+  EXPECT_NEAR(last.attitude_bias_rad.x(), 2.5 * kDegToRad, 0.3 * kDegToRad);
+  EXPECT_NEAR(last.attitude_bias_rad.y(), 2.5 * kDegToRad, 0.3 * kDegToRad);
   ASSERT_TRUE(std::isfinite(last.attitude_covariance(0, 0)));
-  EXPECT_LT(std::sqrt(last.attitude_covariance(0, 0)), 0.3 * kDeg);
+  EXPECT_LT(std::sqrt(last.attitude_covariance(0, 0)), 0.3 * kDegToRad);
 }
 
 TEST(GravityEstimator, AnAccelerometerBiasIsObservedWhenTurningAndFlaggedWhenStraight) {
@@ -258,15 +256,15 @@ TEST(GravityEstimator, AnAccelerometerBiasIsObservedWhenTurningAndFlaggedWhenStr
 }
 
 TEST(GravityEstimator, AMountMisalignmentIsRecoveredFromTrunksAndFlaggedInAnOpenField) {
-  const sim::Terrain terrain = sim::Terrain::Slope(0.0, 6.0 * kDeg, 45.0 * kDeg);
+  const sim::Terrain terrain = sim::Terrain::Slope(0.0, 6.0 * kDegToRad, 45.0 * kDegToRad);
   sim::DriveSpec spec = SideSlopeDrive(30.0);
   // About the camera's x axis (right): the camera pitches 2.5 deg more than its nominal mount.
-  spec.sensor_misalignment_rad << 2.5 * kDeg, 0.0, 0.0;
+  spec.sensor_misalignment_rad << 2.5 * kDegToRad, 0.0, 0.0;
   const DriveRun trees = EstimateDrive(GravityEstimatorConfig{}, terrain, spec, sim::ImuSpec{}, Cues{}, 20);
   const GravityEstimate& seen = trees.estimates.back();
   Print("mount misaligned 2.5 deg, trunks, estimated sensor tilt", trees.sensor_error_deg);
   EXPECT_FALSE(seen.Degenerate(GravityDegeneracy::State::kMount)) << seen.BriefReport();
-  EXPECT_GT(seen.mount_rad.norm(), 2.0 * kDeg);
+  EXPECT_GT(seen.mount_rad.norm(), 2.0 * kDegToRad);
   EXPECT_LT(Percentile(trees.sensor_error_deg, 0.5), 0.2);
   EXPECT_LT(Percentile(trees.sensor_error_deg, 0.95), 0.5);
 
@@ -278,7 +276,7 @@ TEST(GravityEstimator, AMountMisalignmentIsRecoveredFromTrunksAndFlaggedInAnOpen
   Print("mount misaligned 2.5 deg, open field, body tilt", field.body_error_deg);
   ASSERT_TRUE(blind.Degenerate(GravityDegeneracy::State::kMount)) << blind.BriefReport();
   EXPECT_NE(blind.BriefReport().find("0 vertical cues"), std::string::npos);
-  EXPECT_LT(blind.mount_rad.norm(), 0.5 * kDeg);  // no correction invented
+  EXPECT_LT(blind.mount_rad.norm(), 0.5 * kDegToRad);       // no correction invented
   EXPECT_GT(Percentile(field.sensor_error_deg, 0.5), 2.0);  // the misalignment remains
   EXPECT_LT(Percentile(field.body_error_deg, 0.5), 0.2);    // the body tilt is still right
 }

@@ -10,11 +10,10 @@
 
 #include "cairn/map/map_config_file.hpp"
 #include "cairn/od/io/detect_config.hpp"
+#include "cairn/od/units.hpp"
 
 namespace cairn::map {
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 TEST(MapConfig, DefaultsValidate) { EXPECT_TRUE(MapConfig{}.Validate().ok()); }
 
@@ -41,10 +40,10 @@ TEST(MapConfig, ValidateNamesTheBadField) {
       {[](MapConfig& c) { c.obstacle_probability = 0.99; }, "obstacle_probability"},
       {[](MapConfig& c) { c.obstacle_min_height_m = -0.1; }, "obstacle_min_height"},
       {[](MapConfig& c) { c.ground_radius_m = -1.0; }, "ground_radius"},
-      {[](MapConfig& c) { c.ground_max_slope_rad = 90.0 * kDeg; }, "ground_max_slope"},
+      {[](MapConfig& c) { c.ground_max_slope_rad = 90.0 * kDegToRad; }, "ground_max_slope"},
       {[](MapConfig& c) { c.merge_distance_m = INFINITY; }, "merge_distance"},
       {[](MapConfig& c) { c.plane_fit_radius_m = 0.0; }, "plane_fit_radius"},
-      {[](MapConfig& c) { c.slope_cost_max_rad = 95.0 * kDeg; }, "slope_cost_max"},
+      {[](MapConfig& c) { c.slope_cost_max_rad = 95.0 * kDegToRad; }, "slope_cost_max"},
       {[](MapConfig& c) { c.roughness_cost_max_m = 0.0; }, "roughness_cost_max"},
       {[](MapConfig& c) { c.robot_radius_m = -0.5; }, "robot_radius"},
       {[](MapConfig& c) { c.inflation_radius_m = 0.3; }, "inflation_radius"},
@@ -76,7 +75,7 @@ TEST(MapConfigFile, ReadsTheMapSectionInFileUnits) {
   EXPECT_DOUBLE_EQ(c->voxel_size_m, 0.05);
   EXPECT_DOUBLE_EQ(c->cell_size_m, 0.25);
   EXPECT_DOUBLE_EQ(c->window_size_m, 30.0);
-  EXPECT_NEAR(c->slope_cost_max_rad, 20.0 * kDeg, 1e-15);
+  EXPECT_NEAR(c->slope_cost_max_rad, 20.0 * kDegToRad, 1e-15);
   EXPECT_DOUBLE_EQ(c->robot_radius_m, 0.7);
   EXPECT_DOUBLE_EQ(c->inflation_radius_m, 2.0);
   EXPECT_EQ(c->threads, 3);

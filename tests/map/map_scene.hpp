@@ -3,6 +3,7 @@
 #pragma once
 
 #include "cairn/map/terrain_map.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/scene.hpp"
 #include "sim_frames.hpp"
@@ -10,7 +11,6 @@
 namespace cairn::test {
 
 inline Expected<map::TerrainMap> SmallMappedScene(const map::MapConfig& config = {}) {
-  constexpr double kDeg = 3.14159265358979323846 / 180.0;
   sim::Scene scene;
   scene.AddBox(4.0, 0.0, {1.0, 1.0, 0.8}, 0.0, true, "box");
   scene.AddPole(6.0, 2.0, 0.1, 1.2, true, "pole");
@@ -21,9 +21,10 @@ inline Expected<map::TerrainMap> SmallMappedScene(const map::MapConfig& config =
   const Eigen::Vector3d positions[] = {{1.0, 0.0, 2.0}, {1.5, 2.5, 2.0}};
   const double headings_deg[] = {0.0, -20.0};
   for (int k = 0; k < 2; ++k) {
-    const Eigen::Isometry3d T = sim::Camera::FromAttitude(od::PinholeModel{}, positions[k],
-                                                          headings_deg[k] * kDeg, 25.0 * kDeg, 0.0)
-                                    .T_world_camera;
+    const Eigen::Isometry3d T =
+        sim::Camera::FromAttitude(od::PinholeModel{}, positions[k], headings_deg[k] * kDegToRad,
+                                  25.0 * kDegToRad, 0.0)
+            .T_world_camera;
     Expected<SimFrame> frame = CameraFrame(scene, SmallCamera(sim::RangeCameraSpec::Default(), 160),
                                            T, 0.5 * k, k, *settings);
     if (!frame) return frame.error();

@@ -21,6 +21,7 @@
 #include "cairn/map/map_files.hpp"
 #include "cairn/map/mapper_config_file.hpp"
 #include "cairn/map/tilt_refiner.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
@@ -31,8 +32,6 @@ namespace cairn::map {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
-
 fs::path TempDir(const std::string& name) {
   return test::FreshDir("cairn_mapper_test", name);
 }
@@ -48,7 +47,7 @@ struct InputFrame {
 // A drive along +x past boxes and poles on a gentle slope: 12 frames of a small camera,
 // 0.5 m apart, seen from the true pose and placed by a pose biased by `bias_rad`.
 std::vector<InputFrame> Drive(double bias_rad) {
-  sim::Scene scene(sim::Terrain::Slope(0.0, 4.0 * kDeg, 0.0));
+  sim::Scene scene(sim::Terrain::Slope(0.0, 4.0 * kDegToRad, 0.0));
   scene.AddBox(4.0, 0.5, {1.0, 1.0, 0.8}, 0.3, true, "box");
   scene.AddPole(6.0, 2.0, 0.1, 1.2, true, "pole");
   scene.AddBox(8.5, -1.5, {0.6, 0.8, 0.5}, 0.0, true, "rock");
@@ -57,8 +56,9 @@ std::vector<InputFrame> Drive(double bias_rad) {
   for (int k = 0; k < 12; ++k) {
     const double x = 0.5 * k, y = 0.05 * k;
     const Eigen::Vector3d position(x, y, scene.terrain().Height(x, y) + 1.5);
-    const double yaw = (1.0 * k - 4.0) * kDeg;
-    sim::Camera camera = sim::Camera::FromAttitude(spec.model, position, yaw, 15.0 * kDeg, 0.0);
+    const double yaw = (1.0 * k - 4.0) * kDegToRad;
+    sim::Camera camera =
+        sim::Camera::FromAttitude(spec.model, position, yaw, 15.0 * kDegToRad, 0.0);
     Expected<sim::DepthFrame> depth = sim::RenderRangeCamera(scene, spec, camera, 11 + k);
     EXPECT_TRUE(depth.ok()) << (depth ? "" : depth.error().message);
     if (!depth) return {};
@@ -202,13 +202,13 @@ TEST(Mapper, ResumedWithPriorTiltGivesTheSameMap) {
 }
 
 TEST(Mapper, ResumedWithTheTiltRefinerGivesTheSameMap) {
-  ExpectResumeGivesTheSameMap(TiltMode::kRefineToMap, 1.0 * kDeg);
+  ExpectResumeGivesTheSameMap(TiltMode::kRefineToMap, 1.0 * kDegToRad);
 }
 
 // The gravity step's window and marginalised prior are replayed from the checkpoint: the
 // resumed run fuses at bit-identical poses.
 TEST(Mapper, ResumedWithTheGravityEstimatorGivesTheSameMap) {
-  ExpectResumeGivesTheSameMap(TiltMode::kGravity, 1.0 * kDeg);
+  ExpectResumeGivesTheSameMap(TiltMode::kGravity, 1.0 * kDegToRad);
 }
 
 TEST(Mapper, ACheckpointOfAnotherTiltModeIsRefused) {
@@ -321,10 +321,10 @@ TEST(MapperSettings, EverySectionOfTheFileIsReadStrictly) {
   EXPECT_DOUBLE_EQ(s->mapper.detector.min_height_m, 0.25);
   EXPECT_DOUBLE_EQ(s->mapper.map.cell_size_m, 0.25);
   EXPECT_EQ(s->mapper.tilt.mode, TiltMode::kRefineToMap);
-  EXPECT_DOUBLE_EQ(s->mapper.tilt.refiner.prior_sigma_rad, 1.5 * kDeg);
+  EXPECT_DOUBLE_EQ(s->mapper.tilt.refiner.prior_sigma_rad, 1.5 * kDegToRad);
   EXPECT_EQ(s->mapper.tilt.refiner.max_points, 900);
   EXPECT_DOUBLE_EQ(s->mapper.frames.max_speed_mps, 20.0);
-  EXPECT_DOUBLE_EQ(s->mapper.frames.max_turn_rate_radps, 90.0 * kDeg);
+  EXPECT_DOUBLE_EQ(s->mapper.frames.max_turn_rate_radps, 90.0 * kDegToRad);
   EXPECT_EQ(s->mapper.frames.min_valid_points, 100);
   EXPECT_TRUE(ParseMapperSettings("", "empty.yaml").ok());
   EXPECT_TRUE(ParseMapperSettings("tilt:\n  refine: false\n", "only_tilt.yaml").ok());

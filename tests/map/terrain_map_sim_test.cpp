@@ -14,13 +14,12 @@
 #include <vector>
 
 #include "cairn/map/terrain_map.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/render.hpp"
 #include "sim_frames.hpp"
 
 namespace cairn::map {
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 using test::SimFrame;
 
@@ -47,7 +46,7 @@ DriveRun Drive(const sim::World& world, const std::vector<std::vector<Eigen::Vec
   const sim::RangeCameraSpec camera = test::SmallCamera(world.camera, 160);
   for (const std::vector<Eigen::Vector2d>& waypoints : passes) {
     const Expected<sim::Drive> drive =
-        test::TrueDrive(world.scene.terrain(), waypoints, 2.0, rate_hz, 8.0 * kDeg,
+        test::TrueDrive(world.scene.terrain(), waypoints, 2.0, rate_hz, 8.0 * kDegToRad,
                         lidar ? sim::SensorFrame::kLidar : sim::SensorFrame::kCameraOptical);
     EXPECT_TRUE(drive.ok()) << (drive ? "" : drive.error().message);
     if (!drive) return run;

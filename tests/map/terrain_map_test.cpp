@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "cairn/map/terrain_octree.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/scene.hpp"
 #include "key_bricks.hpp"  // libmap/src: the free-space key set
 #include "sim_frames.hpp"
@@ -22,14 +23,12 @@
 namespace cairn::map {
 namespace {
 
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
-
 using test::SimFrame;
 
 Eigen::Isometry3d CameraPose(const Eigen::Vector3d& position, double heading_deg,
                              double pitch_deg) {
-  return sim::Camera::FromAttitude(od::PinholeModel{}, position, heading_deg * kDeg,
-                                   pitch_deg * kDeg, 0.0)
+  return sim::Camera::FromAttitude(od::PinholeModel{}, position, heading_deg * kDegToRad,
+                                   pitch_deg * kDegToRad, 0.0)
       .T_world_camera;
 }
 
@@ -227,7 +226,7 @@ TEST(TerrainMap, RollingWindowMatchesTheUnboundedMapAndStaysBounded) {
   scene.AddBox(27.0, -2.0, {0.8, 1.2, 0.7}, -0.2, true);
   const od::io::DetectSettings settings = Settings();
   const Expected<sim::Drive> drive =
-      test::TrueDrive(scene.terrain(), {{0.0, 0.0}, {34.0, 0.0}}, 2.0, 2.5, 10.0 * kDeg);
+      test::TrueDrive(scene.terrain(), {{0.0, 0.0}, {34.0, 0.0}}, 2.0, 2.5, 10.0 * kDegToRad);
   ASSERT_TRUE(drive.ok()) << drive.error().message;
 
   MapConfig unbounded_config;

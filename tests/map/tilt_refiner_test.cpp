@@ -7,12 +7,11 @@
 #include <cmath>
 #include <random>
 
+#include "cairn/od/units.hpp"
+
 namespace cairn::map {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
-
-/// Sloped (about 8.5 deg up along x) and undulating terrain, z up [m].
 double Terrain(double x, double y) {
   return 0.15 * x + 0.3 * std::sin(0.5 * y) + 0.2 * std::cos(0.7 * x);
 }
@@ -37,8 +36,8 @@ ElevationPatch TerrainPatch(double resolution_m = 0.2) {
 Eigen::Isometry3d TruePose() {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()) *
-                Eigen::AngleAxisd(-8.0 * kDeg, Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(3.0 * kDeg, Eigen::Vector3d::UnitX()))
+                Eigen::AngleAxisd(-8.0 * kDegToRad, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(3.0 * kDegToRad, Eigen::Vector3d::UnitX()))
                    .toRotationMatrix();
   T.translation() = Eigen::Vector3d(0.0, 0.0, Terrain(0.0, 0.0) + 1.5);
   return T;
@@ -83,16 +82,16 @@ double TiltBetween(const Eigen::Matrix3d& R_world_a, const Eigen::Matrix3d& R_wo
 
 TEST(TiltRefiner, RecoversTheAttitudeErrorOnSlopedUndulatingGround) {
   const Eigen::Isometry3d truth = TruePose();
-  const Eigen::Isometry3d prior = Perturbed(truth, 1.5 * kDeg, -2.0 * kDeg, 0.10);
-  ASSERT_GT(TiltBetween(prior.linear(), truth.linear()), 2.4 * kDeg);  // the error to undo
+  const Eigen::Isometry3d prior = Perturbed(truth, 1.5 * kDegToRad, -2.0 * kDegToRad, 0.10);
+  ASSERT_GT(TiltBetween(prior.linear(), truth.linear()), 2.4 * kDegToRad);  // the error to undo
   Expected<TiltEstimate> estimate =
       RefineTilt(GroundPoints(truth), prior, TerrainPatch(), TiltRefinerConfig{});
   ASSERT_TRUE(estimate) << estimate.error().message;
   ASSERT_TRUE(estimate->usable) << estimate->report;
-  EXPECT_LT(TiltBetween(estimate->T_world_sensor.linear(), truth.linear()), 0.05 * kDeg);
+  EXPECT_LT(TiltBetween(estimate->T_world_sensor.linear(), truth.linear()), 0.05 * kDegToRad);
   EXPECT_NEAR(estimate->T_world_sensor.translation().z(), truth.translation().z(), 0.01);
-  EXPECT_NEAR(estimate->roll_rad, -1.5 * kDeg, 0.1 * kDeg);
-  EXPECT_NEAR(estimate->pitch_rad, 2.0 * kDeg, 0.1 * kDeg);
+  EXPECT_NEAR(estimate->roll_rad, -1.5 * kDegToRad, 0.1 * kDegToRad);
+  EXPECT_NEAR(estimate->pitch_rad, 2.0 * kDegToRad, 0.1 * kDegToRad);
   EXPECT_GT(estimate->rms_before_m, 0.2);
   EXPECT_LT(estimate->rms_after_m, 0.01);
   // Yaw and the horizontal position are not touched.
@@ -102,17 +101,17 @@ TEST(TiltRefiner, RecoversTheAttitudeErrorOnSlopedUndulatingGround) {
 
 TEST(TiltRefiner, ObstaclePointsAmongTheGroundDoNotPullTheEstimate) {
   const Eigen::Isometry3d truth = TruePose();
-  const Eigen::Isometry3d prior = Perturbed(truth, -1.0 * kDeg, 1.5 * kDeg, 0.0);
+  const Eigen::Isometry3d prior = Perturbed(truth, -1.0 * kDegToRad, 1.5 * kDegToRad, 0.0);
   Expected<TiltEstimate> estimate =
       RefineTilt(GroundPoints(truth, 0.15), prior, TerrainPatch(), TiltRefinerConfig{});
   ASSERT_TRUE(estimate);
   ASSERT_TRUE(estimate->usable) << estimate->report;
-  EXPECT_LT(TiltBetween(estimate->T_world_sensor.linear(), truth.linear()), 0.1 * kDeg);
+  EXPECT_LT(TiltBetween(estimate->T_world_sensor.linear(), truth.linear()), 0.1 * kDegToRad);
 }
 
 TEST(TiltRefiner, WithoutKnownTerrainThePriorIsKept) {
   const Eigen::Isometry3d truth = TruePose();
-  const Eigen::Isometry3d prior = Perturbed(truth, 1.0 * kDeg, 1.0 * kDeg, 0.0);
+  const Eigen::Isometry3d prior = Perturbed(truth, 1.0 * kDegToRad, 1.0 * kDegToRad, 0.0);
   ElevationPatch unknown = TerrainPatch();
   unknown.z.setConstant(std::nan(""));
   Expected<TiltEstimate> estimate =
@@ -128,7 +127,7 @@ TEST(TiltRefiner, HolesInTheTerrainAreNotInterpolatedThrough) {
   // Known terrain only where x < 10: points beyond are not used, and the estimate from the
   // rest is still right.
   const Eigen::Isometry3d truth = TruePose();
-  const Eigen::Isometry3d prior = Perturbed(truth, 1.0 * kDeg, -1.0 * kDeg, 0.05);
+  const Eigen::Isometry3d prior = Perturbed(truth, 1.0 * kDegToRad, -1.0 * kDegToRad, 0.05);
   ElevationPatch patch = TerrainPatch();
   for (int c = 0; c < patch.z.cols(); ++c) {
     if (patch.origin_m.x() + (c + 0.5) * patch.resolution_m >= 10.0) patch.z.col(c).setConstant(NAN);
@@ -137,7 +136,7 @@ TEST(TiltRefiner, HolesInTheTerrainAreNotInterpolatedThrough) {
   Expected<TiltEstimate> estimate = RefineTilt(points, prior, patch, TiltRefinerConfig{});
   ASSERT_TRUE(estimate);
   ASSERT_TRUE(estimate->usable) << estimate->report;
-  EXPECT_LT(TiltBetween(estimate->T_world_sensor.linear(), truth.linear()), 0.05 * kDeg);
+  EXPECT_LT(TiltBetween(estimate->T_world_sensor.linear(), truth.linear()), 0.05 * kDegToRad);
   Expected<TiltEstimate> all = RefineTilt(points, prior, TerrainPatch(), TiltRefinerConfig{});
   ASSERT_TRUE(all);
   EXPECT_LT(estimate->points_used, all->points_used);

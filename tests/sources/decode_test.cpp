@@ -32,8 +32,6 @@ namespace cairn::sources {
 namespace {
 
 namespace fs = std::filesystem;
-using test::kDeg;
-using test::kPi;
 
 double Elevation(const Eigen::Vector3f& p) {
   return std::atan2(double{p.z()}, std::hypot(double{p.x()}, double{p.y()}));
@@ -132,8 +130,8 @@ TEST(DecodeMrptDatasets, VelodyneScanPointsKeepTheirLasers) {
   ASSERT_EQ(scan.rows.size(), scan.points.size());
   ASSERT_EQ(scan.cols.size(), scan.points.size());
   ASSERT_EQ(scan.model.height(), 16);
-  EXPECT_NEAR(scan.model.ring_elevation_rad.front(), 15.0 * kDeg, 1e-9);
-  EXPECT_NEAR(scan.model.ring_elevation_rad.back(), -15.0 * kDeg, 1e-9);
+  EXPECT_NEAR(scan.model.ring_elevation_rad.front(), 15.0 * kDegToRad, 1e-9);
+  EXPECT_NEAR(scan.model.ring_elevation_rad.back(), -15.0 * kDegToRad, 1e-9);
   EXPECT_EQ(scan.model.width, 905);  // 900 firings over 357.8 deg: 0.3976 deg a firing
   std::set<int> cells;
   for (std::size_t i = 0; i < scan.points.size(); ++i) {
@@ -141,13 +139,14 @@ TEST(DecodeMrptDatasets, VelodyneScanPointsKeepTheirLasers) {
     ASSERT_GE(laser, 0);
     ASSERT_LT(laser, 16);
     // VLP-16 lasers interleave: even ids from -15 deg up, odd ids from +1 deg up.
-    const double elevation = (laser % 2 == 0 ? -15.0 + laser : laser) * kDeg;
+    const double elevation = (laser % 2 == 0 ? -15.0 + laser : laser) * kDegToRad;
     ASSERT_NEAR(Elevation(scan.points[i]), elevation, 1e-4) << "point " << i;
     ASSERT_NEAR(scan.model.ring_elevation_rad[scan.rows[i]], elevation, 1e-9) << "point " << i;
     // The column's azimuth is the point's, within half a step and the firing's spread.
     const double azimuth = std::atan2(double{scan.points[i].y()}, double{scan.points[i].x()});
     const double off = std::remainder(scan.model.ColumnAzimuth(scan.cols[i]) - azimuth, 2 * kPi);
-    ASSERT_LT(std::abs(off), 0.5 * scan.model.azimuth_step_rad() + 0.15 * kDeg) << "point " << i;
+    ASSERT_LT(std::abs(off), 0.5 * scan.model.azimuth_step_rad() + 0.15 * kDegToRad)
+        << "point " << i;
     cells.insert(scan.rows[i] * scan.model.width + scan.cols[i]);
     const double range = scan.points[i].norm();
     ASSERT_GT(range, 1.0);
@@ -185,7 +184,7 @@ TEST(DecodeMrptDatasets, RotatingScanIsTheSameScanAsThePackets) {
         std::atan2(double{a.points[i].y()}, double{a.points[i].x()}) -
             std::atan2(double{b.points[i].y()}, double{b.points[i].x()}),
         2 * kPi);
-    worst_deg = std::max(worst_deg, std::abs(da) / kDeg);
+    worst_deg = std::max(worst_deg, std::abs(da) / kDegToRad);
   }
   // The range image keeps one azimuth per firing (MRPT's interpolation between lasers is
   // lost) and spaces firings evenly over the sweep, while the packets' firings are 0.39 or
@@ -221,7 +220,7 @@ TEST(DecodeRangeScans, SensorPoseIsMrptsRangeCameraFrame) {
   // A camera on the body, 1.2 m up and pitched down 20 deg: MRPT's unprojection with the
   // sensor pose and ours through T_body_sensor give the same body-frame points.
   auto scan = test::MakeScan(24, 18, 20.0, Slanted, false);
-  scan->sensorPose = ::mrpt::poses::CPose3D(0.4, -0.1, 1.2, 0.3, 20.0 * kDeg, 0.05);
+  scan->sensorPose = ::mrpt::poses::CPose3D(0.4, -0.1, 1.2, 0.3, 20.0 * kDegToRad, 0.05);
   Expected<Frame> frame = DecodeRangeScan(*scan);
   ASSERT_TRUE(frame.ok()) << frame.error().message;
   ::mrpt::maps::CSimplePointsMap points;
@@ -243,7 +242,7 @@ TEST(DecodeRangeScans, SensorPoseIsMrptsRangeCameraFrame) {
   const Eigen::Vector3d up = UpInSensor(*frame);
   EXPECT_NEAR(up.dot(frame->T_body_sensor.linear().transpose() * Eigen::Vector3d::UnitZ()), 1.0,
               1e-12);
-  EXPECT_NEAR(std::asin(-up.z()), 20.0 * kDeg, 1e-9);  // optical axis 20 deg below horizon
+  EXPECT_NEAR(std::asin(-up.z()), 20.0 * kDegToRad, 1e-9);  // optical axis 20 deg below horizon
 }
 
 TEST(DecodeRangeScans, LensDistortionIsRemovedWithoutInventingDepths) {
@@ -360,10 +359,10 @@ RingCloud MakeRingCloud(std::uint32_t seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> range(2.0, 30.0), jitter(-0.02, 0.02);
   for (int ring = 0; ring < 8; ++ring) {
-    const double e = (7.0 - 2.0 * ring) * kDeg;
+    const double e = (7.0 - 2.0 * ring) * kDegToRad;
     for (int step = 0; step < 360; ++step) {
       if ((step * 7 + ring) % 13 == 0) continue;  // some rays without return
-      const double a = (step + jitter(rng)) * kDeg, d = range(rng);
+      const double a = (step + jitter(rng)) * kDegToRad, d = range(rng);
       cloud.points.emplace_back(d * std::cos(e) * std::cos(a), d * std::cos(e) * std::sin(a),
                                 d * std::sin(e));
       cloud.ring.push_back(ring);
@@ -402,7 +401,7 @@ TEST(DecodePointClouds, RingsAndColumnsComeFromTheData) {
   ASSERT_EQ(scan.model.height(), 8);
   EXPECT_EQ(scan.model.width, 360);
   for (int ring = 0; ring < 8; ++ring) {
-    EXPECT_NEAR(scan.model.ring_elevation_rad[ring], (7.0 - 2.0 * ring) * kDeg, 1e-5);
+    EXPECT_NEAR(scan.model.ring_elevation_rad[ring], (7.0 - 2.0 * ring) * kDegToRad, 1e-5);
   }
   for (std::size_t i = 0; i < truth.points.size(); ++i) {
     ASSERT_EQ(scan.rows[i], truth.ring[i]) << "point " << i;
@@ -416,7 +415,8 @@ TEST(DecodePointClouds, RingsAndColumnsComeFromTheData) {
 TEST(DecodePointClouds, CloudsWithoutRingsGetEvenElevationBins) {
   // Points scattered over a band of elevations (a non-spinning sensor): no gaps, no rings.
   std::mt19937 rng(3);
-  std::uniform_real_distribution<double> elevation(-10 * kDeg, 10 * kDeg), azimuth(-kPi, kPi);
+  std::uniform_real_distribution<double> elevation(-10 * kDegToRad, 10 * kDegToRad),
+      azimuth(-kPi, kPi);
   std::vector<Eigen::Vector3f> points;
   for (int i = 0; i < 20000; ++i) {
     const double e = elevation(rng), a = azimuth(rng);
@@ -428,9 +428,9 @@ TEST(DecodePointClouds, CloudsWithoutRingsGetEvenElevationBins) {
   EXPECT_FALSE(layout->rings_found);
   EXPECT_EQ(layout->model.height(), 50);  // 20 deg in 0.4 deg bins
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const double top = layout->model.ring_elevation_rad[layout->rows[i]] + 0.2 * kDeg;
+    const double top = layout->model.ring_elevation_rad[layout->rows[i]] + 0.2 * kDegToRad;
     ASSERT_LE(Elevation(points[i]), top + 1e-9);
-    ASSERT_GE(Elevation(points[i]), top - 0.4 * kDeg - 1e-9);
+    ASSERT_GE(Elevation(points[i]), top - 0.4 * kDegToRad - 1e-9);
   }
   EXPECT_FALSE(FindRings({Eigen::Vector3f(1, 0, 0)}).ok());  // one return: nothing to find
 }
@@ -461,7 +461,7 @@ TEST(DecodeStereo, RectifiedPairGivesGreyImagesPinholeAndBaseline) {
     camera->setIntrinsicParamsFromValues(50.0, 50.0, 31.5, 23.5);
   }
   stereo.rightCameraPose = ::mrpt::poses::CPose3DQuat(::mrpt::poses::CPose3D(0.12, 0, 0, 0, 0, 0));
-  const ::mrpt::poses::CPose3D camera_pose(0.3, 0.0, 1.1, -90 * kDeg, 0.0, -100 * kDeg);
+  const ::mrpt::poses::CPose3D camera_pose(0.3, 0.0, 1.1, -90 * kDegToRad, 0.0, -100 * kDegToRad);
   stereo.cameraPose = ::mrpt::poses::CPose3DQuat(camera_pose);
   Expected<Frame> frame = DecodeStereoImages(stereo);
   ASSERT_TRUE(frame.ok()) << frame.error().message;
@@ -477,8 +477,8 @@ TEST(DecodeStereo, RectifiedPairGivesGreyImagesPinholeAndBaseline) {
   EXPECT_TRUE(frame->T_body_sensor.isApprox(FromCPose3D(camera_pose), 1e-9));
   // Optical frame on a level body, camera 10 deg down: up is mostly -y, tilted towards -z.
   const Eigen::Vector3d up = UpInSensor(*frame);
-  EXPECT_NEAR(up.y(), -std::cos(10 * kDeg), 1e-9);
-  EXPECT_NEAR(up.z(), -std::sin(10 * kDeg), 1e-9);
+  EXPECT_NEAR(up.y(), -std::cos(10 * kDegToRad), 1e-9);
+  EXPECT_NEAR(up.z(), -std::sin(10 * kDegToRad), 1e-9);
 
   stereo.hasImageRight = false;
   EXPECT_EQ(WhyNoRangeData(stereo), std::optional<std::string>("no right image"));

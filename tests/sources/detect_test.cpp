@@ -45,7 +45,6 @@ namespace cairn::sources {
 namespace {
 
 namespace fs = std::filesystem;
-using test::kDeg;
 
 const fs::path kDefaultConfig = fs::path(__FILE__).parent_path().parent_path().parent_path() /
                                 "config" / "default.yaml";
@@ -306,7 +305,7 @@ TEST(DetectRawlogCommand, VelodyneScanFolderSummaryAndAnnotatedCopy) {
   constexpr int kWidth = 60, kHeight = 45;
   auto scan = test::MakeScan(kWidth, kHeight, 40.0, [](int, int) { return 1.0; }, true);
   scan->cameraParams.dist[0] = -0.08;
-  scan->sensorPose = ::mrpt::poses::CPose3D(0.0, 0.0, 1.5, 0.0, 15.0 * kDeg, 0.0);
+  scan->sensorPose = ::mrpt::poses::CPose3D(0.0, 0.0, 1.5, 0.0, 15.0 * kDegToRad, 0.0);
   scan->sensorLabel = "DEPTH_CAM";
   const Eigen::Isometry3d T_body_camera = FromCPose3D(scan->sensorPose);
   on_box.assign(static_cast<std::size_t>(kWidth) * kHeight, false);
@@ -462,7 +461,7 @@ TEST(DetectRawlogCommand, StereoPairsAreMatchedThenDetected) {
   }
   stereo.rightCameraPose = ::mrpt::poses::CPose3DQuat(::mrpt::poses::CPose3D(0.12, 0, 0, 0, 0, 0));
   stereo.cameraPose = ::mrpt::poses::CPose3DQuat(
-      ::mrpt::poses::CPose3D(0.0, 0.0, 1.0, -90 * kDeg, 0.0, -90 * kDeg));
+      ::mrpt::poses::CPose3D(0.0, 0.0, 1.0, -90 * kDegToRad, 0.0, -90 * kDegToRad));
   {
     Expected<RawlogWriter> writer = RawlogWriter::Create(dir / "stereo.rawlog");
     ASSERT_TRUE(writer.ok());

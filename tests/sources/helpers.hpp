@@ -15,6 +15,7 @@
 #include <optional>
 #include <string>
 
+#include "cairn/od/units.hpp"
 #include "cairn/sources/frame.hpp"
 #include "cairn/sources/mrpt_convert.hpp"
 #include "cairn/sources/rawlog_source.hpp"
@@ -24,11 +25,6 @@
 #endif
 
 namespace cairn::test {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
-
-/// MRPT's sample rawlog `name` (without .rawlog), or nullopt when mrpt-common is absent.
 inline std::optional<std::filesystem::path> MrptDataset(const std::string& name) {
   const std::filesystem::path path =
       std::filesystem::path(CAIRN_MRPT_DATASETS) / (name + ".rawlog");

@@ -246,7 +246,7 @@ TEST(RawlogOdometry, TimedActionsKeepTheirOwnStamps) {
   for (int k = 0; k < 3; ++k) frames[k].insert(Imu(10.0 + k, 0.0, 0.01 * k));
   for (int k = 0; k < 2; ++k) {
     ::mrpt::obs::CActionRobotMovement2D move;
-    move.computeFromOdometry(::mrpt::poses::CPose2D(1.0, 0.0, test::kPi / 2), model);
+    move.computeFromOdometry(::mrpt::poses::CPose2D(1.0, 0.0, kPi / 2), model);
     move.timestamp = ToMrptTime(10.5 + k);
     actions[k].insert(move);
   }

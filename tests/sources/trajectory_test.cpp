@@ -12,15 +12,13 @@
 #include <string>
 #include <vector>
 
+#include "cairn/od/units.hpp"
 #include "cairn/sources/rawlog_source.hpp"
 
 namespace cairn::sources {
 namespace {
 
 namespace fs = std::filesystem;
-
-constexpr double kPi = 3.14159265358979323846;
-
 Eigen::Isometry3d Planar(double x, double y, double yaw) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();

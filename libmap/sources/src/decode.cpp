@@ -15,14 +15,12 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
+#include "cairn/od/units.hpp"
 #include "cairn/sources/mrpt_convert.hpp"
 #include "mrpt_errors.hpp"
 
 namespace cairn::sources {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDegToRad = kPi / 180.0;
 
 using ::mrpt::obs::CObservation;
 using ::mrpt::obs::CObservation3DRangeScan;

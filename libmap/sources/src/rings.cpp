@@ -5,10 +5,10 @@
 #include <cstdio>
 #include <numeric>
 
+#include "cairn/od/units.hpp"
+
 namespace cairn::sources {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 bool HasReturn(const Eigen::Vector3f& p) {
   return p.allFinite() && (p.x() != 0.0f || p.y() != 0.0f || p.z() != 0.0f);

@@ -7,14 +7,12 @@
 #include <vector>
 
 #include "cairn/od/column_detector.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/util/yaml.hpp"
 
 namespace cairn::od::io {
 namespace {
 
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
-
-/// How a file value becomes a struct value: numbers as they are (metres, m^3, factors),
 /// degrees to radians, integers range-checked, names to enums.
 enum class Kind { kNumber, kDegrees, kInt, kInt64, kSearchMode, kStereoMode };
 

@@ -8,13 +8,12 @@
 #include <string>
 #include <system_error>
 
+#include "cairn/od/units.hpp"
 #include "cairn/util/atomic_file.hpp"
 #include "png.hpp"
 
 namespace cairn::od::io {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
 using Json = nlohmann::ordered_json;
 

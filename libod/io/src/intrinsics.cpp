@@ -4,15 +4,14 @@
 #include <cstdio>
 #include <limits>
 
-#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/limits.hpp"
 #include "cairn/od/leveling.hpp"
+#include "cairn/od/units.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/util/yaml.hpp"
 
 namespace cairn::od::io {
 namespace {
-
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 Expected<int> PositiveSize(const util::FieldReader& reader, const YAML::Node& node,
                            const std::string& field) {

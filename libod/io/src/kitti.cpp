@@ -8,32 +8,18 @@
 #include <string_view>
 
 #include "cairn/util/yaml.hpp"
+#include "text_fields.hpp"
 
 namespace cairn::od::io {
 namespace {
 
 constexpr double kRotationTolerance = 1e-3;  // KITTI prints rotations to 7 digits or more
 
-// Blank-separated tokens of one line.
-std::vector<std::string_view> Tokens(std::string_view line) {
-  std::vector<std::string_view> out;
-  std::size_t i = 0;
-  auto blank = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
-  while (i < line.size()) {
-    while (i < line.size() && blank(line[i])) ++i;
-    const std::size_t start = i;
-    while (i < line.size() && !blank(line[i])) ++i;
-    if (i > start) out.push_back(line.substr(start, i - start));
-  }
-  return out;
-}
+using detail::Tokens;
 
-bool ParseNumber(std::string_view token, double* value) {
-  const char* begin = token.data();
-  const char* end = token.data() + token.size();
-  if (begin != end && *begin == '+') ++begin;
-  const std::from_chars_result r = std::from_chars(begin, end, *value);
-  return r.ec == std::errc() && r.ptr == end && std::isfinite(*value);
+// A whole field as a finite number.
+bool ParseFinite(std::string_view token, double* value) {
+  return detail::ParseNumber(token, value) && std::isfinite(*value);
 }
 
 // Calls `per_line(line_number, line)` for every line of `text`, stopping at an error.
@@ -64,7 +50,7 @@ Expected<Eigen::Matrix<double, 3, 4>> Parse3x4(const std::vector<std::string_vie
   Eigen::Matrix<double, 3, 4> m;
   for (int k = 0; k < 12; ++k) {
     double v = 0.0;
-    if (!ParseNumber(tokens[first + k], &v)) {
+    if (!ParseFinite(tokens[first + k], &v)) {
       return Error{where + ": value " + std::to_string(k + 1) + " '" +
                    std::string(tokens[first + k]) + "' is not a finite number"};
     }
@@ -178,7 +164,7 @@ Expected<std::vector<double>> ReadKittiTimes(const std::filesystem::path& path) 
       return Error{where + ": a stamp after an empty line (expected one stamp per line)"};
     }
     double v = 0.0;
-    if (t.size() != 1 || !ParseNumber(t[0], &v)) {
+    if (t.size() != 1 || !ParseFinite(t[0], &v)) {
       return Error{where + ": expected one finite time stamp [s], got '" + std::string(line) + "'"};
     }
     if (!times.empty() && v < times.back()) {

@@ -14,14 +14,15 @@
 #include <sstream>
 #include <string_view>
 
-#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/limits.hpp"
+#include "cairn/od/units.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "png.hpp"
+#include "text_fields.hpp"
 
 namespace cairn::od::io {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr std::size_t kBinPointBytes = 16;   // 4 x float32
 constexpr double kOrganisedAgreement = 0.9;  // share of neighbour pairs that must agree
 
@@ -231,29 +232,8 @@ struct PlyElement {
   bool has_list = false;
 };
 
-// Splits on blanks (and commas, for text scans).
-std::vector<std::string_view> Tokens(std::string_view line, bool commas) {
-  std::vector<std::string_view> out;
-  std::size_t i = 0;
-  auto separator = [&](char c) {
-    return c == ' ' || c == '\t' || c == '\r' || c == '\n' || (commas && c == ',');
-  };
-  while (i < line.size()) {
-    while (i < line.size() && separator(line[i])) ++i;
-    const std::size_t start = i;
-    while (i < line.size() && !separator(line[i])) ++i;
-    if (i > start) out.push_back(line.substr(start, i - start));
-  }
-  return out;
-}
-
-bool ParseNumber(std::string_view token, double* value) {
-  const char* begin = token.data();
-  const char* end = token.data() + token.size();
-  if (begin != end && *begin == '+') ++begin;  // from_chars takes no leading '+'
-  const std::from_chars_result r = std::from_chars(begin, end, *value);
-  return r.ec == std::errc() && r.ptr == end;
-}
+using detail::ParseNumber;
+using detail::Tokens;
 
 }  // namespace
 

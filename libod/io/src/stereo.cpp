@@ -1,9 +1,9 @@
 #include "cairn/od/io/stereo.hpp"
 
-#include <exception>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
@@ -13,14 +13,13 @@
 
 #include "cairn/od/io/limits.hpp"
 #include "cairn/od/leveling.hpp"
-#include "png.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/util/yaml.hpp"
+#include "png.hpp"
 
 namespace cairn::od::io {
 namespace {
 
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
-/// A baseline longer than this is taken for a unit mistake (millimetres for metres).
 constexpr double kMaxBaselineM = 10.0;
 
 std::string Num(double v) {

@@ -11,6 +11,7 @@
 
 #include "cairn/util/atomic_file.hpp"
 #include "cairn/sim/eval/report.hpp"
+#include "opencv_image.hpp"
 
 namespace cairn::sim::eval {
 namespace {
@@ -21,7 +22,8 @@ using Rgb = std::array<std::uint8_t, 3>;
 const cv::Scalar kBlack(0, 0, 0);
 const cv::Scalar kWhite(255, 255, 255);
 const cv::Scalar kGridGrey(225, 225, 225);
-constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
+using detail::FromMat;
+using detail::kFont;
 constexpr double kTextScale = 0.42;
 constexpr int kLine = 17;  // text line height [px]
 constexpr int kGap = 6;    // between and around cells [px]
@@ -34,16 +36,6 @@ cv::Mat ToMat(const RgbImage& image) {
       const Rgb& p = image.at(r, c);
       row[c] = cv::Vec3b(p[2], p[1], p[0]);
     }
-  }
-  return out;
-}
-
-RgbImage FromMat(const cv::Mat& bgr) {
-  RgbImage out{bgr.cols, bgr.rows, {}};
-  out.data.reserve(static_cast<std::size_t>(bgr.cols) * bgr.rows);
-  for (int r = 0; r < bgr.rows; ++r) {
-    const auto* row = bgr.ptr<cv::Vec3b>(r);
-    for (int c = 0; c < bgr.cols; ++c) out.data.push_back({row[c][2], row[c][1], row[c][0]});
   }
   return out;
 }

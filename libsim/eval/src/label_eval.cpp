@@ -15,7 +15,9 @@
 #include <utility>
 
 #include "cairn/od/rules.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/util/yaml.hpp"
+#include "opencv_image.hpp"
 
 namespace cairn::sim::eval {
 namespace {
@@ -24,7 +26,6 @@ namespace io = od::io;
 using Rgb = std::array<std::uint8_t, 3>;
 
 constexpr std::uint32_t kMaxClassId = 0xFFFF;  // a .label entry's lower 16 bits
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kBirdsEyePanelsPerRow = 3;  // wider figures do not fit a page
 
 // ---------------------------------------------------------------------------------------
@@ -129,7 +130,8 @@ class MapReader {
 // ---------------------------------------------------------------------------------------
 // Drawing helpers (OpenCV, BGR).
 
-constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
+using detail::FromMat;
+using detail::kFont;
 const cv::Scalar kInk(20, 20, 20);
 const cv::Scalar kPaper(255, 255, 255);
 
@@ -346,16 +348,6 @@ std::vector<std::int32_t> VotePixels(int side, const std::vector<std::int32_t>& 
     a = b;
   }
   return winner;
-}
-
-io::RgbImage FromMat(const cv::Mat& bgr) {
-  io::RgbImage out{bgr.cols, bgr.rows, {}};
-  out.data.reserve(static_cast<std::size_t>(bgr.cols) * bgr.rows);
-  for (int r = 0; r < bgr.rows; ++r) {
-    const auto* row = bgr.ptr<cv::Vec3b>(r);
-    for (int c = 0; c < bgr.cols; ++c) out.data.push_back({row[c][2], row[c][1], row[c][0]});
-  }
-  return out;
 }
 
 Status CheckResults(const LabelFrame& frame, const std::vector<Method>& methods,

@@ -8,21 +8,19 @@
 #include <sstream>
 
 #include "cairn/od/io/detect_config.hpp"
+#include "cairn/od/units.hpp"
+#include "cairn/util/format.hpp"
 
 namespace cairn::sim::eval {
 namespace {
 
-constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
-
-std::string Fixed(double value, int decimals) {
-  if (!std::isfinite(value)) return "";
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", decimals, value);
-  return buf;
+// A table cell: the value with `decimals` digits, or empty when there is none (NaN).
+std::string Cell(double value, int decimals) {
+  return std::isfinite(value) ? util::Fixed(value, decimals) : std::string();
 }
 
 std::string Percent(double ratio) {
-  return std::isfinite(ratio) ? Fixed(100.0 * ratio, 0) + "%" : "-";
+  return std::isfinite(ratio) ? Cell(100.0 * ratio, 0) + "%" : "-";
 }
 
 /// A CSV field, quoted when it holds a comma, a quote or a line break.
@@ -59,7 +57,7 @@ std::string Found(const Score& s) {
 
 }  // namespace
 
-std::string FormatRatio(double value) { return std::isfinite(value) ? Fixed(value, 2) : "-"; }
+std::string FormatRatio(double value) { return std::isfinite(value) ? Cell(value, 2) : "-"; }
 
 std::string ResultsCsv(const std::vector<ResultRow>& rows) {
   std::string out =
@@ -77,30 +75,30 @@ std::string ResultsCsv(const std::vector<ResultRow>& rows) {
                                              std::to_string(s.strict.tp),
                                              std::to_string(s.strict.fp),
                                              std::to_string(s.strict.fn),
-                                             Fixed(s.strict.Precision(), 4),
-                                             Fixed(s.strict.Recall(), 4),
-                                             Fixed(s.strict.F1(), 4),
-                                             Fixed(s.strict.IoU(), 4),
+                                             Cell(s.strict.Precision(), 4),
+                                             Cell(s.strict.Recall(), 4),
+                                             Cell(s.strict.F1(), 4),
+                                             Cell(s.strict.IoU(), 4),
                                              std::to_string(s.band_pixels),
                                              std::to_string(s.band_excluded.fp),
-                                             Fixed(s.band_excluded.Precision(), 4),
-                                             Fixed(s.band_excluded.F1(), 4),
-                                             Fixed(s.band_excluded.IoU(), 4),
+                                             Cell(s.band_excluded.Precision(), 4),
+                                             Cell(s.band_excluded.F1(), 4),
+                                             Cell(s.band_excluded.IoU(), 4),
                                              std::to_string(s.objects_counted),
                                              std::to_string(s.objects_found),
-                                             Fixed(s.FoundRate(), 4),
+                                             Cell(s.FoundRate(), 4),
                                              std::to_string(s.objects_small),
                                              std::to_string(s.non_obstacles_counted),
                                              std::to_string(s.non_obstacles_marked),
                                              std::to_string(s.segments),
                                              std::to_string(s.kept_segments),
                                              std::to_string(s.false_obstacles),
-                                             Fixed(s.SegmentsPerObject(), 3),
+                                             Cell(s.SegmentsPerObject(), 3),
                                              std::to_string(s.segments_per_object_max),
-                                             Fixed(s.ObjectsPerSegment(), 3),
+                                             Cell(s.ObjectsPerSegment(), 3),
                                              std::to_string(s.objects_per_segment_max),
                                              std::to_string(s.merged_segments),
-                                             Fixed(r.detect_ms, 1)};
+                                             Cell(r.detect_ms, 1)};
     for (std::size_t k = 0; k < fields.size(); ++k) out += (k ? "," : "") + fields[k];
     out += "\n";
   }
@@ -116,7 +114,7 @@ std::string ResultsMarkdown(const std::vector<ResultRow>& rows) {
   for (const ResultRow& r : rows) {
     const Score& s = r.score;
     const auto seg = [](double mean, int max) {
-      return std::isfinite(mean) ? Fixed(mean, 2) + " (" + std::to_string(max) + ")"
+      return std::isfinite(mean) ? Cell(mean, 2) + " (" + std::to_string(max) + ")"
                                  : std::string("-");
     };
     out += "| " + r.world + " | " + r.method.label + " | " + FormatRatio(s.strict.Precision()) +
@@ -126,7 +124,7 @@ std::string ResultsMarkdown(const std::vector<ResultRow>& rows) {
            Found(s) + " | " + std::to_string(s.false_obstacles) + " / " +
            std::to_string(s.kept_segments) + " | " +
            seg(s.SegmentsPerObject(), s.segments_per_object_max) + " | " +
-           seg(s.ObjectsPerSegment(), s.objects_per_segment_max) + " | " + Fixed(r.detect_ms, 0) +
+           seg(s.ObjectsPerSegment(), s.objects_per_segment_max) + " | " + Cell(r.detect_ms, 0) +
            " |\n";
   }
   return out;
@@ -174,11 +172,11 @@ std::string SweepCsv(const SweepSpec& sweep, const std::vector<Method>& methods,
         out += CsvField(r.world) + "," + sweep.key + "," + Number(values[v]) + "," +
                methods[m].key + "," + std::to_string(s.frames) + "," + std::to_string(s.strict.tp) +
                "," + std::to_string(s.strict.fp) + "," + std::to_string(s.strict.fn) + "," +
-               Fixed(s.strict.Precision(), 4) + "," + Fixed(s.strict.Recall(), 4) + "," +
-               Fixed(s.strict.F1(), 4) + "," + std::to_string(s.band_excluded.fp) + "," +
-               Fixed(s.band_excluded.Precision(), 4) + "," + Fixed(s.band_excluded.F1(), 4) + "," +
+               Cell(s.strict.Precision(), 4) + "," + Cell(s.strict.Recall(), 4) + "," +
+               Cell(s.strict.F1(), 4) + "," + std::to_string(s.band_excluded.fp) + "," +
+               Cell(s.band_excluded.Precision(), 4) + "," + Cell(s.band_excluded.F1(), 4) + "," +
                std::to_string(s.objects_counted) + "," + std::to_string(s.objects_found) + "," +
-               Fixed(s.FoundRate(), 4) + "," + std::to_string(s.kept_segments) + "," +
+               Cell(s.FoundRate(), 4) + "," + std::to_string(s.kept_segments) + "," +
                std::to_string(s.false_obstacles) + "\n";
       }
     }

@@ -5,22 +5,21 @@
 #include <sstream>
 
 #include "cairn/od/column_detector.hpp"
+#include "cairn/od/units.hpp"
 
 namespace cairn::sim::eval {
 namespace {
 
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
-
 enum class Unit { kMetre, kDegree, kCubicMetre, kScale, kCount, kPixels };
 
-struct Key {
+struct SweepKey {
   const char* section;
   const char* name;
   Unit unit;
 };
 
-const std::vector<Key>& Keys() {
-  static const std::vector<Key> keys = {
+const std::vector<SweepKey>& Keys() {
+  static const std::vector<SweepKey> keys = {
       {"detector", "min_height", Unit::kMetre},     {"detector", "max_height", Unit::kMetre},
       {"detector", "min_slope", Unit::kDegree},     {"detector", "window_scale", Unit::kScale},
       {"column", "min_blob_pixels", Unit::kPixels}, {"rules", "min_points", Unit::kCount},
@@ -34,16 +33,16 @@ const std::vector<Key>& Keys() {
 
 std::string KnownKeys() {
   std::string text;
-  for (const Key& k : Keys()) text += (text.empty() ? "" : ", ") + std::string(k.name);
+  for (const SweepKey& k : Keys()) text += (text.empty() ? "" : ", ") + std::string(k.name);
   return text;
 }
 
 /// The key without its section prefix, or nullptr when unknown (or the prefix is wrong).
-const Key* FindKey(const std::string& key) {
+const SweepKey* FindKey(const std::string& key) {
   const std::size_t dot = key.find('.');
   const std::string section = dot == std::string::npos ? "" : key.substr(0, dot);
   const std::string name = dot == std::string::npos ? key : key.substr(dot + 1);
-  for (const Key& k : Keys()) {
+  for (const SweepKey& k : Keys()) {
     if (name == k.name && (section.empty() || section == k.section)) return &k;
   }
   return nullptr;
@@ -56,14 +55,14 @@ bool IsInteger(Unit u) { return u == Unit::kCount || u == Unit::kPixels; }
 const std::vector<std::string>& SweepableKeys() {
   static const std::vector<std::string> names = [] {
     std::vector<std::string> v;
-    for (const Key& k : Keys()) v.emplace_back(k.name);
+    for (const SweepKey& k : Keys()) v.emplace_back(k.name);
     return v;
   }();
   return names;
 }
 
 std::string SettingUnit(const std::string& key) {
-  const Key* k = FindKey(key);
+  const SweepKey* k = FindKey(key);
   if (k == nullptr) return "";
   switch (k->unit) {
     case Unit::kMetre:
@@ -82,7 +81,7 @@ std::string SettingUnit(const std::string& key) {
 }
 
 Status ApplySetting(od::io::DetectSettings& settings, const std::string& key, double value) {
-  const Key* k = FindKey(key);
+  const SweepKey* k = FindKey(key);
   if (k == nullptr)
     return Error{key + ": not a sweepable setting (expected one of " + KnownKeys() + ")"};
   if (!std::isfinite(value)) return Error{key + ": value is not finite"};
@@ -128,7 +127,7 @@ std::vector<double> SweepSpec::Values() const {
 }
 
 bool SweepSpec::ChangesDetection() const {
-  const Key* k = FindKey(key);
+  const SweepKey* k = FindKey(key);
   return k == nullptr || std::string(k->section) != "rules";
 }
 
@@ -137,7 +136,7 @@ Expected<SweepSpec> ParseSweep(const std::string& text) {
   const std::size_t eq = text.find('=');
   if (eq == std::string::npos) return Error{usage};
   SweepSpec spec;
-  const Key* k = FindKey(text.substr(0, eq));
+  const SweepKey* k = FindKey(text.substr(0, eq));
   if (k == nullptr) {
     return Error{"'" + text.substr(0, eq) + "' is not a sweepable setting (expected one of " +
                  KnownKeys() + ")"};

@@ -12,18 +12,16 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "cairn/util/atomic_file.hpp"
-#include "cairn/od/io/intrinsics.hpp"
 #include "cairn/od/io/depth_png.hpp"
+#include "cairn/od/io/intrinsics.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/geometry.hpp"
+#include "cairn/util/atomic_file.hpp"
 
 namespace cairn::sim {
 namespace {
 
 namespace fs = std::filesystem;
-
-constexpr double kRadToDeg = 180.0 / 3.141592653589793;
-
 Status MakeDirectory(const fs::path& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);

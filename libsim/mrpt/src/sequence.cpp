@@ -10,19 +10,17 @@
 #include <utility>
 #include <vector>
 
-#include "cairn/util/atomic_file.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/mrpt/frame_files.hpp"
 #include "cairn/sim/mrpt/rawlog.hpp"
 #include "cairn/sources/mrpt_convert.hpp"
 #include "cairn/sources/rawlog_file.hpp"
+#include "cairn/util/atomic_file.hpp"
 
 namespace cairn::sim {
 namespace {
 
 namespace fs = std::filesystem;
-
-constexpr double kRadToDeg = 180.0 / 3.141592653589793;
-
 std::string FrameName(int index) {
   char buf[16];
   std::snprintf(buf, sizeof(buf), "%06d", index);
