@@ -34,10 +34,7 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-int Fail(const std::string& message) {
-  std::cerr << "cairn map: error: " << message << "\n";
-  return kExitFailure;
-}
+int MapFail(const std::string& message) { return CommandFailure("map", message); }
 
 volatile std::sig_atomic_t g_interrupted = 0;
 extern "C" void OnInterrupt(int) { g_interrupted = 1; }
@@ -56,18 +53,12 @@ struct Cleanup {
   }
 };
 
-Expected<std::unique_ptr<sources::FrameSource>> OpenSource(const MapOptions& o,
-                                                           const od::io::StereoConfig& stereo) {
-  if (!o.rawlog.empty()) return sources::OpenRawlogFrames(o.rawlog, o.label, stereo);
-  if (!o.kitti.empty()) return sources::OpenKittiFrames(o.kitti, o.sequence, o.range, o.lidar);
-  return sources::OpenDepthFolderFrames(o.frames, o.poses, o.intrinsics);
-}
 
 int RunMap(const MapOptions& options) {
   const Clock::time_point run_start = Clock::now();
   // --- parse ---
   Expected<map::MapperSettings> settings = map::LoadMapperSettings(options.config);
-  if (!settings) return Fail(settings.error().message);
+  if (!settings) return MapFail(settings.error().message);
   map::MapperConfig& config = settings->mapper;
   if (options.offline) config.map.window_size_m = 0.0;
   if (options.window_m >= 0.0) config.map.window_size_m = options.window_m;
@@ -75,18 +66,18 @@ int RunMap(const MapOptions& options) {
   if (options.no_refine_tilt) config.tilt.mode = map::TiltMode::kPrior;
   if (!options.tilt.empty()) {
     Expected<map::TiltMode> mode = map::ParseTiltMode(options.tilt);
-    if (!mode) return Fail("--tilt: " + mode.error().message);
+    if (!mode) return MapFail("--tilt: " + mode.error().message);
     config.tilt.mode = *mode;
   }
-  if (Status s = config.map.Validate(); !s) return Fail("--window: " + s.message());
+  if (Status s = config.map.Validate(); !s) return MapFail("--window: " + s.message());
   Expected<map::Mapper> created = map::Mapper::Create(config);
-  if (!created) return Fail(created.error().message);
+  if (!created) return MapFail(created.error().message);
   map::Mapper mapper = std::move(*created);
 
   // --- load ---
   const Clock::time_point open_start = Clock::now();
-  Expected<std::unique_ptr<sources::FrameSource>> opened = OpenSource(options, settings->stereo);
-  if (!opened) return Fail(opened.error().message);
+  Expected<std::unique_ptr<sources::FrameSource>> opened = OpenFrameSource(options, settings->stereo);
+  if (!opened) return MapFail(opened.error().message);
   sources::FrameSource& source = **opened;
   StageTimes times;
   times.read_s += SecondsSince(open_start);  // the rawlog's pose pass reads the whole file
@@ -97,14 +88,14 @@ int RunMap(const MapOptions& options) {
   std::error_code ec;
   if (!fs::exists(options.out)) {
     fs::create_directories(options.out, ec);
-    if (ec) return Fail(options.out + ": cannot create: " + ec.message());
+    if (ec) return MapFail(options.out + ": cannot create: " + ec.message());
     cleanup.created_out = true;
   } else if (!fs::is_directory(options.out)) {
-    return Fail(options.out + ": exists and is not a folder (--out)");
+    return MapFail(options.out + ": exists and is not a folder (--out)");
   }
   cleanup.staging = fs::path(options.out) / (".cairn-map-partial-" + std::to_string(getpid()));
   fs::create_directories(cleanup.staging, ec);
-  if (ec) return Fail(cleanup.staging.string() + ": cannot create: " + ec.message());
+  if (ec) return MapFail(cleanup.staging.string() + ": cannot create: " + ec.message());
 
   // From here an interruption is handled (at the next frame): nothing half-written is left.
   g_interrupted = 0;
@@ -115,7 +106,7 @@ int RunMap(const MapOptions& options) {
   // interrupted, in DIR/map.checkpoint (atomically); removed once the map files are written.
   Expected<std::string> config_text =
       options.config.empty() ? Expected<std::string>(std::string()) : util::ReadTextFile(options.config);
-  if (!config_text) return Fail(config_text.error().message);
+  if (!config_text) return MapFail(config_text.error().message);
   const fs::path checkpoint = fs::path(options.out) / map::kCheckpointFileName;
   RunState state;
   state.input = SourceJson(source.Describe());
@@ -123,29 +114,29 @@ int RunMap(const MapOptions& options) {
   state.options = RunOptions(options, config.tilt.mode, config.map.window_size_m);
   double earlier_wall_s = 0.0;
   if (!options.resume && fs::exists(checkpoint)) {
-    return Fail(checkpoint.string() +
+    return MapFail(checkpoint.string() +
                 ": an interrupted run's checkpoint is here: continue it with --resume, or "
                 "remove it (or choose another --out) to start afresh");
   }
   if (options.resume) {
     if (!fs::exists(checkpoint)) {
-      return Fail(checkpoint.string() +
+      return MapFail(checkpoint.string() +
                   ": no checkpoint to resume from (--resume continues a run interrupted with "
                   "the same --out)");
     }
     std::string app_data;
     Expected<map::Mapper> loaded = map::Mapper::FromCheckpoint(checkpoint, config, &app_data);
     if (!loaded) {
-      return Fail(loaded.error().message +
+      return MapFail(loaded.error().message +
                   " (--resume needs the same input, --config, --tilt and --window)");
     }
     Expected<RunState> saved = ResumeStateFromJson(app_data, checkpoint.string());
-    if (!saved) return Fail(saved.error().message);
+    if (!saved) return MapFail(saved.error().message);
     if (Status s = SameRun(*saved, state, checkpoint.string(), options.config); !s) {
-      return Fail(s.message());
+      return MapFail(s.message());
     }
     const Clock::time_point skip_start = Clock::now();
-    if (Status s = source.Skip(saved->frames_read); !s) return Fail(s.message());
+    if (Status s = source.Skip(saved->frames_read); !s) return MapFail(s.message());
     const double open_s = times.read_s + SecondsSince(skip_start);
     mapper = std::move(*loaded);
     state = std::move(*saved);
@@ -175,7 +166,7 @@ int RunMap(const MapOptions& options) {
         std::cerr << "cairn map: interrupted before the first frame was fused; nothing written\n";
         return 130;
       }
-      if (Status s = save_checkpoint(); !s) return Fail("interrupted, and " + s.message());
+      if (Status s = save_checkpoint(); !s) return MapFail("interrupted, and " + s.message());
       std::cerr << "cairn map: interrupted after " << state.frames_read << " frames; the map so "
                 << "far is in " << checkpoint.string()
                 << ": run the same command with --resume to continue\n";
@@ -185,7 +176,7 @@ int RunMap(const MapOptions& options) {
     Expected<std::optional<sources::SequenceFrame>> next = source.Next();
     if (!next) {
       progress.Finish();
-      return Fail(next.error().message);
+      return MapFail(next.error().message);
     }
     if (!*next) break;
     sources::SequenceFrame& frame = **next;
@@ -196,12 +187,12 @@ int RunMap(const MapOptions& options) {
     std::string detail = frame.skip_detail;
     if (frame.used()) {
       if (Status st = mapper.SetSensorMount(frame.T_body_sensor()); !st) {
-        return Fail(frame.name + ": " + st.message());
+        return MapFail(frame.name + ": " + st.message());
       }
       Expected<map::MapperRecord> r =
           mapper.Process(std::move(frame.image), frame.T_world_sensor, frame.stamp_s,
                          sources::MapperImuSamples(frame));
-      if (!r) return Fail(frame.name + ": " + r.error().message);
+      if (!r) return MapFail(frame.name + ": " + r.error().message);
       if (r->used()) {
         const FrameRecord record = RecordOf(frame, *r, read_s);
         times.detect_s += record.detect_s;
@@ -217,7 +208,7 @@ int RunMap(const MapOptions& options) {
     if (!reason.empty()) {  // nothing is skipped in silence
       if (options.strict) {
         progress.Finish();
-        return Fail(frame.name + ": " + reason + " (" + detail +
+        return MapFail(frame.name + ": " + reason + " (" + detail +
                     "); --strict makes a frame that cannot be used an error");
       }
       progress.Note("skipped " + frame.name + ": " + reason + " (" + detail + ")");
@@ -227,12 +218,12 @@ int RunMap(const MapOptions& options) {
     ReleaseFreeMemoryEvery(state.frames_read);  // level memory on long runs
     if (options.checkpoint_every > 0 && state.frames_read % options.checkpoint_every == 0 &&
         state.frames_read < total) {
-      if (Status s = save_checkpoint(); !s) return Fail(s.message());
+      if (Status s = save_checkpoint(); !s) return MapFail(s.message());
     }
   }
   progress.Finish();
   if (state.records.empty()) {
-    return Fail("no frames to fuse" + (state.skipped.empty()
+    return MapFail("no frames to fuse" + (state.skipped.empty()
                                            ? std::string()
                                            : " (" + std::to_string(state.skipped.size()) +
                                                  " skipped)"));
@@ -241,30 +232,30 @@ int RunMap(const MapOptions& options) {
   // --- report ---
   const Clock::time_point write_start = Clock::now();
   const fs::path& staging = cleanup.staging;
-  if (Status s = map::WriteMapFiles(mapper.map(), staging); !s) return Fail(s.message());
+  if (Status s = map::WriteMapFiles(mapper.map(), staging); !s) return MapFail(s.message());
   std::optional<TruthScore> truth;
   if (!options.truth.empty()) {
     Expected<TruthScore> score =
         ScoreAgainstWorld(options.truth, mapper.map(), 0.5 + mapper.map().grid().cell_size());
-    if (!score) return Fail(score.error().message);
+    if (!score) return MapFail(score.error().message);
     truth = std::move(*score);
   }
   if (Status s = WriteOverlay(staging / "cost.png", staging / "overlay.png", mapper.map(),
                               state.records, truth ? &*truth : nullptr);
       !s) {
-    return Fail(s.message());
+    return MapFail(s.message());
   }
   std::optional<PoseTruth> poses;
   if (!options.truth_poses.empty()) {
     Expected<PoseTruth> scored = ScorePoses(options.truth_poses, state.records);
-    if (!scored) return Fail(scored.error().message);
+    if (!scored) return MapFail(scored.error().message);
     poses = std::move(*scored);
   }
   RunReport report{source, mapper, state, truth, earlier_wall_s + SecondsSince(run_start),
                    write_start};
   report.poses = poses ? &*poses : nullptr;
   Expected<std::string> text = WriteRunFiles(report, staging, times);
-  if (!text) return Fail(text.error().message);
+  if (!text) return MapFail(text.error().message);
 
   // Everything is written: move it into place.
   std::vector<fs::path> written;
@@ -272,7 +263,7 @@ int RunMap(const MapOptions& options) {
   std::sort(written.begin(), written.end());
   for (const fs::path& p : written) {
     fs::rename(p, fs::path(options.out) / p.filename(), ec);
-    if (ec) return Fail((fs::path(options.out) / p.filename()).string() + ": " + ec.message());
+    if (ec) return MapFail((fs::path(options.out) / p.filename()).string() + ": " + ec.message());
   }
   fs::remove(staging, ec);
   fs::remove(checkpoint, ec);  // the map files hold it all now

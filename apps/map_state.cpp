@@ -11,17 +11,12 @@
 
 #include "map_run.hpp"
 #include "process_memory.hpp"
+#include "cairn/util/format.hpp"
 
 namespace cairn::apps {
 namespace {
 
 using nlohmann::json;
-
-std::string Fixed(double v, int decimals) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(decimals) << v;
-  return out.str();
-}
 
 json IsometryJson(const Eigen::Isometry3d& T) {
   json m = json::array();
@@ -43,6 +38,13 @@ Eigen::Isometry3d IsometryFromJson(const json& m) {
 constexpr const char* kFormat = "cairn map resume state 3";
 
 }  // namespace
+
+Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(const MapOptions& o,
+                                                                const od::io::StereoConfig& stereo) {
+  if (!o.rawlog.empty()) return sources::OpenRawlogFrames(o.rawlog, o.label, stereo);
+  if (!o.kitti.empty()) return sources::OpenKittiFrames(o.kitti, o.sequence, o.range, o.lidar);
+  return sources::OpenDepthFolderFrames(o.frames, o.poses, o.intrinsics);
+}
 
 // The fields of FrameRecord and FrameSummary that the outputs use, by name. json keeps
 // doubles exactly (shortest round-trip form), so a resumed run writes the same figures.
@@ -194,6 +196,7 @@ Progress::Progress(int total, int every, int first)
 }
 
 namespace {
+
 std::string Minutes(double seconds) {
   const long s = std::lround(seconds);
   std::ostringstream out;
@@ -210,12 +213,12 @@ void Progress::Update(int done) {
     constexpr int kWidth = 30;
     const int filled = kWidth * std::min(done, total_) / total_;
     std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] "
-              << done << "/" << total_ << " frames, " << Fixed(rate, 1) << " frames/s, "
+              << done << "/" << total_ << " frames, " << util::Fixed(rate, 1) << " frames/s, "
               << Minutes(left) << " left   " << std::flush;
     bar_shown_ = true;
   } else if (done % every_ == 0 || done == total_) {
     std::cerr << "cairn map: " << done << "/" << total_ << " frames (" << 100 * done / total_
-              << "%), " << Fixed(rate, 1) << " frames/s, about " << Minutes(left) << " left\n";
+              << "%), " << util::Fixed(rate, 1) << " frames/s, about " << Minutes(left) << " left\n";
   }
 }
 

@@ -1,6 +1,7 @@
 // Detector speed, stage by stage, on the frames users judge it by: the KITTI 00 scan 0
 // (HDL-64E), the RELLIS-3D OS1-64 scan (both in ../shared/datasets), the bundled 640 x 480
-// demo frame, the TUM office Kinect frame, and seeded rendered views of growing size.
+// demo frame, the TUM office Kinect frame, seeded rendered views of growing size, and
+// HDL-64E scans of the dense_forest world of growing azimuth resolution.
 //
 // Every frame is also run through references in the same process, so that each figure
 // comes with its ratio:
@@ -36,6 +37,7 @@
 #include "cairn/od/rules.hpp"
 #include "cairn/sim/random_scene.hpp"
 #include "cairn/sim/render.hpp"
+#include "cairn/sim/world.hpp"
 
 namespace {
 
@@ -84,6 +86,39 @@ Expected<Frame> LidarFrame(const std::string& name, const std::string& path,
   f.make = [points, found] {
     return od::RangeImage::FromPoints(points->points, found->model, Eigen::Vector3d::UnitZ(),
                                       found->rows, found->cols);
+  };
+  Expected<od::RangeImage> image = f.make();
+  if (!image) return image.error();
+  f.image = std::move(*image);
+  return f;
+}
+
+// The gallery's dense_forest world scanned by its HDL-64E from 1.8 m above the terrain at
+// the origin, with `azimuth_steps` columns per revolution (the scan's width).
+Expected<Frame> ForestScan(int azimuth_steps) {
+  Expected<sim::World> world = sim::LoadWorld(kSource + "/datasets/worlds/dense_forest.yaml");
+  if (!world) return world.error();
+  if (!world->lidar) return Error{"dense_forest.yaml: no lidar"};
+  sim::LidarSpec spec = *world->lidar;
+  spec.azimuth_steps = azimuth_steps;
+  Eigen::Isometry3d T_world_lidar = Eigen::Isometry3d::Identity();
+  T_world_lidar.translation() =
+      Eigen::Vector3d(0.0, 0.0, world->scene.terrain().Height(0.0, 0.0) + 1.8);
+  Expected<sim::LidarScan> scan = sim::RenderLidar(world->scene, spec, T_world_lidar, 7);
+  if (!scan) return scan.error();
+  Expected<od::io::DetectSettings> settings = Settings("sensors/hdl-64e.yaml");
+  if (!settings) return settings.error();
+  od::SphericalModel model;
+  model.width = spec.azimuth_steps;
+  model.ring_elevation_rad = spec.elevations_rad;
+  model.azimuth_start_rad = spec.AzimuthRad(0);
+  Frame f;
+  f.name = "forest" + std::to_string(azimuth_steps);
+  f.settings = *settings;
+  auto rendered = std::make_shared<sim::LidarScan>(std::move(*scan));
+  f.make = [rendered, model] {
+    return od::RangeImage::FromPoints(rendered->points, model, Eigen::Vector3d::UnitZ(),
+                                      rendered->ring, rendered->column);
   };
   Expected<od::RangeImage> image = f.make();
   if (!image) return image.error();
@@ -201,6 +236,8 @@ Frame* Get(const std::string& name) {
     made = RenderedFrame(std::atoi(name.c_str() + 8));
   } else if (name.rfind("objects", 0) == 0) {  // density: 320 x 240 with N obstacles
     made = RenderedFrame(320, std::atoi(name.c_str() + 7));
+  } else if (name.rfind("forest", 0) == 0) {  // LiDAR: 64 x N
+    made = ForestScan(std::atoi(name.c_str() + 6));
   }
   if (!made) {
     cache[name] = nullptr;
@@ -375,9 +412,9 @@ void BM_Rules(benchmark::State& state, const std::string& name) {
   }
 }
 
-// Growth of the cost: Hmax (range(0), cm) on the demo frame, one thread.
-void BM_DetectHmax(benchmark::State& state) {
-  Frame* f = FrameOrSkip(state, "demo");
+// Growth of the cost: Hmax (range(0), cm) on a frame, one thread.
+void BM_DetectHmax(benchmark::State& state, const std::string& name) {
+  Frame* f = FrameOrSkip(state, name);
   if (f == nullptr) return;
   od::DetectorConfig config = OneThread(*f);
   config.max_height_m = state.range(0) / 100.0;
@@ -420,12 +457,23 @@ void Register() {
     ms(benchmark::RegisterBenchmark((std::string("BruteForce/") + name).c_str(), BM_BruteForce,
                                     std::string(name)));
   }
-  ms(benchmark::RegisterBenchmark("DetectHmax/demo", BM_DetectHmax))
-      ->ArgName("hmax_cm")
-      ->Arg(50)
-      ->Arg(100)
-      ->Arg(150)
-      ->Arg(200);
+  // Growth with the LiDAR scan's width (64 rings, one thread).
+  for (int steps : {512, 1024, 2048, 4096}) {
+    const std::string name = "forest" + std::to_string(steps);
+    ms(benchmark::RegisterBenchmark(("Detect/" + name).c_str(), BM_Detect, name))
+        ->ArgName("threads")
+        ->Arg(1);
+  }
+  // Growth with Hmax, on a camera frame and a LiDAR scan.
+  for (const char* name : {"demo", "kitti"}) {
+    ms(benchmark::RegisterBenchmark((std::string("DetectHmax/") + name).c_str(), BM_DetectHmax,
+                                    std::string(name)))
+        ->ArgName("hmax_cm")
+        ->Arg(50)
+        ->Arg(100)
+        ->Arg(150)
+        ->Arg(200);
+  }
 }
 
 }  // namespace

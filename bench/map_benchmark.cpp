@@ -3,20 +3,33 @@
 // scan through dense_forest. Frames are rendered once; each iteration hands the next frame
 // of the drive to the same Mapper (config/default.yaml's detector and rules), as a sequence
 // does (the Mapper starts afresh when the drive wraps, outside the timing). range(0) is
-// max_range [m]. The counters split the time: detection, and fusion by TerrainMap's stages.
+// max_range [m]. The counters split the time: detection, the tilt step, and fusion by
+// TerrainMap's stages.
+//   Mapper*      the whole frame, tilt mode prior (the odometry pose as it is);
+//   MapperTilt/* the camera drive in each tilt mode, with the drive's raw IMU (100 Hz) for
+//                gravity: tilt_ms is the stage that mode adds;
+//   MapFiles     every file `cairn map` writes of the map the camera drive built
+//                (map::WriteMapFiles: map.bt, map.ot, obstacles.ot, cost.pgm/.png,
+//                elevation.tiff, obstacles.json), into a temporary folder.
 //   cairn_map_benchmark --benchmark_repetitions=3 --benchmark_report_aggregates_only
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
+#include "cairn/map/map_files.hpp"
 #include "cairn/map/mapper.hpp"
 #include "cairn/od/io/detect_config.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/sim/drive.hpp"
 #include "cairn/sim/world.hpp"
+#include "sim_frames.hpp"  // tests/map: the drive's IMU as the Mapper takes it
 
 namespace {
 
@@ -26,6 +39,12 @@ struct Frame {
   od::RangeImage image;
   Eigen::Isometry3d T_world_sensor;
   double stamp_s = 0.0;
+  std::vector<map::ImuSample> imu;  ///< raw samples since the previous frame, body frame
+};
+
+struct DriveFrames {
+  std::vector<Frame> frames;
+  Eigen::Isometry3d T_body_sensor = Eigen::Isometry3d::Identity();
 };
 
 // config/default.yaml's detector and rules (the struct defaults if it cannot be read).
@@ -38,10 +57,8 @@ const od::io::DetectSettings& Settings() {
   return settings;
 }
 
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
-
-// `count` frames of a drive along +x through `world_name`, every 0.8 m.
-std::vector<Frame> MakeDrive(const std::string& world_name, bool lidar, int count) {
+// `count` frames of a drive along +x through `world_name`, every 0.8 m, with the raw IMU.
+DriveFrames MakeDrive(const std::string& world_name, bool lidar, int count) {
   const std::string dir = std::string(CAIRN_SOURCE_DIR);
   Expected<sim::World> world = sim::LoadWorld(dir + "/datasets/worlds/" + world_name + ".yaml");
   if (!world) return {};
@@ -49,22 +66,24 @@ std::vector<Frame> MakeDrive(const std::string& world_name, bool lidar, int coun
   spec.waypoints = {{0.0, 0.0}, {0.8 * count, 0.0}};
   spec.speed_mps = 2.0;
   spec.frame_rate_hz = 2.5;
-  spec.sensor_pitch_rad = 8.0 * kDeg;
-  Expected<sim::Drive> drive = sim::SimulateDrive(
-      world->scene.terrain(), spec,
-      lidar ? sim::SensorFrame::kLidar : sim::SensorFrame::kCameraOptical, 1, count);
+  spec.sensor_pitch_rad = 8.0 * kDegToRad;
+  const sim::SensorFrame sensor = lidar ? sim::SensorFrame::kLidar : sim::SensorFrame::kCameraOptical;
+  Expected<sim::Drive> drive = sim::SimulateDrive(world->scene.terrain(), spec, sensor, 1, count);
   if (!drive) return {};
+  DriveFrames out;
+  out.T_body_sensor = drive->T_body_sensor;
+  std::size_t next_imu = 0;
   sim::RangeCameraSpec camera = world->camera;
   camera.model.width = 640;
   camera.model.height = 480;
   camera.model.fx = camera.model.fy = 520.0;
   camera.model.cx = 319.5;
   camera.model.cy = 239.5;
-  std::vector<Frame> frames;
   for (const sim::DriveSample& s : drive->samples) {
     Frame f;
     f.T_world_sensor = s.T_world_sensor;
     f.stamp_s = s.stamp_s;
+    f.imu = test::BodyImuUpTo(*drive, s.stamp_s, &next_imu);
     if (lidar) {
       Expected<sim::LidarScan> scan =
           sim::RenderLidar(world->scene, *world->lidar, s.T_world_sensor, s.index + 1);
@@ -88,13 +107,13 @@ std::vector<Frame> MakeDrive(const std::string& world_name, bool lidar, int coun
       if (!image) return {};
       f.image = std::move(*image);
     }
-    frames.push_back(std::move(f));
+    out.frames.push_back(std::move(f));
   }
-  return frames;
+  return out;
 }
 
-const std::vector<Frame>& Drive(bool lidar) {
-  static std::map<bool, std::vector<Frame>> cache;
+const DriveFrames& Drive(bool lidar) {
+  static std::map<bool, DriveFrames> cache;
   auto it = cache.find(lidar);
   if (it == cache.end()) {
     it = cache.emplace(lidar, MakeDrive(lidar ? "dense_forest" : "poles_and_rocks", lidar, 12))
@@ -103,30 +122,43 @@ const std::vector<Frame>& Drive(bool lidar) {
   return it->second;
 }
 
-void Process(benchmark::State& state, bool lidar) {
-  const std::vector<Frame>& frames = Drive(lidar);
+map::MapperConfig Config(double max_range_m, map::TiltMode tilt) {
+  map::MapperConfig config;
+  config.detector = Settings().detector;
+  config.rules = Settings().rules;
+  config.map.max_range_m = max_range_m;
+  config.tilt.mode = tilt;
+  return config;
+}
+
+std::unique_ptr<map::Mapper> NewMapper(const map::MapperConfig& config, const DriveFrames& drive) {
+  auto mapper = std::make_unique<map::Mapper>(map::Mapper::Create(config).value());
+  if (!mapper->SetSensorMount(drive.T_body_sensor)) return nullptr;
+  return mapper;
+}
+
+void Process(benchmark::State& state, bool lidar, map::TiltMode tilt) {
+  const DriveFrames& drive = Drive(lidar);
+  const std::vector<Frame>& frames = drive.frames;
   if (frames.empty()) {
     state.SkipWithError("cannot make the drive (datasets/worlds, config/default.yaml)");
     return;
   }
-  map::MapperConfig config;
-  config.detector = Settings().detector;
-  config.rules = Settings().rules;
-  config.map.max_range_m = static_cast<double>(state.range(0));
+  const map::MapperConfig config = Config(static_cast<double>(state.range(0)), tilt);
   std::unique_ptr<map::Mapper> mapper;
   std::size_t next = 0;
-  double free_voxels = 0.0, detect_s = 0.0, fuse_s = 0.0, octree_s = 0.0, classify_s = 0.0,
-         grid_s = 0.0;
+  double free_voxels = 0.0, detect_s = 0.0, tilt_s = 0.0, fuse_s = 0.0, octree_s = 0.0,
+         classify_s = 0.0, grid_s = 0.0;
   for (auto _ : state) {
     state.PauseTiming();
     if (mapper == nullptr || next == frames.size()) {
-      mapper = std::make_unique<map::Mapper>(map::Mapper::Create(config).value());
+      mapper = NewMapper(config, drive);
       next = 0;
     }
     const Frame& f = frames[next];
     od::RangeImage image = f.image;
     state.ResumeTiming();
-    auto record = mapper->Process(std::move(image), f.T_world_sensor, f.stamp_s);
+    auto record = mapper->Process(std::move(image), f.T_world_sensor, f.stamp_s, f.imu);
     benchmark::DoNotOptimize(record);
     if (!record || !record->used()) {
       state.SkipWithError("a frame was not fused");
@@ -134,6 +166,7 @@ void Process(benchmark::State& state, bool lidar) {
     }
     free_voxels += static_cast<double>(record->fused.voxels_free);
     detect_s += record->detect_s;
+    tilt_s += record->tilt_s;
     fuse_s += record->fuse_s;
     octree_s += record->fused.octree_s;
     classify_s += record->fused.classify_s;
@@ -144,14 +177,51 @@ void Process(benchmark::State& state, bool lidar) {
   state.counters["pixels"] = frames.front().image.size();
   state.counters["free_voxels"] = free_voxels / n;
   state.counters["detect_ms"] = 1e3 * detect_s / n;
+  state.counters["tilt_ms"] = 1e3 * tilt_s / n;
   state.counters["fuse_ms"] = 1e3 * fuse_s / n;
   state.counters["octree_ms"] = 1e3 * octree_s / n;
   state.counters["classify_ms"] = 1e3 * classify_s / n;
   state.counters["grid_ms"] = 1e3 * grid_s / n;
 }
 
-void BM_MapperDepth640x480(benchmark::State& state) { Process(state, false); }
-void BM_MapperLidar64x2048(benchmark::State& state) { Process(state, true); }
+void BM_MapperDepth640x480(benchmark::State& state) {
+  Process(state, false, map::TiltMode::kPrior);
+}
+void BM_MapperLidar64x2048(benchmark::State& state) { Process(state, true, map::TiltMode::kPrior); }
+void BM_MapperTilt(benchmark::State& state, map::TiltMode tilt) { Process(state, false, tilt); }
+
+// Every map file of the camera drive's map, written afresh per iteration.
+void BM_MapFiles(benchmark::State& state) {
+  const DriveFrames& drive = Drive(false);
+  if (drive.frames.empty()) {
+    state.SkipWithError("cannot make the drive (datasets/worlds, config/default.yaml)");
+    return;
+  }
+  const map::MapperConfig config = Config(20.0, map::TiltMode::kPrior);
+  std::unique_ptr<map::Mapper> mapper = NewMapper(config, drive);
+  for (const Frame& f : drive.frames) {
+    if (!mapper->Process(f.image, f.T_world_sensor, f.stamp_s, f.imu)) {
+      state.SkipWithError("a frame was not fused");
+      return;
+    }
+  }
+  std::error_code ec;
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("cairn-bench-map-files-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir, ec);
+  for (auto _ : state) {
+    if (Status written = map::WriteMapFiles(mapper->map(), dir); !written) {
+      state.SkipWithError(written.message().c_str());
+      break;
+    }
+  }
+  std::uintmax_t bytes = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    bytes += entry.is_regular_file() ? entry.file_size() : 0;
+  }
+  state.counters["kib_written"] = static_cast<double>(bytes) / 1024.0;
+  std::filesystem::remove_all(dir, ec);
+}
 
 // One pass over the 12 frames of the drive per run.
 BENCHMARK(BM_MapperDepth640x480)
@@ -164,6 +234,19 @@ BENCHMARK(BM_MapperLidar64x2048)
     ->Arg(40)
     ->Iterations(12)
     ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_MapperTilt, prior, map::TiltMode::kPrior)
+    ->Arg(20)
+    ->Iterations(12)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_MapperTilt, refine_to_map, map::TiltMode::kRefineToMap)
+    ->Arg(20)
+    ->Iterations(12)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_MapperTilt, gravity, map::TiltMode::kGravity)
+    ->Arg(20)
+    ->Iterations(12)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_MapFiles)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -16,6 +16,7 @@
 
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/detection_files.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn_command.hpp"
 #include "temp_dir.hpp"
 
@@ -26,7 +27,6 @@
 namespace cairn {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kWidth = 160, kHeight = 120;
 constexpr double kFocal = 150.0, kCx = 79.5, kCy = 59.5;
 constexpr double kCameraHeight = 1.5, kPitchDeg = 10.0;
@@ -197,7 +197,7 @@ TEST_F(DetectCli, BenchTimesEveryMethodAndChecksTheExactOneAgainstTheDefinition)
   ExpectFailure({"bench", "--depth", (dir_ / "none.png").string(), "--intrinsics",
                  intrinsics_.string()},
                 "none.png");
-  ExpectFailure({"bench"}, "give --depth");
+  ExpectFailure({"bench"}, "give one input: a frame (--depth");
 }
 
 TEST_F(DetectCli, WithoutRulesEveryObstaclePointIsKept) {

@@ -334,6 +334,29 @@ TEST_F(MapCli, OnlineWindowBoundsTheGrid) {
   EXPECT_EQ(summary.at("map").at("mode"), "online");
 }
 
+// `cairn bench` on the same rawlog: the Mapper over the sequence, every stage with a median
+// and a 95th percentile no smaller than it, frames fused as the map counts them.
+TEST_F(MapCli, BenchTimesEveryStageOfTheMapperOverTheSequence) {
+  const CommandRun run =
+      Cairn("bench --rawlog '" + rawlog().string() + "' --max-frames 4 --rate 5", dir());
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_NE(run.out.find("4 frames fused of 4 read (0 skipped)"), std::string::npos) << run.out;
+  for (const char* stage : {"read", "detect", "tilt", "fuse", "octree", "classify", "grid",
+                            "frame"}) {
+    const std::regex line(std::string("\\n +") + stage + " +([0-9.]+) +([0-9.]+) +([0-9.]+)\\n");
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(run.out, m, line)) << stage << " in:\n" << run.out;
+    EXPECT_LE(std::stod(m[1]), std::stod(m[2])) << stage;  // median <= 95th percentile
+    EXPECT_NEAR(std::stod(m[3]), std::stod(m[1]) / 200.0, 0.01) << stage;  // of 200 ms at 5 Hz
+  }
+  EXPECT_NE(run.out.find("frames/s"), std::string::npos);
+  EXPECT_NE(run.out.find("peak memory:"), std::string::npos);
+  // A rawlog that is not there: exit 1, naming it.
+  const CommandRun bad = Cairn("bench --rawlog '" + (dir() / "none.rawlog").string() + "'", dir());
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find("none.rawlog"), std::string::npos) << bad.err;
+}
+
 TEST_F(MapCli, TiltRefinementReportsItsCorrection) {
   const fs::path config = dir() / "refine.yaml";
   std::ofstream(config) << "tilt:\n  refine: true\n  max_range: 15\n";

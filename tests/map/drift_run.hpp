@@ -294,16 +294,7 @@ inline Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   std::size_t next_imu = 0;
   for (const sim::DriveSample& s : drive->samples) {
     // The raw IMU samples since the previous frame, rotated into the body frame.
-    std::vector<map::ImuSample> imu;
-    for (; next_imu < drive->imu.size() && drive->imu[next_imu].stamp_s <= s.stamp_s; ++next_imu) {
-      const sim::ImuReading& reading = drive->imu[next_imu];
-      map::ImuSample sample;
-      sample.stamp_s = reading.stamp_s;
-      sample.specific_force_mps2 = drive->R_body_imu * reading.specific_force_mps2;
-      sample.angular_rate_radps = drive->R_body_imu * reading.angular_rate_radps;
-      sample.has_raw = true;
-      imu.push_back(sample);
-    }
+    std::vector<map::ImuSample> imu = BodyImuUpTo(*drive, s.stamp_s, &next_imu);
     // The believed pose.
     Eigen::Isometry3d T_world_sensor = s.T_world_sensor;
     if (!spec.true_poses) {

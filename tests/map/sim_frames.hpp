@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/map/imu.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/io/detect_config.hpp"
@@ -25,6 +26,24 @@
 namespace cairn::test {
 
 inline std::filesystem::path SourceDir() { return CAIRN_SOURCE_DIR; }
+
+/// The drive's raw IMU readings from drive.imu[*next] up to the stamp `up_to_s`, rotated into
+/// the body frame as the Mapper takes them; *next moves past them (start it at 0 and call
+/// once per frame for the samples since the previous frame).
+inline std::vector<map::ImuSample> BodyImuUpTo(const sim::Drive& drive, double up_to_s,
+                                               std::size_t* next) {
+  std::vector<map::ImuSample> out;
+  for (; *next < drive.imu.size() && drive.imu[*next].stamp_s <= up_to_s; ++*next) {
+    const sim::ImuReading& reading = drive.imu[*next];
+    map::ImuSample sample;
+    sample.stamp_s = reading.stamp_s;
+    sample.specific_force_mps2 = drive.R_body_imu * reading.specific_force_mps2;
+    sample.angular_rate_radps = drive.R_body_imu * reading.angular_rate_radps;
+    sample.has_raw = true;
+    out.push_back(sample);
+  }
+  return out;
+}
 
 /// config/default.yaml's detector and rules (one worker thread: tests run side by side).
 inline Expected<od::io::DetectSettings> DefaultDetectSettings() {
