@@ -2,6 +2,7 @@
 // or a depth folder, exactly as `cairn map` runs it (the same source, settings and Mapper)
 // but writing nothing, timed stage by stage: each stage's median and 95th percentile per
 // frame, the frame rate it sustains against the sensor's, and the peak memory.
+#include <algorithm>
 #include <iomanip>
 #include <iostream>
 #include <string>
