@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "cairn/od/sensor_model.hpp"
+
 namespace cairn::apps {
 
 /// Exit codes shared by every subcommand.
@@ -20,10 +22,7 @@ int CommandFailure(const char* command, const std::string& message);
 
 /// The LiDAR presets of od::SphericalModel::Preset, for the --sensor options (any case:
 /// `->transform(CLI::IsMember(SensorPresets(), CLI::ignore_case))` gives the preset's name).
-inline const std::vector<std::string>& SensorPresets() {
-  static const std::vector<std::string> names = {"HDL-64E", "VLP-16", "VLP-32C", "OS1-64"};
-  return names;
-}
+inline const std::vector<std::string>& SensorPresets() { return od::SphericalModel::PresetNames(); }
 
 struct Subcommand {
   CLI::App* app = nullptr;   ///< owned by the parent app

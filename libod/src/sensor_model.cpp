@@ -81,6 +81,11 @@ int SphericalModel::NearestRing(const Eigen::Vector3d& p) const {
   return best;
 }
 
+const std::vector<std::string>& SphericalModel::PresetNames() {
+  static const std::vector<std::string> names = {"HDL-64E", "VLP-16", "VLP-32C", "OS1-64"};
+  return names;
+}
+
 Expected<SphericalModel> SphericalModel::Preset(const std::string& given, int width) {
   // Names in any case: "os1-64" as the settings file config/sensors/os1-64.yaml has it.
   std::string name = given;
@@ -104,8 +109,12 @@ Expected<SphericalModel> SphericalModel::Preset(const std::string& given, int wi
                             -4.667, -5.333, -6.148, -7.254, -8.843, -11.31, -15.639, -25.0};
     for (double e : table) m.ring_elevation_rad.push_back(e * kDegToRad);
   } else {
-    return Error{"unknown sensor preset '" + given +
-                 "' (expected HDL-64E, VLP-16, VLP-32C or OS1-64)"};
+    const std::vector<std::string>& names = PresetNames();
+    std::string expected;
+    for (std::size_t k = 0; k < names.size(); ++k) {
+      expected += (k == 0 ? "" : k + 1 == names.size() ? " or " : ", ") + names[k];
+    }
+    return Error{"unknown sensor preset '" + given + "' (expected " + expected + ")"};
   }
   if (Status s = m.Validate(); !s) return s.error();
   return m;

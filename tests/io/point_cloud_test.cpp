@@ -82,6 +82,28 @@ od::SphericalModel Os1(int width) {
   return *model;
 }
 
+// Every preset name is one Preset() knows, in any case, with its own ring count; an unknown
+// name is refused with the list.
+TEST(SensorPresets, EveryNameIsAModelInAnyCaseAndAnUnknownOneListsThem) {
+  const std::vector<std::string>& names = od::SphericalModel::PresetNames();
+  ASSERT_EQ(names.size(), 4u);
+  const std::map<std::string, int> rings = {{"HDL-64E", 64}, {"VLP-16", 16}, {"VLP-32C", 32},
+                                            {"OS1-64", 64}};
+  for (const std::string& name : names) {
+    std::string lower = name;
+    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    for (const std::string& given : {name, lower}) {
+      Expected<od::SphericalModel> model = od::SphericalModel::Preset(given);
+      ASSERT_TRUE(model) << given << ": " << model.error().message;
+      EXPECT_EQ(model->height(), rings.at(name)) << given;
+    }
+  }
+  Expected<od::SphericalModel> unknown = od::SphericalModel::Preset("HDL-32");
+  ASSERT_FALSE(unknown);
+  EXPECT_EQ(unknown.error().message,
+            "unknown sensor preset 'HDL-32' (expected HDL-64E, VLP-16, VLP-32C or OS1-64)");
+}
+
 TEST(KittiBin, RoundTripIsBitExact) {
   test::TempDir dir;
   PointCloud cloud;

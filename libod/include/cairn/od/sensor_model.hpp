@@ -74,6 +74,8 @@ struct SphericalModel {
   /// +15 to -25 deg, densest 1/3 deg around the horizon), "OS1-64" (64 rings evenly over
   /// +-16.6 deg). Names in any case ("os1-64").
   static Expected<SphericalModel> Preset(const std::string& name, int width = 0);
+  /// The names Preset() knows, as written above ("HDL-64E", "VLP-16", "VLP-32C", "OS1-64").
+  static const std::vector<std::string>& PresetNames();
 };
 
 /// Every sensor model a RangeImage may carry.
