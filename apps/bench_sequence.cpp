@@ -2,13 +2,14 @@
 // or a depth folder, exactly as `cairn map` runs it (the same source, settings and Mapper)
 // but writing nothing, timed stage by stage: each stage's median and 95th percentile per
 // frame, the frame rate it sustains against the sensor's, and the peak memory.
+#include "bench_sequence.hpp"
+
 #include <algorithm>
 #include <iomanip>
 #include <iostream>
 #include <string>
 #include <vector>
 
-#include "bench_sequence.hpp"
 #include "cairn/map/mapper_config_file.hpp"
 #include "cairn/util/format.hpp"
 #include "map_run.hpp"
@@ -46,9 +47,9 @@ int RunSequenceBench(const MapOptions& o, double rate_hz) {
   sources::FrameSource& source = **opened;
   const double open_s = SecondsSince(open_start);
 
-  std::vector<Stage> stages = {{"read", 0, {}},    {"detect", 0, {}},   {"tilt", 0, {}},
-                               {"fuse", 0, {}},    {"octree", 1, {}},   {"classify", 1, {}},
-                               {"grid", 1, {}},    {"frame", 0, {}}};
+  std::vector<Stage> stages = {{"read", 0, {}}, {"detect", 0, {}}, {"tilt", 0, {}},
+                               {"fuse", 0, {}}, {"octree", 1, {}}, {"classify", 1, {}},
+                               {"grid", 1, {}}, {"frame", 0, {}}};
   int read = 0, skipped = 0;
   const int total = o.max_frames > 0 ? std::min(o.max_frames, source.total()) : source.total();
   Progress progress(total, o.progress_every);
@@ -78,8 +79,9 @@ int RunSequenceBench(const MapOptions& o, double rate_hz) {
       continue;
     }
     const double frame_s = SecondsSince(t);
-    const double values_s[] = {read_s,  r->detect_s,          r->tilt_s,          r->fuse_s,
-                               r->fused.octree_s, r->fused.classify_s, r->fused.grid_s, frame_s};
+    const double values_s[] = {
+        read_s,          r->detect_s, r->tilt_s, r->fuse_s, r->fused.octree_s, r->fused.classify_s,
+        r->fused.grid_s, frame_s};
     for (std::size_t k = 0; k < stages.size(); ++k) stages[k].ms.push_back(1e3 * values_s[k]);
     ReleaseFreeMemoryEvery(read);
     progress.Update(read);
@@ -99,10 +101,10 @@ int RunSequenceBench(const MapOptions& o, double rate_hz) {
             << " ms a frame has at " << util::Fixed(rate_hz, 1) << " Hz\n";
   for (const Stage& s : stages) {
     const double median = Quantile(s.ms, 0.5);
-    std::cout << "  " << std::string(2 * s.indent, ' ') << std::left
-              << std::setw(20 - 2 * s.indent) << s.name << std::right << std::setw(9)
-              << util::Fixed(median, 1) << std::setw(13) << util::Fixed(Quantile(s.ms, 0.95), 1)
-              << std::setw(12) << util::Fixed(median / budget_ms, 2) << "\n";
+    std::cout << "  " << std::string(2 * s.indent, ' ') << std::left << std::setw(20 - 2 * s.indent)
+              << s.name << std::right << std::setw(9) << util::Fixed(median, 1) << std::setw(13)
+              << util::Fixed(Quantile(s.ms, 0.95), 1) << std::setw(12)
+              << util::Fixed(median / budget_ms, 2) << "\n";
   }
   std::cout << "  sustained: " << util::Fixed(1e3 / median_ms, 2)
             << " frames/s (one over the median frame); " << util::Fixed(read / run_s, 2)

@@ -53,7 +53,6 @@ struct Cleanup {
   }
 };
 
-
 int RunMap(const MapOptions& options) {
   const Clock::time_point run_start = Clock::now();
   // --- parse ---
@@ -76,7 +75,8 @@ int RunMap(const MapOptions& options) {
 
   // --- load ---
   const Clock::time_point open_start = Clock::now();
-  Expected<std::unique_ptr<sources::FrameSource>> opened = OpenFrameSource(options, settings->stereo);
+  Expected<std::unique_ptr<sources::FrameSource>> opened =
+      OpenFrameSource(options, settings->stereo);
   if (!opened) return MapFail(opened.error().message);
   sources::FrameSource& source = **opened;
   StageTimes times;
@@ -115,20 +115,20 @@ int RunMap(const MapOptions& options) {
   double earlier_wall_s = 0.0;
   if (!options.resume && fs::exists(checkpoint)) {
     return MapFail(checkpoint.string() +
-                ": an interrupted run's checkpoint is here: continue it with --resume, or "
-                "remove it (or choose another --out) to start afresh");
+                   ": an interrupted run's checkpoint is here: continue it with --resume, or "
+                   "remove it (or choose another --out) to start afresh");
   }
   if (options.resume) {
     if (!fs::exists(checkpoint)) {
       return MapFail(checkpoint.string() +
-                  ": no checkpoint to resume from (--resume continues a run interrupted with "
-                  "the same --out)");
+                     ": no checkpoint to resume from (--resume continues a run interrupted with "
+                     "the same --out)");
     }
     std::string app_data;
     Expected<map::Mapper> loaded = map::Mapper::FromCheckpoint(checkpoint, config, &app_data);
     if (!loaded) {
       return MapFail(loaded.error().message +
-                  " (--resume needs the same input, --config, --tilt and --window)");
+                     " (--resume needs the same input, --config, --tilt and --window)");
     }
     Expected<RunState> saved = ResumeStateFromJson(app_data, checkpoint.string());
     if (!saved) return MapFail(saved.error().message);
@@ -209,7 +209,7 @@ int RunMap(const MapOptions& options) {
       if (options.strict) {
         progress.Finish();
         return MapFail(frame.name + ": " + reason + " (" + detail +
-                    "); --strict makes a frame that cannot be used an error");
+                       "); --strict makes a frame that cannot be used an error");
       }
       progress.Note("skipped " + frame.name + ": " + reason + " (" + detail + ")");
       state.skipped.push_back({frame.name, reason, detail});
@@ -223,10 +223,10 @@ int RunMap(const MapOptions& options) {
   }
   progress.Finish();
   if (state.records.empty()) {
-    return MapFail("no frames to fuse" + (state.skipped.empty()
-                                           ? std::string()
-                                           : " (" + std::to_string(state.skipped.size()) +
-                                                 " skipped)"));
+    return MapFail("no frames to fuse" +
+                   (state.skipped.empty()
+                        ? std::string()
+                        : " (" + std::to_string(state.skipped.size()) + " skipped)"));
   }
 
   // --- report ---

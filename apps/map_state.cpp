@@ -9,9 +9,9 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "cairn/util/format.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"
-#include "cairn/util/format.hpp"
 
 namespace cairn::apps {
 namespace {
@@ -39,8 +39,8 @@ constexpr const char* kFormat = "cairn map resume state 3";
 
 }  // namespace
 
-Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(const MapOptions& o,
-                                                                const od::io::StereoConfig& stereo) {
+Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(
+    const MapOptions& o, const od::io::StereoConfig& stereo) {
   if (!o.rawlog.empty()) return sources::OpenRawlogFrames(o.rawlog, o.label, stereo);
   if (!o.kitti.empty()) return sources::OpenKittiFrames(o.kitti, o.sequence, o.range, o.lidar);
   return sources::OpenDepthFolderFrames(o.frames, o.poses, o.intrinsics);
@@ -218,7 +218,8 @@ void Progress::Update(int done) {
     bar_shown_ = true;
   } else if (done % every_ == 0 || done == total_) {
     std::cerr << "cairn map: " << done << "/" << total_ << " frames (" << 100 * done / total_
-              << "%), " << util::Fixed(rate, 1) << " frames/s, about " << Minutes(left) << " left\n";
+              << "%), " << util::Fixed(rate, 1) << " frames/s, about " << Minutes(left)
+              << " left\n";
   }
 }
 

@@ -6,11 +6,11 @@
 #include <sstream>
 
 #include "cairn/map/map_files.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/util/atomic_file.hpp"
+#include "cairn/util/format.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"
-#include "cairn/od/units.hpp"
-#include "cairn/util/format.hpp"
 
 namespace cairn::apps {
 namespace {
@@ -66,7 +66,8 @@ void TruthText(const TruthScore& truth, std::ostringstream& text) {
        << " obstacles found, " << truth.marked_non_obstacles << " non-obstacles marked, "
        << truth.false_obstacles << " false obstacles; IoU of lethal cells and obstacle "
        << "footprints " << util::Fixed(truth.iou, 2) << "; elevation RMS error "
-       << util::Fixed(truth.elevation_rms_m, 3) << " m over " << truth.elevation_cells << " cells\n";
+       << util::Fixed(truth.elevation_rms_m, 3) << " m over " << truth.elevation_cells
+       << " cells\n";
   for (const TruthObject& t : truth.objects) {
     text << "    " << std::left << std::setw(12) << t.name << std::right
          << (t.is_obstacle ? " obstacle     " : " not obstacle ") << "at ("
@@ -139,9 +140,10 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
     csv << r.index << "," << util::Fixed(r.stamp_s, 6) << "," << r.valid_points << "," << r.segments
         << "," << r.kept << "," << r.fused.obstacle_points << "," << r.fused.obstacles_created
         << "," << r.fused.lethal_cells << "," << (r.refined ? 1 : 0) << ","
-        << util::Fixed(r.d_roll_rad / kDegToRad, 3) << "," << util::Fixed(r.d_pitch_rad / kDegToRad, 3) << ","
-        << util::Fixed(r.dz_m, 3) << "," << util::Fixed(r.rms_before_m, 4) << "," << util::Fixed(r.rms_after_m, 4)
-        << "," << util::Fixed(r.read_s * 1e3, 1) << "," << util::Fixed(r.detect_s * 1e3, 1) << ","
+        << util::Fixed(r.d_roll_rad / kDegToRad, 3) << ","
+        << util::Fixed(r.d_pitch_rad / kDegToRad, 3) << "," << util::Fixed(r.dz_m, 3) << ","
+        << util::Fixed(r.rms_before_m, 4) << "," << util::Fixed(r.rms_after_m, 4) << ","
+        << util::Fixed(r.read_s * 1e3, 1) << "," << util::Fixed(r.detect_s * 1e3, 1) << ","
         << util::Fixed(r.refine_s * 1e3, 1) << "," << util::Fixed(r.fuse_s * 1e3, 1) << ","
         << util::Fixed(r.rss_mb, 1) << "," << util::Fixed(r.heap_mb, 1) << "\n";
   }
@@ -195,14 +197,15 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
       sum_after += r.rms_after_m;
       ++counted;
     }
-    summary["tilt"] = {{"refine", true},
-                       {"mode", map::TiltModeName(config.tilt.mode)},
-                       {"refined_frames", run.state.refined_frames},
-                       {"final_correction_deg",
-                        {records.back().d_roll_rad / kDegToRad, records.back().d_pitch_rad / kDegToRad}},
-                       {"final_dz_m", records.back().dz_m},
-                       {"mean_rms_before_m", counted ? sum_before / counted : 0.0},
-                       {"mean_rms_after_m", counted ? sum_after / counted : 0.0}};
+    summary["tilt"] = {
+        {"refine", true},
+        {"mode", map::TiltModeName(config.tilt.mode)},
+        {"refined_frames", run.state.refined_frames},
+        {"final_correction_deg",
+         {records.back().d_roll_rad / kDegToRad, records.back().d_pitch_rad / kDegToRad}},
+        {"final_dz_m", records.back().dz_m},
+        {"mean_rms_before_m", counted ? sum_before / counted : 0.0},
+        {"mean_rms_after_m", counted ? sum_after / counted : 0.0}};
   } else {
     summary["tilt"] = {{"refine", false}, {"mode", map::TiltModeName(config.tilt.mode)}};
   }
@@ -274,9 +277,10 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
     }
     text << "\n";
   }
-  text << "  time: read " << util::Fixed(times.read_s, 2) << " s, detect " << util::Fixed(times.detect_s, 2)
-       << " s, refine " << util::Fixed(times.refine_s, 2) << " s, fuse " << util::Fixed(times.fuse_s, 2)
-       << " s, write " << util::Fixed(times.write_s, 2) << " s; " << util::Fixed(wall_s, 2) << " s in all, "
+  text << "  time: read " << util::Fixed(times.read_s, 2) << " s, detect "
+       << util::Fixed(times.detect_s, 2) << " s, refine " << util::Fixed(times.refine_s, 2)
+       << " s, fuse " << util::Fixed(times.fuse_s, 2) << " s, write "
+       << util::Fixed(times.write_s, 2) << " s; " << util::Fixed(wall_s, 2) << " s in all, "
        << util::Fixed(n / wall_s, 2) << " frames/s; peak memory "
        << util::Fixed(summary["peak_rss_mb"].get<double>(), 0) << " MiB\n";
   // read, detect, tilt, fuse (octree, classify, grid), frame

@@ -22,8 +22,8 @@
 #include "cairn/sim/mrpt/frame_files.hpp"
 #include "cairn/sim/mrpt/sequence.hpp"
 #include "cairn/sim/world.hpp"
-#include "subcommands.hpp"
 #include "cairn/util/format.hpp"
+#include "subcommands.hpp"
 
 namespace cairn::apps {
 namespace {
@@ -129,20 +129,22 @@ int RunSynth(const SynthOptions& options) {
   const Clock::time_point start = Clock::now();
   const bool lidar = options.sensor == "lidar";
   if (options.sensor != "camera" && !lidar) {
-    return SynthFail("--sensor: unknown sensor '" + options.sensor + "' (expected camera or lidar)");
+    return SynthFail("--sensor: unknown sensor '" + options.sensor +
+                     "' (expected camera or lidar)");
   }
   Expected<sim::World> loaded = sim::LoadWorld(options.world);
   if (!loaded) return SynthFail(loaded.error().message);
   const sim::World& world = *loaded;
   if (lidar && !world.lidar) {
     return SynthFail(options.world +
-                ": lidar: missing (--sensor lidar needs the world's lidar section)");
+                     ": lidar: missing (--sensor lidar needs the world's lidar section)");
   }
   const fs::path out = options.out;
 
   if (options.drive) {
     if (!world.drive) {
-      return SynthFail(options.world + ": drive: missing (--drive needs the world's drive section)");
+      return SynthFail(options.world +
+                       ": drive: missing (--drive needs the world's drive section)");
     }
     sim::SequenceOptions sequence;
     sequence.sensor = lidar ? sim::SensorFrame::kLidar : sim::SensorFrame::kCameraOptical;
@@ -175,7 +177,7 @@ int RunSynth(const SynthOptions& options) {
   const int views = static_cast<int>(world.views.size());
   if (options.view >= views) {
     return SynthFail(options.world + ": views: no view " + std::to_string(options.view) +
-                " (the world has " + std::to_string(views) + ")");
+                     " (the world has " + std::to_string(views) + ")");
   }
   std::cout << "cairn synth: " << world.name << ", " << (lidar ? "lidar" : "camera")
             << (options.exact ? ", exact ranges" : "") << "\n";
@@ -184,11 +186,13 @@ int RunSynth(const SynthOptions& options) {
     const fs::path dir = options.view >= 0 ? out : out / ViewDirName(index);
     Expected<std::string> line = WriteView(world, index, lidar, options.exact, dir);
     if (!line) {
-      return SynthFail(options.world + ": view " + std::to_string(index) + ": " + line.error().message);
+      return SynthFail(options.world + ": view " + std::to_string(index) + ": " +
+                       line.error().message);
     }
     std::cout << "  " << *line << "\n";
   }
-  std::cout << std::fixed << std::setprecision(2) << "  time: " << util::SecondsSince(start) << " s\n";
+  std::cout << std::fixed << std::setprecision(2) << "  time: " << util::SecondsSince(start)
+            << " s\n";
   return kExitOk;
 }
 

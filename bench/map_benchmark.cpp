@@ -13,6 +13,7 @@
 //                elevation.tiff, obstacles.json), into a temporary folder.
 //   cairn_map_benchmark --benchmark_repetitions=3 --benchmark_report_aggregates_only
 #include <benchmark/benchmark.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -20,8 +21,6 @@
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <unistd.h>
 
 #include "cairn/map/map_files.hpp"
 #include "cairn/map/mapper.hpp"
@@ -67,7 +66,8 @@ DriveFrames MakeDrive(const std::string& world_name, bool lidar, int count) {
   spec.speed_mps = 2.0;
   spec.frame_rate_hz = 2.5;
   spec.sensor_pitch_rad = 8.0 * kDegToRad;
-  const sim::SensorFrame sensor = lidar ? sim::SensorFrame::kLidar : sim::SensorFrame::kCameraOptical;
+  const sim::SensorFrame sensor =
+      lidar ? sim::SensorFrame::kLidar : sim::SensorFrame::kCameraOptical;
   Expected<sim::Drive> drive = sim::SimulateDrive(world->scene.terrain(), spec, sensor, 1, count);
   if (!drive) return {};
   DriveFrames out;
@@ -206,8 +206,8 @@ void BM_MapFiles(benchmark::State& state) {
     }
   }
   std::error_code ec;
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("cairn-bench-map-files-" + std::to_string(::getpid()));
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("cairn-bench-map-files-" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir, ec);
   for (auto _ : state) {
     if (Status written = map::WriteMapFiles(mapper->map(), dir); !written) {

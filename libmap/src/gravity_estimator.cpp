@@ -359,16 +359,17 @@ void GravityEstimator::State::Marginalise() {
 
 Status GravityEstimatorConfig::Validate() const {
   if (accel_warmup_spans < 0) {
-    return GravityError("accel_warmup_spans", "must be >= 0, got " + std::to_string(accel_warmup_spans));
+    return GravityError("accel_warmup_spans",
+                        "must be >= 0, got " + std::to_string(accel_warmup_spans));
   }
   if (accel_half_span_frames < 1) {
     return GravityError("accel_half_span_frames",
-                      "must be >= 1, got " + std::to_string(accel_half_span_frames));
+                        "must be >= 1, got " + std::to_string(accel_half_span_frames));
   }
   if (window_frames < 2 * accel_half_span_frames + 2) {
     return GravityError("window_frames", "must be >= 2 accel_half_span_frames + 2 = " +
-                                           std::to_string(2 * accel_half_span_frames + 2) +
-                                           ", got " + std::to_string(window_frames));
+                                             std::to_string(2 * accel_half_span_frames + 2) +
+                                             ", got " + std::to_string(window_frames));
   }
   if (!(std::isfinite(odometry_sigma_m) && odometry_sigma_m >= 0.0)) {
     return GravityError("odometry_sigma_m", "must be a finite number >= 0");
@@ -480,8 +481,8 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
   if (!std::isfinite(frame.stamp_s)) return GravityError("frame.stamp_s", "must be finite");
   if (!st.window.empty() && !(frame.stamp_s > st.window.back()->input.stamp_s)) {
     return GravityError("frame.stamp_s", "must be after the previous frame's (" +
-                                           std::to_string(st.window.back()->input.stamp_s) +
-                                           " s), got " + std::to_string(frame.stamp_s));
+                                             std::to_string(st.window.back()->input.stamp_s) +
+                                             " s), got " + std::to_string(frame.stamp_s));
   }
   if (!frame.odometry_xy_yaw.allFinite()) {
     return GravityError("frame.odometry_xy_yaw", "must be finite");
@@ -496,7 +497,7 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
     if (!(frame.verticals[i].direction_sensor.allFinite() &&
           frame.verticals[i].direction_sensor.norm() > 0.0)) {
       return GravityError("frame.verticals[" + std::to_string(i) + "]",
-                        "must be a finite, non-zero direction");
+                          "must be a finite, non-zero direction");
     }
   }
   if (frame.ground_height_m &&
@@ -515,8 +516,8 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
     }
     if (std::isfinite(st.last_sample_stamp_s) && !(s.stamp_s > st.last_sample_stamp_s)) {
       return GravityError("frame.imu[" + std::to_string(j) + "].stamp_s",
-                        "must increase, got " + std::to_string(s.stamp_s) + " after " +
-                            std::to_string(st.last_sample_stamp_s));
+                          "must increase, got " + std::to_string(s.stamp_s) + " after " +
+                              std::to_string(st.last_sample_stamp_s));
     }
     Sample sample;
     sample.raw = s;

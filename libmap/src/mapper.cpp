@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "cairn/map/checkpoint.hpp"
+#include "cairn/od/units.hpp"
 #include "cairn/util/format.hpp"
 
 namespace cairn::map {
@@ -95,13 +96,13 @@ struct Mapper::State {
     const double turned =
         Eigen::AngleAxisd(previous->second.linear().transpose() * T.linear()).angle();
     if (moved > config.frames.max_speed_mps * dt) {
-      return "the odometry moved " + util::Fixed(moved, 2) + " m in " + util::Fixed(dt, 3) + " s (frames.max_speed " +
-             util::Fixed(config.frames.max_speed_mps, 1) + " m/s)";
+      return "the odometry moved " + util::Fixed(moved, 2) + " m in " + util::Fixed(dt, 3) +
+             " s (frames.max_speed " + util::Fixed(config.frames.max_speed_mps, 1) + " m/s)";
     }
     if (turned > config.frames.max_turn_rate_radps * dt) {
-      return "the odometry turned " + util::Fixed(turned * 180.0 / M_PI, 1) + " deg in " + util::Fixed(dt, 3) +
-             " s (frames.max_turn_rate " + util::Fixed(config.frames.max_turn_rate_radps * 180.0 / M_PI, 0) +
-             " deg/s)";
+      return "the odometry turned " + util::Fixed(turned * kRadToDeg, 1) + " deg in " +
+             util::Fixed(dt, 3) + " s (frames.max_turn_rate " +
+             util::Fixed(config.frames.max_turn_rate_radps * kRadToDeg, 0) + " deg/s)";
     }
     return {};
   }

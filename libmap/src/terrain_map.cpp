@@ -1,8 +1,5 @@
 #include "cairn/map/terrain_map.hpp"
 
-#include "key_bricks.hpp"
-#include "cairn/util/format.hpp"
-
 #include <octomap/OcTreeKey.h>
 
 #include <Eigen/Dense>
@@ -13,6 +10,9 @@
 #include <string>
 #include <thread>
 #include <utility>
+
+#include "cairn/util/format.hpp"
+#include "key_bricks.hpp"
 
 namespace cairn::map {
 namespace {

@@ -67,8 +67,8 @@ Status CheckDrivable(const DriveSpec& spec) {
   }
   if (!std::isfinite(spec.speed_wave_mps) || spec.speed_wave_mps < 0.0 ||
       spec.speed_wave_mps >= spec.speed_mps) {
-    return DriveError("speed_wave_mps", "must be in [0, speed_mps), got " +
-                                            std::to_string(spec.speed_wave_mps));
+    return DriveError("speed_wave_mps",
+                      "must be in [0, speed_mps), got " + std::to_string(spec.speed_wave_mps));
   }
   if (Status s = CheckPositive("speed_wave_period_s", spec.speed_wave_period_s); !s) return s;
   if (!spec.sensor_misalignment_rad.allFinite()) {

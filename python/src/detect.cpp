@@ -10,8 +10,8 @@
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/rules.hpp"
 #include "cairn/od/sensor_model.hpp"
-#include "types.hpp"
 #include "cairn/util/format.hpp"
+#include "types.hpp"
 
 namespace cairn::python {
 

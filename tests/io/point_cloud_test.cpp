@@ -87,8 +87,8 @@ od::SphericalModel Os1(int width) {
 TEST(SensorPresets, EveryNameIsAModelInAnyCaseAndAnUnknownOneListsThem) {
   const std::vector<std::string>& names = od::SphericalModel::PresetNames();
   ASSERT_EQ(names.size(), 4u);
-  const std::map<std::string, int> rings = {{"HDL-64E", 64}, {"VLP-16", 16}, {"VLP-32C", 32},
-                                            {"OS1-64", 64}};
+  const std::map<std::string, int> rings = {
+      {"HDL-64E", 64}, {"VLP-16", 16}, {"VLP-32C", 32}, {"OS1-64", 64}};
   for (const std::string& name : names) {
     std::string lower = name;
     for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));

@@ -341,8 +341,8 @@ TEST_F(MapCli, BenchTimesEveryStageOfTheMapperOverTheSequence) {
       Cairn("bench --rawlog '" + rawlog().string() + "' --max-frames 4 --rate 5", dir());
   ASSERT_EQ(run.status, 0) << run.err;
   EXPECT_NE(run.out.find("4 frames fused of 4 read (0 skipped)"), std::string::npos) << run.out;
-  for (const char* stage : {"read", "detect", "tilt", "fuse", "octree", "classify", "grid",
-                            "frame"}) {
+  for (const char* stage :
+       {"read", "detect", "tilt", "fuse", "octree", "classify", "grid", "frame"}) {
     const std::regex line(std::string("\\n +") + stage + " +([0-9.]+) +([0-9.]+) +([0-9.]+)\\n");
     std::smatch m;
     ASSERT_TRUE(std::regex_search(run.out, m, line)) << stage << " in:\n" << run.out;

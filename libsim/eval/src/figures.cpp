@@ -9,8 +9,8 @@
 #include <set>
 #include <sstream>
 
-#include "cairn/util/atomic_file.hpp"
 #include "cairn/sim/eval/report.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "opencv_image.hpp"
 
 namespace cairn::sim::eval {
