@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -52,13 +54,50 @@ struct ColumnPairs {
   DetectionStats stats;
 };
 
+// One valid point of a column, with its sort key: the bin (see FindColumnPairs) in the
+// high half and the height's bits, made to order as unsigned integers, in the low half.
+struct ColumnPoint {
+  std::uint64_t key;
+  float x, y, z;
+  std::int32_t pixel;
+};
+
+std::uint64_t ColumnKey(std::int32_t bin, float z) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &z, sizeof bits);
+  bits ^= (bits >> 31) != 0 ? 0xffffffffu : 0x80000000u;  // negative floats reversed
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(bin) ^ 0x80000000u) << 32) | bits;
+}
+
+// Sorts by key. A column gathered from its bottom row up comes nearly sorted (the ground
+// recedes, faces rise), so an insertion sort is linear; past a budget of moves it hands
+// over to std::sort.
+void SortColumn(ColumnPoint* points, int m) {
+  const long budget = 8L * m + 64;
+  long moves = 0;
+  for (int k = 1; k < m; ++k) {
+    const ColumnPoint v = points[k];
+    int j = k;
+    for (; j > 0 && points[j - 1].key > v.key; --j) points[j] = points[j - 1];
+    points[j] = v;
+    moves += k - j;
+    if (moves > budget) {
+      std::sort(points, points + m,
+                [](const ColumnPoint& a, const ColumnPoint& b) { return a.key < b.key; });
+      return;
+    }
+  }
+}
+
 // The compatible pairs within each column, fast. A partner q of a lower point p lies less
 // than reach = Hmax / tan(theta) from it horizontally, so less than reach along any
 // horizontal direction: the column's points are put in bins of that width along the
 // column's mean horizontal direction u, each bin sorted by height, and p meets the points
 // of its own and the two neighbouring bins from the first more than HT above it (as the
 // pair test rounds the difference, which grows with the upper height) to the last less than
-// Hmax above, one by one.
+// Hmax above, one by one. The points of a bin stop at the first with no point of those bins
+// more than HT above it. Each column is gathered into a buffer of its own, so the image is
+// read once, column band by column band.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
                             int height) {
   const int n = width * height;
@@ -66,30 +105,11 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
   std::vector<std::uint8_t>& obstacle = out.obstacle;
   std::vector<std::uint8_t>& raised = out.raised;
   DetectionStats& stats = out.stats;
-  struct Point {
-    float x, y, z;
-    std::int32_t pixel;
-    std::int32_t bin;
-  };
   struct Bin {
     std::int32_t bin;
     int begin, end;  // its points in the column
   };
-  // The valid points of every column, column after column, in one pass over the rows.
-  std::vector<std::int32_t> start(width + 1, 0);
-  for (int r = 0, i = 0; r < height; ++r) {
-    for (int c = 0; c < width; ++c, ++i) start[c + 1] += !std::isnan(level.z[i]);
-  }
-  for (int c = 0; c < width; ++c) start[c + 1] += start[c];
-  std::vector<Point> points(start[width]);
-  {
-    std::vector<std::int32_t> fill(start.begin(), start.end() - 1);
-    for (int r = 0, i = 0; r < height; ++r) {
-      for (int c = 0; c < width; ++c, ++i) {
-        if (!std::isnan(level.z[i])) points[fill[c]++] = {level.x[i], level.y[i], level.z[i], i, 0};
-      }
-    }
-  }
+  std::vector<ColumnPoint> column(height);
   std::vector<Bin> bins;
   const float ht = test.min_height, hmax = test.max_height, tan2 = test.tan2_theta;
   // The bins are wider than the reach by a margin covering the rounding of u. Bin numbers
@@ -97,46 +117,50 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
   const double bin_width =
       test.max_height / std::sqrt(static_cast<double>(test.tan2_theta)) * 1.001 + 1e-3;
   for (int c = 0; c < width; ++c) {
-    Point* const column = points.data() + start[c];
-    const int m = start[c + 1] - start[c];
+    int m = 0;
     double mx = 0.0, my = 0.0;
-    for (int k = 0; k < m; ++k) {
-      mx += column[k].x;
-      my += column[k].y;
+    for (int i = (height - 1) * width + c; i >= 0; i -= width) {
+      if (std::isnan(level.z[i])) continue;
+      column[m++] = {0, level.x[i], level.y[i], level.z[i], i};
+      mx += level.x[i];
+      my += level.y[i];
     }
+    if (m < 2) continue;
     const double norm = std::sqrt(mx * mx + my * my);
     const double ux = norm > 0.0 ? mx / norm : 1.0, uy = norm > 0.0 ? my / norm : 0.0;
     for (int k = 0; k < m; ++k) {
       const double u = std::clamp((ux * column[k].x + uy * column[k].y) / bin_width, -1e9, 1e9);
       int bin = static_cast<int>(u);
       bin -= static_cast<double>(bin) > u;  // floor
-      column[k].bin = bin;
+      column[k].key = ColumnKey(bin, column[k].z);
     }
-    std::sort(column, column + m, [](const Point& a, const Point& b) {
-      return a.bin < b.bin || (a.bin == b.bin && a.z < b.z);
-    });
+    SortColumn(column.data(), m);
     bins.clear();
     for (int k = 0; k < m; ++k) {
-      if (bins.empty() || bins.back().bin != column[k].bin) bins.push_back({column[k].bin, k, k});
+      const auto bin = static_cast<std::int32_t>((column[k].key >> 32) ^ 0x80000000u);
+      if (bins.empty() || bins.back().bin != bin) bins.push_back({bin, k, k});
       bins.back().end = k + 1;
     }
     for (int g = 0; g < static_cast<int>(bins.size()); ++g) {
       // The bins within one of g's, each with the first point more than HT above the
       // current lower point (which only moves up, as the lower points of g do).
-      const Point* first[3];
-      const Point* end[3];
+      const ColumnPoint* first[3];
+      const ColumnPoint* end[3];
       int near = 0;
+      float top = -std::numeric_limits<float>::infinity();
       for (int h = std::max(0, g - 1); h <= g + 1 && h < static_cast<int>(bins.size()); ++h) {
         if (bins[h].bin < bins[g].bin - 1 || bins[h].bin > bins[g].bin + 1) continue;
-        first[near] = column + bins[h].begin;
-        end[near++] = column + bins[h].end;
+        first[near] = column.data() + bins[h].begin;
+        end[near++] = column.data() + bins[h].end;
+        top = std::max(top, column[bins[h].end - 1].z);
       }
       for (int k = bins[g].begin; k < bins[g].end; ++k) {
         const float px = column[k].x, py = column[k].y, pz = column[k].z;
+        if (!(top - pz > ht)) break;  // nothing more than HT above this point or the next
         const int p = column[k].pixel;
         for (int h = 0; h < near; ++h) {
           while (first[h] < end[h] && !(first[h]->z - pz > ht)) ++first[h];
-          const Point* q = first[h];
+          const ColumnPoint* q = first[h];
           for (; q < end[h] && q->z - pz < hmax; ++q) {
             const float dx = q->x - px, dy = q->y - py, dz = q->z - pz;
             if (!(dz * dz > tan2 * (dx * dx + dy * dy))) continue;
@@ -180,32 +204,56 @@ ColumnPairs FindColumnPairsBruteForce(const internal::LevelPoints& level, const 
 }
 
 // Blob colouring of the obstacle mask (8-connected), blob-area rejection, then the same
-// assembly as the cone detector.
+// assembly as the cone detector. The mask is coloured by runs: each row's runs of obstacle
+// pixels are joined to the runs of the row above that touch them, corners included. A
+// blob's representative is its first pixel in row-major order (the first pixel of its
+// first run), as a pixel-wise union-find with the smallest root gives.
 Detection Blobs(const RangeImage& image, const internal::LevelPoints& level,
                 const ColumnPairs& pairs, const ColumnConfig& config, float min_height) {
   const int n = image.size(), width = image.width(), height = image.height();
   const std::vector<std::uint8_t>& obstacle = pairs.obstacle;
-  internal::UnionFind blobs(n);
-  for (int r = 0; r < height; ++r) {
-    for (int c = 0; c < width; ++c) {
-      const int i = r * width + c;
-      if (!obstacle[i]) continue;
-      // Earlier neighbours: left, and the three above.
-      if (c > 0 && obstacle[i - 1]) blobs.Union(i, i - 1);
-      if (r == 0) continue;
-      for (int dc = -1; dc <= 1; ++dc) {
-        const int cc = c + dc;
-        if (cc >= 0 && cc < width && obstacle[i - width + dc]) blobs.Union(i, i - width + dc);
+  struct Run {
+    int begin, end;  // pixels, in one row
+  };
+  std::vector<Run> runs;
+  std::vector<std::int32_t> parent;  // over runs; a root is its blob's first run
+  const auto find = [&parent](int r) {
+    while (parent[r] != r) r = parent[r] = parent[parent[r]];
+    return r;
+  };
+  int above_begin = 0;  // the previous row's runs: [above_begin, above_end)
+  for (int row = 0; row < height; ++row) {
+    const int above_end = static_cast<int>(runs.size());
+    int a = above_begin;
+    const std::uint8_t* mask = obstacle.data() + static_cast<std::size_t>(row) * width;
+    for (int c = 0; c < width;) {
+      if (!mask[c]) {
+        ++c;
+        continue;
+      }
+      const int begin = c;
+      while (c < width && mask[c]) ++c;
+      const int self = static_cast<int>(runs.size());
+      runs.push_back({row * width + begin, row * width + c});
+      parent.push_back(self);
+      // Runs above touch this one when they reach from column begin - 1 to column c.
+      while (a < above_end && runs[a].end - (row - 1) * width < begin) ++a;
+      for (int b = a; b < above_end && runs[b].begin - (row - 1) * width <= c; ++b) {
+        const int x = find(b), y = find(self);
+        if (x != y) parent[std::max(x, y)] = std::min(x, y);
       }
     }
+    above_begin = above_end;
   }
-
-  std::vector<std::int32_t> component(n, -1), area(n, 0);
-  for (int i = 0; i < n; ++i) {
-    if (obstacle[i]) ++area[component[i] = blobs.Find(i)];
+  std::vector<std::int32_t> component(n, -1), area(runs.size(), 0);
+  for (int r = 0; r < static_cast<int>(runs.size()); ++r) {
+    area[find(r)] += runs[r].end - runs[r].begin;
   }
-  for (int i = 0; i < n; ++i) {
-    if (component[i] >= 0 && area[component[i]] < config.min_blob_pixels) component[i] = -1;
+  for (int r = 0; r < static_cast<int>(runs.size()); ++r) {
+    const int root = find(r);
+    if (area[root] < config.min_blob_pixels) continue;
+    std::fill(component.begin() + runs[r].begin, component.begin() + runs[r].end,
+              runs[root].begin);
   }
   return internal::BuildDetection(image, level, component, pairs.raised, min_height, pairs.stats);
 }

@@ -25,8 +25,11 @@ struct ColumnConfig {
 };
 
 /// Result in the cone detector's form: labels are the 8-connected blobs that survive the
-/// area rejection, numbered in row-major order of their first pixel; features are computed
-/// with the same definitions (slopes over the column pairs found inside each blob).
+/// area rejection, numbered in row-major order of their first pixel; features, feet and
+/// stats follow the cone detector's definitions (detector.hpp). Cost: one pass over each
+/// column, its points sorted into bins (linear when the column is gathered nearly in order,
+/// as LiDAR columns are), plus one test per candidate pair within HT..Hmax in the bins
+/// next to it, and blob colouring by runs.
 Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& config);
 
 /// The same result by the definition: every pair of points of each column tested, O(H^2)
