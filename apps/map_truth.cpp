@@ -12,7 +12,7 @@
 
 #include "cairn/map/map_files.hpp"
 #include "cairn/sources/trajectory.hpp"
-#include "cairn/util/atomic_file.hpp"
+#include "cairn/util/image_file.hpp"
 #include "map_run.hpp"
 #ifdef CAIRN_HAVE_SYNTH
 #include "cairn/sim/shapes.hpp"
@@ -251,10 +251,7 @@ Status WriteOverlay(const fs::path& cost_png, const fs::path& path, const map::T
     text("not obstacle", 726, y0 + 30);
   }
   text("1 px = " + util::Fixed(s / scale, 3) + " m, north (+y) up", 10, y0 + 50);
-  std::vector<unsigned char> bytes;
-  if (!cv::imencode(".png", canvas, bytes)) return Error{path.string() + ": cannot encode PNG"};
-  return util::WriteFileAtomic(
-      path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+  return util::WriteImageAtomic(path, canvas);
 }
 
 Expected<PoseTruth> ScorePoses(const std::string& tum_path,

@@ -32,5 +32,5 @@ cairn_add_library(cairn_map EXPORT_NAME map SOURCES
 set_source_files_properties(src/gravity_estimator.cpp PROPERTIES SKIP_UNITY_BUILD_INCLUSION ON)
 target_link_libraries(cairn_map
   PUBLIC cairn::od cairn::od_io cairn::util Eigen3::Eigen octomap
-  PRIVATE opencv_core opencv_imgcodecs yaml-cpp Ceres::ceres
+  PRIVATE cairn::util_image opencv_core opencv_imgcodecs yaml-cpp Ceres::ceres
           $<BUILD_INTERFACE:nlohmann_json::nlohmann_json>)

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "cairn/util/atomic_file.hpp"
+#include "cairn/util/image_file.hpp"
 
 namespace cairn::map {
 namespace {
@@ -50,19 +51,6 @@ void CopySensorModel(const TerrainOcTree& from, Tree& to) {
 
 Status WriteBytes(const std::filesystem::path& path, const std::string& bytes) {
   return util::WriteFileAtomic(path, bytes);
-}
-
-Status WriteImage(const std::filesystem::path& path, const std::string& ext, const cv::Mat& image,
-                  const std::vector<int>& params = {}) {
-  std::vector<unsigned char> buffer;
-  try {
-    if (!cv::imencode(ext, image, buffer, params)) {
-      return Error{path.string() + ": OpenCV cannot encode a " + ext + " image"};
-    }
-  } catch (const cv::Exception& e) {
-    return Error{path.string() + ": OpenCV cannot encode a " + ext + " image: " + e.what()};
-  }
-  return WriteBytes(path, std::string(buffer.begin(), buffer.end()));
 }
 
 // A grid image of `box` (map_server's orientation: row 0 is the top, highest y).
@@ -201,7 +189,7 @@ Status WriteCostGrid(const TerrainMap& map, const std::filesystem::path& yaml_pa
   if (pgm_path == yaml_path) return Error{yaml_path.string() + ": expected a .yaml file name"};
   const cv::Mat image = GridImage<std::uint8_t>(
       map, *box, CV_8UC1, [&](const Cell* cell) { return PgmValue(cell, mode); });
-  if (Status s = WriteImage(pgm_path, ".pgm", image); !s) return s;
+  if (Status s = util::WriteImageAtomic(pgm_path, image, ".pgm"); !s) return s;
   std::ostringstream yaml;
   yaml << "image: " << pgm_path.filename().string() << "\n"
        << "mode: " << (mode == PgmMode::kRaw ? "raw" : "trinary") << "\n"
@@ -227,7 +215,7 @@ Status WriteCostColorPng(const TerrainMap& map, const std::filesystem::path& pat
     const double green = t <= 0.5 ? 255.0 : 255.0 - 2.0 * (t - 0.5) * 135.0;
     return cv::Vec3b(static_cast<std::uint8_t>(blue), static_cast<std::uint8_t>(green), 255);
   });
-  return WriteImage(path, ".png", image);
+  return util::WriteImageAtomic(path, image, ".png");
 }
 
 Status WriteElevationTiff(const TerrainMap& map, const std::filesystem::path& path) {
@@ -237,7 +225,7 @@ Status WriteElevationTiff(const TerrainMap& map, const std::filesystem::path& pa
     return cell != nullptr && cell->has_elevation() ? cell->elevation_mean_m
                                                     : std::numeric_limits<float>::quiet_NaN();
   });
-  if (Status s = WriteImage(path, ".tiff", image); !s) return s;
+  if (Status s = util::WriteImageAtomic(path, image, ".tiff"); !s) return s;
   std::filesystem::path yaml_path = path;
   yaml_path.replace_extension(".yaml");
   std::ostringstream yaml;

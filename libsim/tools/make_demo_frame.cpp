@@ -11,7 +11,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
@@ -22,11 +21,15 @@
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
+#include "cairn/util/atomic_file.hpp"
+#include "cairn/util/image_file.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 namespace sim = cairn::sim;
+namespace util = cairn::util;
+using cairn::Status;
 using cairn::kDegToRad;
 constexpr double kDepthScale = 0.001;  // m per unit in depth.png
 constexpr int kNoHitLabel = 255;
@@ -65,27 +68,6 @@ sim::Scene MakeScene(std::vector<DemoObject>& heights) {
   add(scene.AddRidge(mound, true, "mound, steep side face"), 0.8);
   add(scene.AddBox(5.5, 2.0, {2.0, 0.3, 0.35}, -0.4, true, "log"), 0.35);
   return scene;
-}
-
-// Writes through a temporary file in the same directory, then renames.
-bool WriteImage(const fs::path& path, const cv::Mat& image) {
-  const fs::path tmp = path.parent_path() / ("." + path.stem().string() + ".tmp.png");
-  if (!cv::imwrite(tmp.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 9})) return false;
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  return !ec;
-}
-
-bool WriteText(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.parent_path() / ("." + path.filename().string() + ".tmp");
-  {
-    std::ofstream out(tmp);
-    out << text;
-    if (!out.good()) return false;
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  return !ec;
 }
 
 }  // namespace
@@ -145,15 +127,18 @@ int main(int argc, char** argv) {
     objects += buf;
   }
 
-  if (!WriteImage(out_dir / "depth.png", depth) || !WriteImage(out_dir / "truth.png", truth) ||
-      !cairn::od::io::WriteIntrinsics(out_dir / "intrinsics.yaml",
-                               {model, kDepthScale, frame->up_optical},
-                               "Demo frame made by cairn_make_demo_frame "
-                               "(libsim/tools/make_demo_frame.cpp).")
-           .ok() ||
-      !WriteText(out_dir / "truth.yaml", objects)) {
-    std::fprintf(stderr, "cannot write the frame into %s\n", out_dir.c_str());
-    return 1;
+  for (const Status& s :
+       {util::WriteImageAtomic(out_dir / "depth.png", depth, ".png", {cv::IMWRITE_PNG_COMPRESSION, 9}),
+        util::WriteImageAtomic(out_dir / "truth.png", truth, ".png", {cv::IMWRITE_PNG_COMPRESSION, 9}),
+        cairn::od::io::WriteIntrinsics(out_dir / "intrinsics.yaml",
+                                       {model, kDepthScale, frame->up_optical},
+                                       "Demo frame made by cairn_make_demo_frame "
+                                       "(libsim/tools/make_demo_frame.cpp)."),
+        util::WriteFileAtomic(out_dir / "truth.yaml", objects)}) {
+    if (!s) {
+      std::fprintf(stderr, "cairn_make_demo_frame: %s\n", s.message().c_str());
+      return 1;
+    }
   }
   std::printf("wrote %s/{depth.png, truth.png, intrinsics.yaml, truth.yaml}\n", out_dir.c_str());
   return 0;

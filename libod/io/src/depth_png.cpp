@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cairn/util/atomic_file.hpp"
+#include "cairn/util/image_file.hpp"
 #include "png.hpp"
 #include "cairn/util/yaml.hpp"
 
@@ -92,7 +93,7 @@ Expected<Grid<float>> ReadDepthTiff(const std::filesystem::path& path, int width
   if (image.empty()) return Error{name + ": unreadable TIFF (corrupt or truncated)"};
   if (image.type() != CV_32FC1 && image.type() != CV_16UC1) {
     return Error{name + ": expected a 32-bit float (or 16-bit) single-channel TIFF, got " +
-                 detail::DescribeType(image.type())};
+                 util::DescribeImageType(image.type())};
   }
   if (Status s = CheckSize(name, image, width, height); !s) return s.error();
   if (image.type() == CV_16UC1) return Scaled16(image, depth_scale_m);
@@ -142,14 +143,7 @@ Status WriteDepthTiff(const std::filesystem::path& path, const Grid<float>& dept
       row[c] = std::isfinite(d) && d > 0.0f ? d : 0.0f;
     }
   }
-  std::vector<unsigned char> buffer;
-  try {
-    if (!cv::imencode(".tiff", image, buffer)) return Error{name + ": TIFF encoding failed"};
-  } catch (const cv::Exception& e) {
-    return Error{name + ": TIFF encoding failed: " + e.err};
-  }
-  return util::WriteFileAtomic(
-      name, std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
+  return util::WriteImageAtomic(name, image, ".tiff");
 }
 
 Status WriteDepthPng(const std::filesystem::path& path, const Grid<float>& depth_m,
@@ -182,7 +176,7 @@ Status WriteDepthPng(const std::filesystem::path& path, const Grid<float>& depth
       row[c] = static_cast<std::uint16_t>(std::max(1.0, units));
     }
   }
-  return detail::WritePngAtomic(path, image);
+  return util::WriteImageAtomic(path, image);
 }
 
 }  // namespace cairn::od::io

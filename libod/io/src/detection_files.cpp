@@ -10,6 +10,7 @@
 
 #include "cairn/od/units.hpp"
 #include "cairn/util/atomic_file.hpp"
+#include "cairn/util/image_file.hpp"
 #include "png.hpp"
 
 namespace cairn::od::io {
@@ -230,7 +231,7 @@ Status WriteSegmentsPng(const std::filesystem::path& path, const Detection& dete
       row[c] = static_cast<std::uint16_t>(id);
     }
   }
-  return detail::WritePngAtomic(path, image);
+  return util::WriteImageAtomic(path, image);
 }
 
 Status WriteClassesPng(const std::filesystem::path& path, const Detection& detection,
@@ -239,7 +240,7 @@ Status WriteClassesPng(const std::filesystem::path& path, const Detection& detec
   if (Status s = CheckClassification(path.string(), detection, classification); !s) return s;
   std::vector<std::uint8_t> classes = ClassImage(detection, classification);
   cv::Mat image(detection.height, detection.width, CV_8UC1, classes.data());
-  return detail::WritePngAtomic(path, image);
+  return util::WriteImageAtomic(path, image);
 }
 
 Expected<std::string> SegmentsJsonText(const std::string& where, const Detection& detection,
@@ -320,7 +321,7 @@ Status WriteOverlayPng(const std::filesystem::path& path, const Grid<float>& dep
   if (Status s = CheckDepth(path.string(), depth_m, detection); !s) return s;
   Expected<RgbImage> image = RenderOverlay(depth_m, detection, classification);
   if (!image) return Error{path.string() + ": " + image.error().message};
-  return detail::WritePngAtomic(path, ToBgr(*image));
+  return util::WriteImageAtomic(path, ToBgr(*image));
 }
 
 Status WriteSegmentsColorPng(const std::filesystem::path& path, const Grid<float>& depth_m,
@@ -329,7 +330,7 @@ Status WriteSegmentsColorPng(const std::filesystem::path& path, const Grid<float
   if (Status s = CheckDepth(path.string(), depth_m, detection); !s) return s;
   Expected<RgbImage> image = RenderSegmentsColor(depth_m, detection);
   if (!image) return Error{path.string() + ": " + image.error().message};
-  return detail::WritePngAtomic(path, ToBgr(*image));
+  return util::WriteImageAtomic(path, ToBgr(*image));
 }
 
 Expected<DetectionFiles> WriteDetectionFiles(const std::filesystem::path& dir,

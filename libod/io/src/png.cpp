@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "cairn/util/atomic_file.hpp"
+#include "cairn/util/image_file.hpp"
 #include "cairn/od/io/limits.hpp"
 #include "cairn/util/yaml.hpp"
 
@@ -51,52 +51,6 @@ const char* CheckChunks(const std::string& bytes) {
 
 }  // namespace
 
-std::string DescribeType(int type) {
-  std::string depth;
-  switch (CV_MAT_DEPTH(type)) {
-    case CV_8U:
-      depth = "8-bit";
-      break;
-    case CV_8S:
-      depth = "8-bit signed";
-      break;
-    case CV_16U:
-      depth = "16-bit";
-      break;
-    case CV_16S:
-      depth = "16-bit signed";
-      break;
-    case CV_32S:
-      depth = "32-bit integer";
-      break;
-    case CV_32F:
-      depth = "32-bit float";
-      break;
-    case CV_64F:
-      depth = "64-bit float";
-      break;
-    default:
-      depth = "unknown-depth";
-      break;
-  }
-  const int channels = CV_MAT_CN(type);
-  return depth + (channels == 1 ? " single-channel" : " " + std::to_string(channels) + "-channel");
-}
-
-Status WritePngAtomic(const std::filesystem::path& path, const cv::Mat& image) {
-  std::vector<unsigned char> buffer;
-  try {
-    if (!cv::imencode(".png", image, buffer)) {
-      return Error{path.string() + ": PNG encoding failed for a " + DescribeType(image.type()) +
-                   " image"};
-    }
-  } catch (const cv::Exception& e) {
-    return Error{path.string() + ": PNG encoding failed: " + e.what()};
-  }
-  return util::WriteFileAtomic(
-      path, std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
-}
-
 Expected<cv::Mat> ReadPng(const std::filesystem::path& path, int expected_type,
                           const char* expected) {
   const std::string name = path.string();
@@ -118,7 +72,7 @@ Expected<cv::Mat> ReadPng(const std::filesystem::path& path, int expected_type,
   }
   if (image.empty()) return Error{name + ": unreadable PNG (corrupt or truncated)"};
   if (image.type() != expected_type) {
-    return Error{name + ": expected a " + expected + " PNG, got " + DescribeType(image.type())};
+    return Error{name + ": expected a " + expected + " PNG, got " + util::DescribeImageType(image.type())};
   }
   return image;
 }

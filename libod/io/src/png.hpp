@@ -1,4 +1,5 @@
-// PNG encoding and decoding through OpenCV, with errors that name the file. Internal to
+// PNG decoding through OpenCV, with errors that name the file (writing is
+// util::WriteImageAtomic). Internal to
 // cairn_od_io: OpenCV stays out of the public headers.
 #pragma once
 
@@ -9,17 +10,10 @@
 
 namespace cairn::od::io::detail {
 
-/// Encodes `image` (8-bit 1/3-channel BGR or 16-bit 1-channel) as PNG and writes it
-/// atomically.
-Status WritePngAtomic(const std::filesystem::path& path, const cv::Mat& image);
-
 /// Reads a PNG as stored (no depth or channel conversion). Fails when the file is missing,
 /// is not a PNG, cannot be decoded, or is not of `expected_type` (`expected` describes it,
 /// e.g. "16-bit single-channel").
 Expected<cv::Mat> ReadPng(const std::filesystem::path& path, int expected_type,
                           const char* expected);
-
-/// "8-bit 3-channel", "16-bit single-channel", ...
-std::string DescribeType(int type);
 
 }  // namespace cairn::od::io::detail

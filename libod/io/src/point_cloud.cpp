@@ -17,6 +17,7 @@
 #include "cairn/od/io/limits.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/util/atomic_file.hpp"
+#include "cairn/util/image_file.hpp"
 #include "png.hpp"
 #include "text_fields.hpp"
 
@@ -1210,7 +1211,7 @@ Status WriteRgbPng(const std::filesystem::path& path, const RgbImage& image) {
       bgr.at<cv::Vec3b>(r, c) = cv::Vec3b(p[2], p[1], p[0]);
     }
   }
-  return detail::WritePngAtomic(path, bgr);
+  return util::WriteImageAtomic(path, bgr);
 }
 
 Expected<ScanOutputs> WriteScanOutputs(const std::filesystem::path& dir, const RangeImage& image,

@@ -15,6 +15,7 @@
 #include "cairn/od/leveling.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/util/yaml.hpp"
+#include "cairn/util/image_file.hpp"
 #include "png.hpp"
 
 namespace cairn::od::io {
@@ -564,7 +565,7 @@ Status WriteGreyPng(const std::filesystem::path& path, const GreyImage& image) {
     return Error{path.string() + ": grey image of " + std::to_string(image.data.size()) +
                  " values does not match its size " + SizeText(image.width, image.height)};
   }
-  return detail::WritePngAtomic(path, AsMat(image));
+  return util::WriteImageAtomic(path, AsMat(image));
 }
 
 Expected<StereoPair> PrepareStereoPair(GreyImage left, GreyImage right,
@@ -862,7 +863,7 @@ Status WriteDisparityPng(const std::filesystem::path& path, const Grid<float>& d
       row[c] = static_cast<std::uint16_t>(std::max(1.0, units));
     }
   }
-  return detail::WritePngAtomic(path, image);
+  return util::WriteImageAtomic(path, image);
 }
 
 Status WriteDisparityColorPng(const std::filesystem::path& path, const Grid<float>& disparity_px,
@@ -890,7 +891,7 @@ Status WriteDisparityColorPng(const std::filesystem::path& path, const Grid<floa
       if (!(disparity_px.at(r, c) > 0.0)) colour.at<cv::Vec3b>(r, c) = cv::Vec3b(0, 0, 0);
     }
   }
-  return detail::WritePngAtomic(path, colour);
+  return util::WriteImageAtomic(path, colour);
 }
 
 }  // namespace cairn::od::io

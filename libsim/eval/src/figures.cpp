@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "cairn/sim/eval/report.hpp"
-#include "cairn/util/atomic_file.hpp"
+#include "cairn/util/image_file.hpp"
 #include "opencv_image.hpp"
 
 namespace cairn::sim::eval {
@@ -370,16 +370,7 @@ Status WritePng(const std::filesystem::path& path, const RgbImage& image) {
       image.data.size() != static_cast<std::size_t>(image.width) * image.height) {
     return Error{path.string() + ": empty or inconsistent image"};
   }
-  std::vector<unsigned char> buffer;
-  try {
-    if (!cv::imencode(".png", ToMat(image), buffer, {cv::IMWRITE_PNG_COMPRESSION, 9})) {
-      return Error{path.string() + ": PNG encoding failed"};
-    }
-  } catch (const cv::Exception& e) {
-    return Error{path.string() + ": PNG encoding failed: " + e.what()};
-  }
-  return util::WriteFileAtomic(
-      path, std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
+  return util::WriteImageAtomic(path, ToMat(image), ".png", {cv::IMWRITE_PNG_COMPRESSION, 9});
 }
 
 }  // namespace cairn::sim::eval

@@ -17,6 +17,7 @@
 #include "cairn/od/units.hpp"
 #include "cairn/sim/geometry.hpp"
 #include "cairn/util/atomic_file.hpp"
+#include "cairn/util/image_file.hpp"
 
 namespace cairn::sim {
 namespace {
@@ -30,16 +31,7 @@ Status MakeDirectory(const fs::path& dir) {
 }
 
 Status WritePng(const fs::path& path, const cv::Mat& image) {
-  std::vector<std::uint8_t> bytes;
-  try {
-    if (!cv::imencode(".png", image, bytes, {cv::IMWRITE_PNG_COMPRESSION, 3})) {
-      return Error{path.string() + ": PNG encoding failed"};
-    }
-  } catch (const cv::Exception& e) {
-    return Error{path.string() + ": PNG encoding failed: " + e.what()};
-  }
-  return util::WriteFileAtomic(
-      path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+  return util::WriteImageAtomic(path, image, ".png", {cv::IMWRITE_PNG_COMPRESSION, 3});
 }
 
 template <typename T>

@@ -1,0 +1,62 @@
+#include "cairn/util/image_file.hpp"
+
+#include <cctype>
+#include <opencv2/imgcodecs.hpp>
+#include <string_view>
+
+#include "cairn/util/atomic_file.hpp"
+
+namespace cairn::util {
+
+std::string DescribeImageType(int type) {
+  std::string depth;
+  switch (CV_MAT_DEPTH(type)) {
+    case CV_8U:
+      depth = "8-bit";
+      break;
+    case CV_8S:
+      depth = "8-bit signed";
+      break;
+    case CV_16U:
+      depth = "16-bit";
+      break;
+    case CV_16S:
+      depth = "16-bit signed";
+      break;
+    case CV_32S:
+      depth = "32-bit integer";
+      break;
+    case CV_32F:
+      depth = "32-bit float";
+      break;
+    case CV_64F:
+      depth = "64-bit float";
+      break;
+    default:
+      depth = "unknown-depth";
+      break;
+  }
+  const int channels = CV_MAT_CN(type);
+  return depth + (channels == 1 ? " single-channel" : " " + std::to_string(channels) + "-channel");
+}
+
+Status WriteImageAtomic(const std::filesystem::path& path, const cv::Mat& image,
+                        const std::string& format, const std::vector<int>& params) {
+  std::string name =
+      format.substr(format.rfind('.') == std::string::npos ? 0 : format.rfind('.') + 1);
+  for (char& c : name) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  std::vector<unsigned char> buffer;
+  try {
+    if (!cv::imencode(format, image, buffer, params)) {
+      return Error{path.string() + ": " + name + " encoding failed for a " +
+                   DescribeImageType(image.type()) + " image"};
+    }
+  } catch (const cv::Exception& e) {
+    return Error{path.string() + ": " + name + " encoding failed for a " +
+                 DescribeImageType(image.type()) + " image: " + e.what()};
+  }
+  return WriteFileAtomic(
+      path, std::string_view(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
+}
+
+}  // namespace cairn::util
