@@ -14,6 +14,7 @@
 #include "cairn/util/format.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"
+#include "progress.hpp"
 #include "subcommands.hpp"
 
 namespace cairn::apps {
@@ -52,7 +53,7 @@ int RunSequenceBench(const MapOptions& o, double rate_hz) {
                                {"grid", 1, {}}, {"frame", 0, {}}};
   int read = 0, skipped = 0;
   const int total = o.max_frames > 0 ? std::min(o.max_frames, source.total()) : source.total();
-  Progress progress(total, o.progress_every);
+  Progress progress("cairn bench", total, o.progress_every);
   const auto run_start = Clock::now();
   while (o.max_frames <= 0 || read < o.max_frames) {
     const auto t = Clock::now();

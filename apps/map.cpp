@@ -26,6 +26,7 @@
 #include "cairn/util/yaml.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"
+#include "progress.hpp"
 #include "subcommands.hpp"
 
 namespace cairn::apps {
@@ -158,7 +159,7 @@ int RunMap(const MapOptions& options) {
   // --- loop ---
   const int total =
       options.max_frames > 0 ? std::min(options.max_frames, source.total()) : source.total();
-  Progress progress(total, options.progress_every, state.frames_read);
+  Progress progress("cairn map", total, options.progress_every, state.frames_read);
   while (options.max_frames <= 0 || state.frames_read < options.max_frames) {
     if (g_interrupted) {
       progress.Finish();

@@ -118,23 +118,6 @@ Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(const MapOptions
 FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecord& r,
                      double read_s);
 
-/// Progress on stderr: a bar on a terminal, a line every N frames otherwise.
-class Progress {
- public:
-  /// `first`: frames already done when the run starts (a resumed run), not in the rate.
-  Progress(int total, int every, int first = 0);
-  void Update(int done);
-  /// A line of its own (a skipped frame), clearing the bar first.
-  void Note(const std::string& line);
-  void Finish();
-
- private:
-  int total_, every_, first_;
-  bool tty_ = false;
-  bool bar_shown_ = false;
-  Clock::time_point start_;
-};
-
 // --- scoring against a synthetic world (--truth) ---
 
 struct TruthObject {

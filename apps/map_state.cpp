@@ -1,12 +1,9 @@
 // `cairn map`: per-frame records, the run's resume state, progress (map_run.hpp).
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <iomanip>
 #include <iostream>
-#include <sstream>
 #include <stdexcept>
 
 #include "cairn/util/format.hpp"
@@ -187,49 +184,6 @@ FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecor
   r.rss_mb = memory.rss_mb;
   r.heap_mb = memory.heap_mb;
   return r;
-}
-
-Progress::Progress(int total, int every, int first)
-    : total_(std::max(total, 1)), every_(std::max(every, 1)), first_(first) {
-  tty_ = isatty(fileno(stderr)) != 0;
-  start_ = Clock::now();
-}
-
-namespace {
-
-std::string Minutes(double seconds) {
-  const long s = std::lround(seconds);
-  std::ostringstream out;
-  out << s / 60 << ":" << std::setw(2) << std::setfill('0') << s % 60;
-  return out.str();
-}
-}  // namespace
-
-void Progress::Update(int done) {
-  const double elapsed = SecondsSince(start_);
-  const double rate = elapsed > 0.0 ? (done - first_) / elapsed : 0.0;
-  const double left = rate > 0.0 ? (total_ - done) / rate : 0.0;
-  if (tty_) {
-    constexpr int kWidth = 30;
-    const int filled = kWidth * std::min(done, total_) / total_;
-    std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] "
-              << done << "/" << total_ << " frames, " << util::Fixed(rate, 1) << " frames/s, "
-              << Minutes(left) << " left   " << std::flush;
-    bar_shown_ = true;
-  } else if (done % every_ == 0 || done == total_) {
-    std::cerr << "cairn map: " << done << "/" << total_ << " frames (" << 100 * done / total_
-              << "%), " << util::Fixed(rate, 1) << " frames/s, about " << Minutes(left)
-              << " left\n";
-  }
-}
-
-void Progress::Note(const std::string& line) {
-  if (tty_ && bar_shown_) std::cerr << "\r" << std::string(79, ' ') << "\r";
-  std::cerr << "cairn map: " << line << "\n";
-}
-
-void Progress::Finish() {
-  if (tty_ && bar_shown_) std::cerr << "\n";
 }
 
 Status SameRun(const RunState& saved, const RunState& now, const std::string& checkpoint,

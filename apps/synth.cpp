@@ -6,8 +6,6 @@
 //   cairn synth --world W.yaml --out DIR --view N        view N, into DIR
 //   cairn synth --world W.yaml --out DIR --drive [--frames N]
 //   ... [--sensor camera|lidar] [--exact]
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -15,6 +13,7 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -23,6 +22,7 @@
 #include "cairn/sim/mrpt/sequence.hpp"
 #include "cairn/sim/world.hpp"
 #include "cairn/util/format.hpp"
+#include "progress.hpp"
 #include "subcommands.hpp"
 
 namespace cairn::apps {
@@ -94,37 +94,6 @@ Expected<std::string> WriteView(const sim::World& world, int index, bool lidar, 
   return line.str();
 }
 
-// "frame 40/150, 12.5 fps, 8 s left": rewritten in place on a terminal, a line per tenth
-// of the drive otherwise (logs stay readable).
-class ProgressLine {
- public:
-  ProgressLine() : terminal_(::isatty(STDERR_FILENO) != 0) {}
-
-  void Update(int done, int total) {
-    const double elapsed = util::SecondsSince(start_);
-    if (terminal_) {
-      if (done < total && elapsed - last_ < 0.25) return;
-    } else if (done < total && done * 10 / total == last_tenth_) {
-      return;
-    }
-    last_ = elapsed;
-    last_tenth_ = done * 10 / total;
-    const double fps = elapsed > 0.0 ? done / elapsed : 0.0;
-    const double left = fps > 0.0 ? (total - done) / fps : 0.0;
-    std::cerr << (terminal_ ? "\r" : "") << "cairn synth: frame " << done << "/" << total << ", "
-              << std::fixed << std::setprecision(1) << fps << " fps, " << std::setprecision(0)
-              << left << " s left" << (terminal_ ? "   " : "\n");
-    if (terminal_ && done == total) std::cerr << "\n";
-    std::cerr << std::flush;
-  }
-
- private:
-  Clock::time_point start_ = Clock::now();
-  bool terminal_;
-  double last_ = -1.0;
-  int last_tenth_ = 0;
-};
-
 int RunSynth(const SynthOptions& options) {
   const Clock::time_point start = Clock::now();
   const bool lidar = options.sensor == "lidar";
@@ -151,13 +120,16 @@ int RunSynth(const SynthOptions& options) {
     sequence.max_frames = options.frames;
     sequence.noise = !options.exact;
     sequence.raw_imu = options.raw_imu;
-    ProgressLine progress;
-    Expected<sim::SequenceSummary> summary = sim::WriteDriveSequence(
-        world, out, sequence, [&progress](int done, int total) { progress.Update(done, total); });
-    if (!summary) {
-      std::cerr << "\n";
-      return SynthFail(options.world + ": " + summary.error().message);
-    }
+    std::optional<Progress> progress;  // a line per tenth of the drive off a terminal
+    Expected<sim::SequenceSummary> summary =
+        sim::WriteDriveSequence(world, out, sequence, [&](int done, int total) {
+          if (!progress) {
+            progress.emplace("cairn synth", total, std::max(1, total / 10), 0, "frames", start);
+          }
+          progress->Update(done);
+        });
+    if (progress) progress->Finish();
+    if (!summary) return SynthFail(options.world + ": " + summary.error().message);
     const double seconds = util::SecondsSince(start);
     std::cout << std::fixed << std::setprecision(1) << "cairn synth: " << world.name
               << ", drive of " << summary->frames << " frames (" << summary->distance_m << " m, "
