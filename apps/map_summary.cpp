@@ -7,6 +7,7 @@
 
 #include "cairn/map/map_files.hpp"
 #include "cairn/od/units.hpp"
+#include "cairn/sources/trajectory.hpp"
 #include "cairn/util/atomic_file.hpp"
 #include "cairn/util/format.hpp"
 #include "map_run.hpp"
@@ -17,16 +18,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-std::string TumLine(double stamp_s, const Eigen::Isometry3d& T) {
-  Eigen::Quaterniond q(T.linear());
-  if (q.w() < 0) q.coeffs() = -q.coeffs();
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(6) << stamp_s << " " << T.translation().x() << " "
-      << T.translation().y() << " " << T.translation().z() << " " << std::setprecision(9) << q.x()
-      << " " << q.y() << " " << q.z() << " " << q.w();
-  return out.str();
-}
 
 json ObstacleBrief(const map::Obstacle& o) {
   return {{"id", o.id},
@@ -136,7 +127,7 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
       distance_m +=
           (r.T_world_body.translation() - records[k - 1].T_world_body.translation()).norm();
     }
-    tum += TumLine(r.stamp_s, r.T_world_sensor) + "\n";
+    tum += sources::TumLine({r.stamp_s, r.T_world_sensor}) + "\n";
     csv << r.index << "," << util::Fixed(r.stamp_s, 6) << "," << r.valid_points << "," << r.segments
         << "," << r.kept << "," << r.fused.obstacle_points << "," << r.fused.obstacles_created
         << "," << r.fused.lethal_cells << "," << (r.refined ? 1 : 0) << ","

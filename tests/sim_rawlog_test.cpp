@@ -29,6 +29,7 @@
 #include "cairn/sources/mrpt_convert.hpp"
 #include "cairn/sources/rawlog_file.hpp"
 #include "cairn/sources/rawlog_source.hpp"
+#include "cairn/sources/trajectory.hpp"
 #include "io/temp_dir.hpp"
 
 namespace cairn::sim {
@@ -46,8 +47,11 @@ using sources::FromMrptTime;
 using sources::RawlogReader;
 using sources::RawlogWriter;
 using sources::ReadRawlogObservations;
+using sources::ReadTumPoses;
+using sources::StampedPose;
 using sources::ToCPose3D;
 using sources::ToMrptTime;
+using sources::WriteTumPoses;
 
 constexpr double kStart = 1704067200.0;
 
@@ -356,8 +360,8 @@ TEST(SimTruthFiles, TumPosesRoundTrip) {
   for (int k = 0; k < 20; ++k) {
     StampedPose p;
     p.stamp_s = kStart + 0.1 * k;
-    p.pose.linear() = RotationFromAttitude({0.01 * k, -0.02 * k, 0.3 * k - 3.0});
-    p.pose.translation() << 0.5 * k, -0.25 * k, 0.01 * k * k;
+    p.T_world_x.linear() = RotationFromAttitude({0.01 * k, -0.02 * k, 0.3 * k - 3.0});
+    p.T_world_x.translation() << 0.5 * k, -0.25 * k, 0.01 * k * k;
     poses.push_back(p);
   }
   ASSERT_TRUE(WriteTumPoses(dir / "poses.tum", poses, "T_world_body\nof a test").ok());
@@ -366,8 +370,9 @@ TEST(SimTruthFiles, TumPosesRoundTrip) {
   ASSERT_EQ(back->size(), poses.size());
   for (std::size_t k = 0; k < poses.size(); ++k) {
     EXPECT_NEAR((*back)[k].stamp_s, poses[k].stamp_s, 1e-6);
-    EXPECT_NEAR(((*back)[k].pose.translation() - poses[k].pose.translation()).norm(), 0.0, 1e-6);
-    EXPECT_TRUE((*back)[k].pose.linear().isApprox(poses[k].pose.linear(), 1e-8));
+    EXPECT_NEAR(((*back)[k].T_world_x.translation() - poses[k].T_world_x.translation()).norm(), 0.0,
+                1e-6);
+    EXPECT_TRUE((*back)[k].T_world_x.linear().isApprox(poses[k].T_world_x.linear(), 1e-8));
   }
   dir.Write("bad.tum", "# ok\n1 2 3\n");
   const Expected<std::vector<StampedPose>> bad = ReadTumPoses(dir / "bad.tum");
@@ -474,8 +479,8 @@ TEST(SimSequence, DriveSequenceReadsBackLikeRealData) {
     EXPECT_EQ(odom->odometry.y(), s.odometry.y_m);
     EXPECT_NEAR(FromMrptTime(scan->timestamp), stamp, 1e-7);
     EXPECT_NEAR((*body)[k].stamp_s, stamp, 1e-6);
-    EXPECT_TRUE((*body)[k].pose.translation().isApprox(s.T_world_body.translation(), 1e-5));
-    EXPECT_TRUE((*sensor)[k].pose.linear().isApprox(s.T_world_sensor.linear(), 1e-8));
+    EXPECT_TRUE((*body)[k].T_world_x.translation().isApprox(s.T_world_body.translation(), 1e-5));
+    EXPECT_TRUE((*sensor)[k].T_world_x.linear().isApprox(s.T_world_sensor.linear(), 1e-8));
 
     // The range image is the camera's view from the true pose, its truth beside it.
     Expected<sources::Frame> decoded = DecodeRangeScan(*scan);

@@ -4,12 +4,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <iomanip>
 #include <map>
 #include <sstream>
 
 #include "cairn/sources/mrpt_convert.hpp"
+#include "cairn/util/atomic_file.hpp"
 
 namespace cairn::sources {
 namespace {
@@ -328,6 +330,27 @@ Expected<std::vector<StampedPose>> ReadTumPoses(const std::filesystem::path& pat
   if (in.bad()) return Error{path.string() + ": read error"};
   if (poses.empty()) return Error{path.string() + ": no poses"};
   return poses;
+}
+
+std::string TumLine(const StampedPose& p) {
+  Eigen::Quaterniond q(p.T_world_x.linear());
+  q.normalize();
+  if (q.w() < 0.0) q.coeffs() *= -1.0;
+  const Eigen::Vector3d t = p.T_world_x.translation();
+  char line[256];
+  std::snprintf(line, sizeof(line), "%.6f %.6f %.6f %.6f %.9f %.9f %.9f %.9f", p.stamp_s, t.x(),
+                t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+  return line;
+}
+
+Status WriteTumPoses(const std::filesystem::path& path, const std::vector<StampedPose>& poses,
+                     const std::string& comment) {
+  std::string text;
+  std::istringstream lines(comment);
+  for (std::string line; std::getline(lines, line);) text += "# " + line + "\n";
+  text += "# timestamp tx ty tz qx qy qz qw\n";
+  for (const StampedPose& p : poses) text += TumLine(p) + "\n";
+  return util::WriteFileAtomic(path, text);
 }
 
 Expected<Trajectory> ReadTumTrajectory(const std::filesystem::path& path,

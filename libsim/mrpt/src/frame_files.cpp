@@ -130,58 +130,6 @@ double DepthScaleFor(double max_depth_m) {
   return std::ceil(max_depth_m / 65535.0 * 1e4) / 1e4;  // 0.1 mm steps
 }
 
-std::string TumLine(const StampedPose& p) {
-  Eigen::Quaterniond q(p.pose.linear());
-  q.normalize();
-  if (q.w() < 0.0) q.coeffs() *= -1.0;
-  const Eigen::Vector3d t = p.pose.translation();
-  char buf[256];
-  std::snprintf(buf, sizeof(buf), "%.6f %.6f %.6f %.6f %.9f %.9f %.9f %.9f", p.stamp_s, t.x(),
-                t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
-  return buf;
-}
-
-Status WriteTumPoses(const fs::path& path, const std::vector<StampedPose>& poses,
-                     const std::string& comment) {
-  std::string text;
-  std::istringstream lines(comment);
-  for (std::string line; std::getline(lines, line);) text += "# " + line + "\n";
-  text += "# timestamp tx ty tz qx qy qz qw\n";
-  for (const StampedPose& p : poses) text += TumLine(p) + "\n";
-  return util::WriteFileAtomic(path, text);
-}
-
-Expected<std::vector<StampedPose>> ReadTumPoses(const fs::path& path) {
-  std::ifstream in(path);
-  if (!in) return Error{path.string() + ": cannot open for reading"};
-  std::vector<StampedPose> poses;
-  int number = 0;
-  for (std::string line; std::getline(in, line);) {
-    ++number;
-    const auto first = line.find_first_not_of(" \t\r");
-    if (first == std::string::npos || line[first] == '#') continue;
-    std::istringstream fields(line);
-    double v[8];
-    for (double& x : v) fields >> x;
-    std::string extra;
-    if (fields.fail() || (fields >> extra)) {
-      return Error{path.string() + ":" + std::to_string(number) +
-                   ": expected 8 numbers: timestamp tx ty tz qx qy qz qw"};
-    }
-    const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
-    if (!(std::abs(q.norm() - 1.0) < 1e-3)) {
-      return Error{path.string() + ":" + std::to_string(number) +
-                   ": the quaternion is not unit length"};
-    }
-    StampedPose p;
-    p.stamp_s = v[0];
-    p.pose.linear() = q.normalized().toRotationMatrix();
-    p.pose.translation() << v[1], v[2], v[3];
-    poses.push_back(p);
-  }
-  return poses;
-}
-
 Expected<CameraFrameFiles> WriteCameraFrame(const fs::path& dir, const DepthFrame& frame,
                                             const Scene& scene) {
   if (Status s = MakeDirectory(dir); !s) return s.error();

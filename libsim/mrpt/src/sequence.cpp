@@ -15,6 +15,7 @@
 #include "cairn/sim/mrpt/rawlog.hpp"
 #include "cairn/sources/mrpt_convert.hpp"
 #include "cairn/sources/rawlog_file.hpp"
+#include "cairn/sources/trajectory.hpp"
 #include "cairn/util/atomic_file.hpp"
 
 namespace cairn::sim {
@@ -166,7 +167,7 @@ Expected<SequenceSummary> WriteDriveSequence(const World& world, const fs::path&
   std::deque<std::future<Rendered>> in_flight;
   int launched = 0;
 
-  std::vector<StampedPose> body_poses, sensor_poses;
+  std::vector<sources::StampedPose> body_poses, sensor_poses;
   std::size_t next_imu = 0;
   const double dt = 1.0 / spec.frame_rate_hz;
   for (int k = 0; k < total; ++k) {
@@ -241,15 +242,15 @@ Expected<SequenceSummary> WriteDriveSequence(const World& world, const fs::path&
 
   const std::string about = "world " + world.name + ", " + std::to_string(summary.frames) +
                             " frames; stamps as in " + summary.rawlog.filename().string();
-  if (Status s = WriteTumPoses(summary.poses_body, body_poses,
-                               "T_world_body (x forward, y left, z up) of " + about);
+  if (Status s = sources::WriteTumPoses(summary.poses_body, body_poses,
+                                        "T_world_body (x forward, y left, z up) of " + about);
       !s) {
     return s.error();
   }
   const std::string sensor_frame = camera ? "camera optical frame: x right, y down, z forward"
                                           : "LiDAR frame: x forward, y left, z up";
-  if (Status s = WriteTumPoses(summary.poses_sensor, sensor_poses,
-                               "T_world_sensor (" + sensor_frame + ") of " + about);
+  if (Status s = sources::WriteTumPoses(summary.poses_sensor, sensor_poses,
+                                        "T_world_sensor (" + sensor_frame + ") of " + about);
       !s) {
     return s.error();
   }

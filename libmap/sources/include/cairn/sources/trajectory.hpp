@@ -131,6 +131,15 @@ class Trajectory {
 /// a stamp not after the one before it, or no pose.
 Expected<std::vector<StampedPose>> ReadTumPoses(const std::filesystem::path& path);
 
+/// One TUM line, without the newline: the stamp and the position with 6 decimals, the
+/// quaternion with 9 (qw >= 0).
+std::string TumLine(const StampedPose& pose);
+
+/// Writes a TUM pose file atomically: `comment` (one or more lines) as '#' lines, the
+/// column names, then one line per pose. ReadTumPoses reads it back.
+Status WriteTumPoses(const std::filesystem::path& path, const std::vector<StampedPose>& poses,
+                     const std::string& comment);
+
 /// ReadTumPoses, then Trajectory::FromPoses.
 Expected<Trajectory> ReadTumTrajectory(const std::filesystem::path& path,
                                        const TrajectoryOptions& options = {});

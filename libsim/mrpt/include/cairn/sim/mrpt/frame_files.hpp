@@ -17,8 +17,7 @@
 //   lidar.yaml       preset, azimuth_steps, elevations_deg (ring 0 first), up (gravity's up
 //                    vector in the LiDAR frame)
 //   truth.yaml       as above
-// Pose files (TUM RGB-D format): "# comment" lines, then per line
-// "stamp tx ty tz qx qy qz qw" with the stamp in seconds.
+// Pose files (TUM RGB-D format) are written and read by cairn::sources (trajectory.hpp).
 #pragma once
 
 #include <Eigen/Core>
@@ -53,21 +52,6 @@ Status WriteTruthYaml(const std::filesystem::path& path, const Scene& scene);
 /// Metres per 16-bit unit for a depth image whose farthest return is `max_depth_m`: 1 mm,
 /// or coarser (in steps of 0.1 mm) when 1 mm cannot reach that far.
 double DepthScaleFor(double max_depth_m);
-
-/// A pose at a time, for TUM files.
-struct StampedPose {
-  double stamp_s = 0.0;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-};
-
-/// One TUM line, without the newline: stamp with 6 decimals, position with 6, quaternion
-/// with 9 (qw >= 0).
-std::string TumLine(const StampedPose& pose);
-/// Writes a TUM file: `comment` (may hold several lines) as '#' lines, then one line per pose.
-Status WriteTumPoses(const std::filesystem::path& path, const std::vector<StampedPose>& poses,
-                     const std::string& comment);
-/// Reads a TUM file; errors name the file and the line.
-Expected<std::vector<StampedPose>> ReadTumPoses(const std::filesystem::path& path);
 
 struct CameraFrameFiles {
   std::filesystem::path depth_png, intrinsics_yaml, truth_png, truth_yaml;
