@@ -235,20 +235,56 @@ struct PlyElement {
 using detail::ParseNumber;
 using detail::Tokens;
 
-}  // namespace
-
-Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
-  const std::string name = path.string();
-  Expected<std::string> bytes = ReadBytes(path, "PLY point cloud", kMaxScanPoints * 256);
-  if (!bytes) return bytes.error();
-  if (bytes->empty()) return Error{name + ": the file is empty, expected a PLY header"};
-  const std::string& data = *bytes;
-
-  // Header: one keyword line at a time up to end_header.
-  std::size_t pos = 0;
-  int line_number = 0;
-  bool ascii = false, format_seen = false;
+// A PLY header: its elements, and where the body starts.
+struct PlyHeader {
+  bool ascii = false;
   std::vector<PlyElement> elements;
+  std::size_t body_offset = 0;  // the byte after the end_header line
+  int lines = 0;                // lines up to end_header
+};
+
+// Where the points are: the vertex element and its properties' indices (-1: absent).
+struct PlyVertexLayout {
+  std::size_t element = 0;  // index in PlyHeader::elements
+  int x = -1, y = -1, z = -1, intensity = -1, ring = -1;
+};
+
+// Adds the property of header line `t` ('property ...') to `element`; errors without the line.
+Status AddPlyProperty(const std::vector<std::string_view>& t, PlyElement& element) {
+  PlyProperty property;
+  if (t.size() == 5 && t[1] == "list") {
+    PlyType ignored;
+    std::size_t ignored_size;
+    if (!ParsePlyType(std::string(t[2]), &ignored, &ignored_size) ||
+        !ParsePlyType(std::string(t[3]), &property.type, &property.size)) {
+      return Error{"unknown type in list property '" + std::string(t[4]) + "'"};
+    }
+    property.list = true;
+    property.name = std::string(t[4]);
+    element.has_list = true;
+  } else if (t.size() == 3) {
+    if (!ParsePlyType(std::string(t[1]), &property.type, &property.size)) {
+      return Error{"unknown type '" + std::string(t[1]) + "' of property '" + std::string(t[2]) +
+                   "'"};
+    }
+    property.name = std::string(t[2]);
+    property.offset = element.stride;
+    element.stride += property.size;
+  } else {
+    return Error{
+        "expected 'property <type> <name>' or 'property list <count type> "
+        "<item type> <name>'"};
+  }
+  element.properties.push_back(property);
+  return Status::Ok();
+}
+
+// The header of PLY file `name`, one keyword line at a time up to end_header.
+Expected<PlyHeader> ParsePlyHeader(const std::string& data, const std::string& name) {
+  PlyHeader header;
+  std::size_t& pos = header.body_offset;
+  int& line_number = header.lines;
+  bool format_seen = false;
   auto header_error = [&](const std::string& what) {
     return Error{name + ": PLY header line " + std::to_string(line_number) + ": " + what};
   };
@@ -273,7 +309,7 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
     if (t[0] == "format") {
       if (t.size() != 3 || t[2] != "1.0") return header_error("expected 'format <kind> 1.0'");
       if (t[1] == "ascii") {
-        ascii = true;
+        header.ascii = true;
       } else if (t[1] != "binary_little_endian") {
         return header_error("format '" + std::string(t[1]) +
                             "' is not supported (expected ascii or binary_little_endian)");
@@ -288,49 +324,35 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
         return header_error("element count " + std::string(t[2]) + " is more than the " +
                             std::to_string(kMaxScanPoints) + " a scan may have (limits.hpp)");
       }
-      elements.push_back({std::string(t[1]), static_cast<std::size_t>(count), {}, 0, false});
+      header.elements.push_back({std::string(t[1]), static_cast<std::size_t>(count), {}, 0, false});
     } else if (t[0] == "property") {
-      if (elements.empty()) return header_error("a property before any element");
-      PlyElement& element = elements.back();
-      PlyProperty property;
-      if (t.size() == 5 && t[1] == "list") {
-        PlyType ignored;
-        std::size_t ignored_size;
-        if (!ParsePlyType(std::string(t[2]), &ignored, &ignored_size) ||
-            !ParsePlyType(std::string(t[3]), &property.type, &property.size)) {
-          return header_error("unknown type in list property '" + std::string(t[4]) + "'");
-        }
-        property.list = true;
-        property.name = std::string(t[4]);
-        element.has_list = true;
-      } else if (t.size() == 3) {
-        if (!ParsePlyType(std::string(t[1]), &property.type, &property.size)) {
-          return header_error("unknown type '" + std::string(t[1]) + "' of property '" +
-                              std::string(t[2]) + "'");
-        }
-        property.name = std::string(t[2]);
-        property.offset = element.stride;
-        element.stride += property.size;
-      } else {
-        return header_error(
-            "expected 'property <type> <name>' or 'property list <count type> "
-            "<item type> <name>'");
+      if (header.elements.empty()) return header_error("a property before any element");
+      if (Status s = AddPlyProperty(t, header.elements.back()); !s) {
+        return header_error(s.message());
       }
-      element.properties.push_back(property);
     } else {
       return header_error("unknown keyword '" + std::string(t[0]) + "'");
     }
   }
   if (!format_seen) return Error{name + ": PLY header has no 'format' line"};
-  std::size_t vertex_index = elements.size();
+  return header;
+}
+
+// The vertex element and where x, y, z (required), intensity and ring are among its properties.
+Expected<PlyVertexLayout> FindPlyVertexLayout(const PlyHeader& header, const std::string& name) {
+  const std::vector<PlyElement>& elements = header.elements;
+  PlyVertexLayout layout;
+  layout.element = elements.size();
   for (std::size_t e = 0; e < elements.size(); ++e) {
     if (elements[e].name == "vertex") {
-      vertex_index = e;
+      layout.element = e;
       break;
     }
   }
-  if (vertex_index == elements.size()) return Error{name + ": PLY header has no 'element vertex'"};
-  const PlyElement& vertex = elements[vertex_index];
+  if (layout.element == elements.size()) {
+    return Error{name + ": PLY header has no 'element vertex'"};
+  }
+  const PlyElement& vertex = elements[layout.element];
   if (vertex.count == 0) return Error{name + ": PLY file has no vertices (element vertex 0)"};
   if (vertex.count > kMaxScanPoints) {
     return Error{name + ": PLY header: element vertex " + std::to_string(vertex.count) +
@@ -340,72 +362,93 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
   if (vertex.has_list) {
     return Error{name + ": PLY vertex element has a list property; expected scalar properties"};
   }
-  int ix = -1, iy = -1, iz = -1, ii = -1, ir = -1;
   for (std::size_t k = 0; k < vertex.properties.size(); ++k) {
     const std::string& n = vertex.properties[k].name;
-    if (n == "x") ix = static_cast<int>(k);
-    if (n == "y") iy = static_cast<int>(k);
-    if (n == "z") iz = static_cast<int>(k);
-    if (n == "intensity") ii = static_cast<int>(k);
-    if (n == "ring") ir = static_cast<int>(k);
+    if (n == "x") layout.x = static_cast<int>(k);
+    if (n == "y") layout.y = static_cast<int>(k);
+    if (n == "z") layout.z = static_cast<int>(k);
+    if (n == "intensity") layout.intensity = static_cast<int>(k);
+    if (n == "ring") layout.ring = static_cast<int>(k);
   }
-  if (ix < 0 || iy < 0 || iz < 0) {
+  if (layout.x < 0 || layout.y < 0 || layout.z < 0) {
     return Error{name + ": PLY vertex element lacks property " +
-                 std::string(ix < 0   ? "x"
-                             : iy < 0 ? "y"
-                                      : "z") +
+                 std::string(layout.x < 0   ? "x"
+                             : layout.y < 0 ? "y"
+                                            : "z") +
                  " (expected x, y, z)"};
   }
+  return layout;
+}
 
+// An empty cloud with room for `count` points (and their rings).
+PointCloud ReservePlyCloud(std::size_t count, bool rings) {
   PointCloud cloud;
-  cloud.points.reserve(vertex.count);
-  cloud.intensity.reserve(vertex.count);
-  if (ir >= 0) cloud.ring.reserve(vertex.count);
-  auto add_ring = [&](double value, const auto& where) -> Status {
-    if (!(value >= 0.0 && value <= 65535.0) || value != std::floor(value)) {
-      return Error{name + ": " + where() + ": ring is " + std::to_string(value) +
-                   ", expected a whole number 0..65535"};
-    }
-    cloud.ring.push_back(static_cast<std::int32_t>(value));
-    return Status::Ok();
-  };
-  if (!ascii) {
-    for (std::size_t e = 0; e < vertex_index; ++e) {
-      if (elements[e].has_list) {
-        return Error{name + ": PLY element '" + elements[e].name +
-                     "' before the vertices has a list property (not supported)"};
-      }
-      pos += elements[e].count * elements[e].stride;
-    }
-    const std::size_t need = pos + vertex.count * vertex.stride;
-    if (need > data.size()) {
-      const std::size_t whole = pos <= data.size() ? (data.size() - pos) / vertex.stride : 0;
-      return Error{name + ": PLY body is truncated: " + std::to_string(vertex.count) +
-                   " vertices of " + std::to_string(vertex.stride) + " bytes need " +
-                   std::to_string(need) + " bytes, the file has " + std::to_string(data.size()) +
-                   " (vertex " + std::to_string(whole) + " is incomplete at byte offset " +
-                   std::to_string(pos + whole * vertex.stride) + ")"};
-    }
-    const auto& props = vertex.properties;
-    for (std::size_t i = 0; i < vertex.count; ++i) {
-      const char* record = data.data() + pos + i * vertex.stride;
-      auto get = [&](int k) { return DecodePly(props[k].type, record + props[k].offset); };
-      const double xyz[3] = {get(ix), get(iy), get(iz)};
-      const auto where = [&] {
-        return "vertex " + std::to_string(i) + " (byte offset " +
-               std::to_string(pos + i * vertex.stride) + ")";
-      };
-      const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
-      if (Status s = AddPoint(cloud, xyz, ii >= 0 && !all_nan ? get(ii) : 0.0, name, where); !s) {
-        return s.error();
-      }
-      if (ir >= 0) {
-        if (Status s = add_ring(get(ir), where); !s) return s.error();
-      }
-    }
-    return cloud;
+  cloud.points.reserve(count);
+  cloud.intensity.reserve(count);
+  if (rings) cloud.ring.reserve(count);
+  return cloud;
+}
+
+// Appends a ring number read from a file: a whole number 0..65535 (`where()` names the point).
+template <typename Where>
+Status AddPlyRing(PointCloud& cloud, double value, const std::string& name, const Where& where) {
+  if (!(value >= 0.0 && value <= 65535.0) || value != std::floor(value)) {
+    return Error{name + ": " + where() + ": ring is " + std::to_string(value) +
+                 ", expected a whole number 0..65535"};
   }
-  // ascii: one element per line.
+  cloud.ring.push_back(static_cast<std::int32_t>(value));
+  return Status::Ok();
+}
+
+// The points of a binary_little_endian body: fixed-size records, earlier elements skipped.
+Expected<PointCloud> ReadPlyBinaryBody(const std::string& data, const PlyHeader& header,
+                                       const PlyVertexLayout& layout, const std::string& name) {
+  const std::vector<PlyElement>& elements = header.elements;
+  const PlyElement& vertex = elements[layout.element];
+  std::size_t pos = header.body_offset;
+  for (std::size_t e = 0; e < layout.element; ++e) {
+    if (elements[e].has_list) {
+      return Error{name + ": PLY element '" + elements[e].name +
+                   "' before the vertices has a list property (not supported)"};
+    }
+    pos += elements[e].count * elements[e].stride;
+  }
+  const std::size_t need = pos + vertex.count * vertex.stride;
+  if (need > data.size()) {
+    const std::size_t whole = pos <= data.size() ? (data.size() - pos) / vertex.stride : 0;
+    return Error{name + ": PLY body is truncated: " + std::to_string(vertex.count) +
+                 " vertices of " + std::to_string(vertex.stride) + " bytes need " +
+                 std::to_string(need) + " bytes, the file has " + std::to_string(data.size()) +
+                 " (vertex " + std::to_string(whole) + " is incomplete at byte offset " +
+                 std::to_string(pos + whole * vertex.stride) + ")"};
+  }
+  PointCloud cloud = ReservePlyCloud(vertex.count, layout.ring >= 0);
+  const auto& props = vertex.properties;
+  for (std::size_t i = 0; i < vertex.count; ++i) {
+    const char* record = data.data() + pos + i * vertex.stride;
+    auto get = [&](int k) { return DecodePly(props[k].type, record + props[k].offset); };
+    const double xyz[3] = {get(layout.x), get(layout.y), get(layout.z)};
+    const auto where = [&] {
+      return "vertex " + std::to_string(i) + " (byte offset " +
+             std::to_string(pos + i * vertex.stride) + ")";
+    };
+    const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
+    const double intensity = layout.intensity >= 0 && !all_nan ? get(layout.intensity) : 0.0;
+    if (Status s = AddPoint(cloud, xyz, intensity, name, where); !s) return s.error();
+    if (layout.ring >= 0) {
+      if (Status s = AddPlyRing(cloud, get(layout.ring), name, where); !s) return s.error();
+    }
+  }
+  return cloud;
+}
+
+// The points of an ascii body: one element a line (blank lines skipped), earlier ones skipped.
+Expected<PointCloud> ReadPlyAsciiBody(const std::string& data, const PlyHeader& header,
+                                      const PlyVertexLayout& layout, const std::string& name) {
+  const std::vector<PlyElement>& elements = header.elements;
+  const PlyElement& vertex = elements[layout.element];
+  std::size_t pos = header.body_offset;
+  int line_number = header.lines;
   auto next_line = [&](std::string_view* line) {
     while (pos < data.size()) {
       std::size_t eol = data.find('\n', pos);
@@ -418,7 +461,7 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
     return false;
   };
   std::string_view line;
-  for (std::size_t e = 0; e < vertex_index; ++e) {
+  for (std::size_t e = 0; e < layout.element; ++e) {
     for (std::size_t k = 0; k < elements[e].count; ++k) {
       if (!next_line(&line)) {
         return Error{name + ": PLY body ends at line " + std::to_string(line_number) +
@@ -426,6 +469,7 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
       }
     }
   }
+  PointCloud cloud = ReservePlyCloud(vertex.count, layout.ring >= 0);
   for (std::size_t i = 0; i < vertex.count; ++i) {
     if (!next_line(&line)) {
       return Error{name + ": PLY body ends at line " + std::to_string(line_number) + " after " +
@@ -444,18 +488,31 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
                      vertex.properties[k].name + ")"};
       }
     }
-    const double xyz[3] = {v[ix], v[iy], v[iz]};
+    const double xyz[3] = {v[layout.x], v[layout.y], v[layout.z]};
     const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
-    if (Status s = AddPoint(cloud, xyz, ii >= 0 && !all_nan ? v[ii] : 0.0, name,
-                            [&] { return where; });
-        !s) {
-      return s.error();
-    }
-    if (ir >= 0) {
-      if (Status s = add_ring(v[ir], [&] { return where; }); !s) return s.error();
+    const double intensity = layout.intensity >= 0 && !all_nan ? v[layout.intensity] : 0.0;
+    const auto where_fn = [&] { return where; };
+    if (Status s = AddPoint(cloud, xyz, intensity, name, where_fn); !s) return s.error();
+    if (layout.ring >= 0) {
+      if (Status s = AddPlyRing(cloud, v[layout.ring], name, where_fn); !s) return s.error();
     }
   }
   return cloud;
+}
+
+}  // namespace
+
+Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  Expected<std::string> bytes = ReadBytes(path, "PLY point cloud", kMaxScanPoints * 256);
+  if (!bytes) return bytes.error();
+  if (bytes->empty()) return Error{name + ": the file is empty, expected a PLY header"};
+  Expected<PlyHeader> header = ParsePlyHeader(*bytes, name);
+  if (!header) return header.error();
+  Expected<PlyVertexLayout> layout = FindPlyVertexLayout(*header, name);
+  if (!layout) return layout.error();
+  if (header->ascii) return ReadPlyAsciiBody(*bytes, *header, *layout, name);
+  return ReadPlyBinaryBody(*bytes, *header, *layout, name);
 }
 
 // --- Text scans ---------------------------------------------------------------------------
