@@ -974,6 +974,177 @@ void OrganisedColumns(const PointCloud& cloud, std::size_t rings, bool azimuth_d
   model.azimuth_start_rad = std::abs(start_sum) > 0.0 ? std::arg(start_sum) : 0.0;
 }
 
+// What FindLayout's finders share, once the angles are known.
+struct LayoutScan {
+  const PointCloud& cloud;
+  const LayoutOptions& options;
+  const std::string& source;  // names the cloud in errors
+  const PointAngles& angles;  // every point's, NaN for no return
+};
+
+// The ring count of an organised scan (0: none found) and its fit.
+struct OrganisedChoice {
+  std::size_t rings = 0;
+  OrganisedFit fit;
+};
+
+// Appends `text` to a layout's note, "; " between reasons.
+void AddLayoutNote(std::string& note, const std::string& text) {
+  note += (note.empty() ? "" : "; ") + text;
+}
+
+// Every return on the preset's nominal rings and columns; `note` says why.
+FoundLayout NominalLayout(const std::vector<Eigen::Vector3f>& points, const LayoutOptions& options,
+                          std::string note) {
+  const std::size_t n = points.size();
+  FoundLayout layout;
+  layout.note = std::move(note);
+  layout.source = RingSource::kNominal;
+  layout.model = *options.preset;
+  if (options.columns > 0) layout.model.width = options.columns;
+  layout.rows.assign(n, -1);
+  layout.cols.assign(n, -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!IsReturn(points[i])) continue;
+    layout.rows[i] = layout.model.NearestRing(points[i].cast<double>());
+    layout.cols[i] = layout.model.Column(points[i].cast<double>());
+  }
+  return layout;
+}
+
+// Rows found in the data, columns from the azimuth unless given (or the preset's nominal rings).
+Expected<FoundLayout> FinishLayout(const LayoutScan& scan, std::string note, RingSource ring_source,
+                                   RingFit fit, std::vector<std::int32_t> cols) {
+  const LayoutOptions& options = scan.options;
+  const std::vector<Eigen::Vector3f>& points = scan.cloud.points;
+  const std::size_t n = points.size();
+  if (options.preset && fit.model.height() != options.preset->height()) {
+    AddLayoutNote(note, std::string(RingSourceName(ring_source)) + " give " +
+                            std::to_string(fit.model.height()) + " rings, the preset has " +
+                            std::to_string(options.preset->height()) + ": nominal rings used");
+    return NominalLayout(points, options, std::move(note));
+  }
+  FoundLayout layout;
+  layout.note = std::move(note);
+  layout.source = ring_source;
+  layout.rows = std::move(fit.rows);
+  layout.model = std::move(fit.model);
+  if (cols.empty()) {
+    int width = options.columns;
+    if (width == 0 && options.preset) width = options.preset->width;
+    if (width == 0 && layout.model.width > 1) width = layout.model.width;  // chosen already
+    if (width == 0) {
+      Expected<int> measured = MeasureAzimuthSteps(points, layout.rows);
+      if (!measured) return Error{scan.source + ": " + measured.error().message};
+      width = *measured;
+    }
+    layout.model.width = width;
+    // Column centres on the returns' azimuths; forward (+x) in the middle column, so
+    // that range images read like the scene seen from the sensor.
+    layout.model.azimuth_start_rad =
+        WrapPi(FitAzimuthStart(scan.angles, width) + (width / 2) * (2.0 * kPi / width));
+    cols.assign(n, -1);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (layout.rows[i] >= 0) cols[i] = layout.model.ColumnAt(scan.angles.azimuth[i]);
+    }
+  }
+  layout.cols = std::move(cols);
+  if (Status s = layout.model.Validate(); !s) return Error{scan.source + ": " + s.message()};
+  return layout;
+}
+
+// Rows from the file's ring field; columns from the storage order too when it is organised.
+Expected<FoundLayout> LayoutFromRingField(const LayoutScan& scan) {
+  const PointCloud& cloud = scan.cloud;
+  const std::size_t n = cloud.points.size();
+  if (cloud.ring.size() != n) {
+    return Error{scan.source + ": " + std::to_string(cloud.ring.size()) + " ring numbers for " +
+                 std::to_string(n) + " points"};
+  }
+  const std::int32_t rings = *std::max_element(cloud.ring.begin(), cloud.ring.end()) + 1;
+  Expected<RingFit> fit = FitRings(scan.angles, cloud.ring, rings, 1);
+  if (!fit) return Error{scan.source + ": ring field: " + fit.error().message};
+  // Organised as well (Ouster): the columns are the storage order's.
+  std::vector<std::int32_t> cols;
+  const std::size_t r = static_cast<std::size_t>(rings);
+  bool in_order = scan.options.organised != OrganisedMode::kNo && n % r == 0;
+  for (std::size_t i = 0; in_order && i < n; ++i) {
+    in_order = static_cast<std::size_t>(cloud.ring[i]) == i % r;
+  }
+  if (in_order) {
+    const OrganisedFit organised =
+        CheckOrganised(cloud.points, scan.angles.azimuth, scan.angles.elevation, r);
+    OrganisedColumns(cloud, r, organised.azimuth_decreasing, fit->model, cols);
+  }
+  return FinishLayout(scan, "", RingSource::kRingField, std::move(*fit), std::move(cols));
+}
+
+// The ring count that makes the storage order organised (0: none), forced by OrganisedMode::kYes.
+Expected<OrganisedChoice> ChooseOrganisedRings(const LayoutScan& scan) {
+  const LayoutOptions& options = scan.options;
+  const std::vector<Eigen::Vector3f>& points = scan.cloud.points;
+  const std::vector<double>& azimuth = scan.angles.azimuth;
+  const std::vector<double>& elevation = scan.angles.elevation;
+  const std::size_t n = points.size();
+  std::vector<std::size_t> candidates;
+  if (options.preset) {
+    candidates.push_back(static_cast<std::size_t>(options.preset->height()));
+  } else {
+    for (std::size_t r = 2; r <= 1024 && r <= n / 2; ++r) {
+      if (n % r == 0) candidates.push_back(r);
+    }
+  }
+  OrganisedChoice best;
+  for (std::size_t r : candidates) {
+    const OrganisedFit fit = CheckOrganised(points, azimuth, elevation, r);
+    if (fit.ok && fit.resolved > best.fit.resolved) {
+      best.fit = fit;
+      best.rings = r;
+    }
+  }
+  if (best.rings == 0 && options.organised == OrganisedMode::kYes) {
+    if (!options.preset) {
+      return Error{scan.source + ": " + std::to_string(n) +
+                   " points: no ring count makes an organised scan of them (index = col * "
+                   "rings + ring with tight rows); give --sensor"};
+    }
+    best.rings = candidates.front();
+    if (n % best.rings != 0) {
+      return Error{scan.source + ": " + std::to_string(n) +
+                   " points cannot be an organised scan of " + std::to_string(best.rings) +
+                   " rings (not a multiple)"};
+    }
+    best.fit = CheckOrganised(points, azimuth, elevation, best.rings);
+    best.fit.azimuth_decreasing = true;  // forced: Ouster's convention
+  }
+  return best;
+}
+
+// Columns for uniform elevation bins: square cells, about one return per cell.
+Expected<int> SquareCellColumns(const LayoutScan& scan) {
+  // About one return per cell over the directions seen: the band of elevations times the
+  // azimuths covered (in 1-degree sectors; a 2-D laser tilting in front of a robot covers
+  // half a turn).
+  const std::vector<Eigen::Vector3f>& points = scan.cloud.points;
+  const std::vector<double>& azimuth = scan.angles.azimuth;
+  const std::vector<double>& elevation = scan.angles.elevation;
+  double top = -kPi, bottom = kPi;
+  std::size_t returns = 0;
+  std::vector<char> sector(360, 0);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!IsReturn(points[i])) continue;
+    top = std::max(top, elevation[i]);
+    bottom = std::min(bottom, elevation[i]);
+    sector[std::min<std::size_t>(
+        359, static_cast<std::size_t>(WrapPositive(azimuth[i]) / (2.0 * kPi) * 360.0))] = 1;
+    ++returns;
+  }
+  if (returns == 0) return Error{scan.source + ": no returns (every point is at the origin)"};
+  const double covered = 2.0 * kPi * std::count(sector.begin(), sector.end(), 1) / 360.0;
+  const double cell = std::sqrt(covered * std::max(top - bottom, 1e-3) / returns);
+  return static_cast<int>(std::clamp(std::round(2.0 * kPi / cell), 16.0, 65536.0));
+}
+
 }  // namespace
 
 Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& options,
@@ -986,135 +1157,34 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
   }
   if (options.columns < 0) return Error{source + ": columns must be positive (0: automatic)"};
   if (Status s = options.elevation.Validate(); !s) return Error{source + ": " + s.message()};
-  FoundLayout layout;
-  std::string& note = layout.note;
-  auto add_note = [&](const std::string& text) { note += (note.empty() ? "" : "; ") + text; };
+  std::string note;  // why sources were passed over
 
-  auto nominal = [&]() -> Expected<FoundLayout> {
-    layout.source = RingSource::kNominal;
-    layout.model = *options.preset;
-    if (options.columns > 0) layout.model.width = options.columns;
-    layout.rows.assign(n, -1);
-    layout.cols.assign(n, -1);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!IsReturn(points[i])) continue;
-      layout.rows[i] = layout.model.NearestRing(points[i].cast<double>());
-      layout.cols[i] = layout.model.Column(points[i].cast<double>());
-    }
-    return layout;
-  };
-  // Rows found in the data, columns from the azimuth unless given (point_angles is set
-  // before any finder runs).
-  const PointAngles* point_angles = nullptr;
-  auto finish = [&](RingSource ring_source, RingFit fit,
-                    std::vector<std::int32_t> cols) -> Expected<FoundLayout> {
-    if (options.preset && fit.model.height() != options.preset->height()) {
-      add_note(std::string(RingSourceName(ring_source)) + " give " +
-               std::to_string(fit.model.height()) + " rings, the preset has " +
-               std::to_string(options.preset->height()) + ": nominal rings used");
-      return nominal();
-    }
-    layout.source = ring_source;
-    layout.rows = std::move(fit.rows);
-    layout.model = std::move(fit.model);
-    if (cols.empty()) {
-      int width = options.columns;
-      if (width == 0 && options.preset) width = options.preset->width;
-      if (width == 0 && layout.model.width > 1) width = layout.model.width;  // chosen already
-      if (width == 0) {
-        Expected<int> measured = MeasureAzimuthSteps(points, layout.rows);
-        if (!measured) return Error{source + ": " + measured.error().message};
-        width = *measured;
-      }
-      layout.model.width = width;
-      // Column centres on the returns' azimuths; forward (+x) in the middle column, so
-      // that range images read like the scene seen from the sensor.
-      layout.model.azimuth_start_rad =
-          WrapPi(FitAzimuthStart(*point_angles, width) + (width / 2) * (2.0 * kPi / width));
-      cols.assign(n, -1);
-      for (std::size_t i = 0; i < n; ++i) {
-        if (layout.rows[i] >= 0) cols[i] = layout.model.ColumnAt(point_angles->azimuth[i]);
-      }
-    }
-    layout.cols = std::move(cols);
-    if (Status s = layout.model.Validate(); !s) return Error{source + ": " + s.message()};
-    return layout;
-  };
-
-  if (options.preset && options.organised == OrganisedMode::kNo) return nominal();
+  if (options.preset && options.organised == OrganisedMode::kNo) {
+    return NominalLayout(points, options, note);
+  }
 
   // Every point's angles, once (NaN for no return): each finder below reads them.
   const PointAngles angles(points);
-  point_angles = &angles;
-  const std::vector<double>& azimuth = angles.azimuth;
-  const std::vector<double>& elevation = angles.elevation;
+  const LayoutScan scan{cloud, options, source, angles};
 
   // 1. The file's ring field.
-  if (!cloud.ring.empty()) {
-    if (cloud.ring.size() != n) {
-      return Error{source + ": " + std::to_string(cloud.ring.size()) + " ring numbers for " +
-                   std::to_string(n) + " points"};
-    }
-    const std::int32_t rings = *std::max_element(cloud.ring.begin(), cloud.ring.end()) + 1;
-    Expected<RingFit> fit = FitRings(angles, cloud.ring, rings, 1);
-    if (!fit) return Error{source + ": ring field: " + fit.error().message};
-    // Organised as well (Ouster): the columns are the storage order's.
-    std::vector<std::int32_t> cols;
-    const std::size_t r = static_cast<std::size_t>(rings);
-    bool in_order = options.organised != OrganisedMode::kNo && n % r == 0;
-    for (std::size_t i = 0; in_order && i < n; ++i) {
-      in_order = static_cast<std::size_t>(cloud.ring[i]) == i % r;
-    }
-    if (in_order) {
-      const OrganisedFit organised = CheckOrganised(points, azimuth, elevation, r);
-      OrganisedColumns(cloud, r, organised.azimuth_decreasing, fit->model, cols);
-    }
-    return finish(RingSource::kRingField, std::move(*fit), std::move(cols));
-  }
+  if (!cloud.ring.empty()) return LayoutFromRingField(scan);
 
   // 2. The storage order, organised.
   if (options.organised != OrganisedMode::kNo) {
-    std::vector<std::size_t> candidates;
-    if (options.preset) {
-      candidates.push_back(static_cast<std::size_t>(options.preset->height()));
-    } else {
-      for (std::size_t r = 2; r <= 1024 && r <= n / 2; ++r) {
-        if (n % r == 0) candidates.push_back(r);
-      }
-    }
-    std::size_t best_rings = 0;
-    OrganisedFit best;
-    for (std::size_t r : candidates) {
-      const OrganisedFit fit = CheckOrganised(points, azimuth, elevation, r);
-      if (fit.ok && fit.resolved > best.resolved) {
-        best = fit;
-        best_rings = r;
-      }
-    }
-    if (best_rings == 0 && options.organised == OrganisedMode::kYes) {
-      if (!options.preset) {
-        return Error{source + ": " + std::to_string(n) +
-                     " points: no ring count makes an organised scan of them (index = col * "
-                     "rings + ring with tight rows); give --sensor"};
-      }
-      best_rings = candidates.front();
-      if (n % best_rings != 0) {
-        return Error{source + ": " + std::to_string(n) + " points cannot be an organised scan of " +
-                     std::to_string(best_rings) + " rings (not a multiple)"};
-      }
-      best = CheckOrganised(points, azimuth, elevation, best_rings);
-      best.azimuth_decreasing = true;  // forced: Ouster's convention
-    }
-    if (best_rings > 0) {
+    Expected<OrganisedChoice> organised = ChooseOrganisedRings(scan);
+    if (!organised) return organised.error();
+    const std::size_t rings = organised->rings;
+    if (rings > 0) {
       std::vector<std::int32_t> ring(n);
-      for (std::size_t i = 0; i < n; ++i) ring[i] = static_cast<std::int32_t>(i % best_rings);
-      Expected<RingFit> fit = FitRings(angles, ring, static_cast<int>(best_rings), 1);
+      for (std::size_t i = 0; i < n; ++i) ring[i] = static_cast<std::int32_t>(i % rings);
+      Expected<RingFit> fit = FitRings(angles, ring, static_cast<int>(rings), 1);
       if (fit) {
         std::vector<std::int32_t> cols;
-        OrganisedColumns(cloud, best_rings, best.azimuth_decreasing, fit->model, cols);
-        return finish(RingSource::kOrganised, std::move(*fit), std::move(cols));
+        OrganisedColumns(cloud, rings, organised->fit.azimuth_decreasing, fit->model, cols);
+        return FinishLayout(scan, note, RingSource::kOrganised, std::move(*fit), std::move(cols));
       }
-      add_note("organised: " + fit.error().message);
+      AddLayoutNote(note, "organised: " + fit.error().message);
     }
   }
 
@@ -1122,41 +1192,28 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
   Expected<RingBreaks> breaks = FindRingBreaks(points, angles);
   if (breaks) {
     Expected<RingFit> fit = FitRings(angles, breaks->ring, breaks->rings, 1);
-    if (fit) return finish(RingSource::kRingBreaks, std::move(*fit), {});
-    add_note(fit.error().message);
+    if (fit) return FinishLayout(scan, note, RingSource::kRingBreaks, std::move(*fit), {});
+    AddLayoutNote(note, fit.error().message);
   }
 
   // 4. The elevation histogram.
   Expected<RingFit> clusters = FindElevationRings(points, 1, options.elevation);
-  if (clusters) return finish(RingSource::kElevationClusters, std::move(*clusters), {});
-  add_note(clusters.error().message);
+  if (clusters) {
+    return FinishLayout(scan, note, RingSource::kElevationClusters, std::move(*clusters), {});
+  }
+  AddLayoutNote(note, clusters.error().message);
 
   // 5. No rings in the data.
-  if (options.preset) return nominal();
+  if (options.preset) return NominalLayout(points, options, note);
   int width = options.columns;
   if (width == 0) {
-    // Square cells, about one return per cell over the directions seen: the band of
-    // elevations times the azimuths covered (in 1-degree sectors; a 2-D laser tilting in
-    // front of a robot covers half a turn).
-    double top = -kPi, bottom = kPi;
-    std::size_t returns = 0;
-    std::vector<char> sector(360, 0);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!IsReturn(points[i])) continue;
-      top = std::max(top, elevation[i]);
-      bottom = std::min(bottom, elevation[i]);
-      sector[std::min<std::size_t>(
-          359, static_cast<std::size_t>(WrapPositive(azimuth[i]) / (2.0 * kPi) * 360.0))] = 1;
-      ++returns;
-    }
-    if (returns == 0) return Error{source + ": no returns (every point is at the origin)"};
-    const double covered = 2.0 * kPi * std::count(sector.begin(), sector.end(), 1) / 360.0;
-    const double cell = std::sqrt(covered * std::max(top - bottom, 1e-3) / returns);
-    width = static_cast<int>(std::clamp(std::round(2.0 * kPi / cell), 16.0, 65536.0));
+    Expected<int> square = SquareCellColumns(scan);
+    if (!square) return square.error();
+    width = *square;
   }
   Expected<RingFit> bins = UniformElevationBins(points, width);
   if (!bins) return Error{source + ": " + bins.error().message};
-  return finish(RingSource::kUniformBins, std::move(*bins), {});
+  return FinishLayout(scan, note, RingSource::kUniformBins, std::move(*bins), {});
 }
 
 Expected<PlacedScan> PlaceScan(const PointCloud& cloud, const LayoutOptions& options,
