@@ -74,6 +74,17 @@ struct TerrainMap::Scratch {
   std::vector<CellIndex> merge_disc;   // offsets within merge_distance
   std::vector<std::pair<CellIndex, Cost>> inflation;  // offsets within inflation_radius
   int inflation_cells = 0;
+
+  // Cell c's slot for frame `stamp`: reset and listed in `touched` when first met.
+  Slot& Stamp(const TerrainGrid& grid, const CellIndex& c, std::int64_t stamp) {
+    Slot& slot = slots[grid.Slot(c)];
+    if (slot.stamp != stamp) {
+      slot = Slot{};
+      slot.stamp = stamp;
+      touched.push_back(c);
+    }
+    return slot;
+  }
 };
 
 // A kept segment as this frame saw it.
@@ -85,6 +96,17 @@ struct TerrainMap::FrameSegment {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   std::int64_t count = 0;
   double height_m = 0.0;
+
+  // Adds obstacle return p, in cell c, standing plain_height_m above the lowest return near it.
+  void Add(int segment_label, const CellIndex& c, const Eigen::Vector3d& p, double plain_height_m) {
+    label = segment_label;
+    cells.push_back(c);
+    bbox_min = bbox_min.cwiseMin(p);
+    bbox_max = bbox_max.cwiseMax(p);
+    sum += p;
+    ++count;
+    height_m = std::max(height_m, plain_height_m);
+  }
 };
 
 TerrainMap::TerrainMap(const MapConfig& config)
@@ -131,58 +153,138 @@ Expected<TerrainMap> TerrainMap::Create(const MapConfig& config) {
 
 void TerrainMap::PrepareScratch() { scratch_->slots.assign(grid_.slot_count(), Scratch::Slot{}); }
 
+namespace {
+
+// Why a frame cannot be fused (parts disagree, bad pose or stamp), without the frame's name.
+Status CheckFrameInputs(const od::RangeImage& image, const od::Detection& detection,
+                        const od::Classification& classification,
+                        const Eigen::Isometry3d& T_world_sensor, double stamp_s) {
+  if (detection.width != image.width() || detection.height != image.height() ||
+      detection.labels.size() != static_cast<std::size_t>(image.size())) {
+    return Error{"the detection is " + std::to_string(detection.width) + "x" +
+                 std::to_string(detection.height) + " but the range image is " +
+                 std::to_string(image.width()) + "x" + std::to_string(image.height())};
+  }
+  if (classification.verdicts.size() != detection.segments.size()) {
+    return Error{"the classification has " + std::to_string(classification.verdicts.size()) +
+                 " verdicts for " + std::to_string(detection.segments.size()) + " segments"};
+  }
+  const int segment_count = static_cast<int>(detection.segments.size());
+  for (const std::int32_t label : detection.labels) {
+    if (label < 0 || label > segment_count) {
+      return Error{"segment label " + std::to_string(label) + " out of range 0.." +
+                   std::to_string(segment_count)};
+    }
+  }
+  if (!T_world_sensor.matrix().allFinite()) return Error{"the pose is not finite"};
+  if (T_world_sensor.translation().cwiseAbs().maxCoeff() > kMaxWorldCoordinateM) {
+    return Error{"the pose lies more than 1000 km from the map's origin (" +
+                 std::to_string(T_world_sensor.translation().norm()) + " m)"};
+  }
+  if (!std::isfinite(stamp_s)) return Error{"the time stamp is not finite"};
+  return Status::Ok();
+}
+
+// Adds a ground return at height z to the cell's elevation (count, mean, extremes).
+void AddGroundElevation(Cell& cell, float z) {
+  ++cell.ground_points;
+  if (cell.ground_points == 1) {
+    cell.elevation_mean_m = cell.elevation_min_m = cell.elevation_max_m = z;
+  } else {
+    cell.elevation_mean_m += (z - cell.elevation_mean_m) / cell.ground_points;
+    cell.elevation_min_m = std::min(cell.elevation_min_m, z);
+    cell.elevation_max_m = std::max(cell.elevation_max_m, z);
+  }
+}
+
+// The free voxels of the rays from `sensor` to `ends`, into `free_keys` (0 threads: every core).
+void CastFreeRays(const TerrainOcTree& tree, const octomap::point3d& sensor,
+                  const std::vector<octomap::OcTreeKey>& ends, int wanted_threads,
+                  internal::KeyBricks& free_keys, std::vector<internal::KeyBricks>& worker_keys) {
+  const int wanted =
+      wanted_threads > 0 ? wanted_threads : static_cast<int>(std::thread::hardware_concurrency());
+  const int threads =  // at least 1,024 rays each
+      std::clamp(wanted, 1, std::max(1, static_cast<int>(ends.size() / 1024)));
+  // One ray per end voxel, cast by `threads` workers over interleaved ends, each into its
+  // own set; the union does not depend on the split.
+  if (static_cast<int>(worker_keys.size()) < threads - 1) worker_keys.resize(threads - 1);
+  const auto cast = [&](int worker, internal::KeyBricks& keys) {
+    octomap::KeyRay ray;
+    keys.Clear();
+    const std::size_t step = static_cast<std::size_t>(threads);
+    for (std::size_t e = static_cast<std::size_t>(worker); e < ends.size(); e += step) {
+      if (tree.computeRayKeys(sensor, tree.keyToCoord(ends[e]), ray)) {
+        for (const octomap::OcTreeKey& key : ray) keys.Insert(key);
+      }
+    }
+  };
+  {
+    std::vector<std::thread> pool;
+    for (int t = 1; t < threads; ++t) pool.emplace_back(cast, t, std::ref(worker_keys[t - 1]));
+    cast(0, free_keys);
+    for (std::thread& thread : pool) thread.join();
+  }
+  for (int t = 1; t < threads; ++t) free_keys.Merge(worker_keys[t - 1]);
+}
+
+}  // namespace
+
 Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
                                              const od::Detection& detection,
                                              const od::Classification& classification,
                                              const Eigen::Isometry3d& T_world_sensor,
                                              double stamp_s, std::int64_t frame_id) {
   const std::string where = "frame " + std::to_string(frame_id) + ": ";
-  if (detection.width != image.width() || detection.height != image.height() ||
-      detection.labels.size() != static_cast<std::size_t>(image.size())) {
-    return Error{where + "the detection is " + std::to_string(detection.width) + "x" +
-                 std::to_string(detection.height) + " but the range image is " +
-                 std::to_string(image.width()) + "x" + std::to_string(image.height())};
+  if (Status s = CheckFrameInputs(image, detection, classification, T_world_sensor, stamp_s); !s) {
+    return Error{where + s.message()};
   }
-  if (classification.verdicts.size() != detection.segments.size()) {
-    return Error{where + "the classification has " +
-                 std::to_string(classification.verdicts.size()) + " verdicts for " +
-                 std::to_string(detection.segments.size()) + " segments"};
-  }
-  const int segment_count = static_cast<int>(detection.segments.size());
-  for (const std::int32_t label : detection.labels) {
-    if (label < 0 || label > segment_count) {
-      return Error{where + "segment label " + std::to_string(label) + " out of range 0.." +
-                   std::to_string(segment_count)};
-    }
-  }
-  if (!T_world_sensor.matrix().allFinite()) return Error{where + "the pose is not finite"};
-  if (T_world_sensor.translation().cwiseAbs().maxCoeff() > kMaxWorldCoordinateM) {
-    return Error{where + "the pose lies more than 1000 km from the map's origin (" +
-                 std::to_string(T_world_sensor.translation().norm()) + " m)"};
-  }
-  if (!std::isfinite(stamp_s)) return Error{where + "the time stamp is not finite"};
 
-  Scratch& sc = *scratch_;
   FrameSummary summary;
   summary.frame_id = frame_id;
   summary.stamp_s = stamp_s;
   const std::int64_t stamp = frames_ + 1;  // counted once the frame is accepted
   const Eigen::Vector3d origin = T_world_sensor.translation();
-  const double s = config_.cell_size_m;
   auto start = std::chrono::steady_clock::now();
 
-  // --- the window follows the sensor ---
-  if (grid_.rolling()) {
-    summary.window_moved = grid_.MoveTo(origin.head<2>());
-    const CellIndex moved = (grid_.min_index() - pruned_at_).cwiseAbs();
-    if (moved.maxCoeff() >= std::max(1, grid_.extent().x() / 16)) PruneOctreeToWindow();
+  summary.window_moved = MoveWindow(origin);
+  if (Status s = PlaceReturns(image, T_world_sensor, summary); !s) {
+    return Error{where + s.message()};
   }
+  frames_ = stamp;
+  std::vector<FrameSegment> segments = ClassifyReturns(detection, classification, stamp, summary);
+  summary.classify_s = util::SecondsSince(start);
+  start = std::chrono::steady_clock::now();
 
-  // --- returns into the world; the grid takes every cell a ray may cross ---
+  UpdateOctree(origin, stamp, summary);
+  summary.octree_s = util::SecondsSince(start);
+  start = std::chrono::steady_clock::now();
+
+  UpdateGridEvidence(summary);
+  summary.grid_s = util::SecondsSince(start);
+  start = std::chrono::steady_clock::now();
+
+  UpdatePersistentObstacles(segments, stamp_s, frame_id, summary);
+  summary.obstacles_s = util::SecondsSince(start);
+  return summary;
+}
+
+// The window follows the sensor (rolling grids only), the octree pruned to it; true if it moved.
+bool TerrainMap::MoveWindow(const Eigen::Vector3d& origin) {
+  if (!grid_.rolling()) return false;
+  const bool window_moved = grid_.MoveTo(origin.head<2>());
+  const CellIndex moved = (grid_.min_index() - pruned_at_).cwiseAbs();
+  if (moved.maxCoeff() >= std::max(1, grid_.extent().x() / 16)) PruneOctreeToWindow();
+  return window_moved;
+}
+
+// Returns into the world, far ones cut at max_range; an unbounded grid grows to every ray's cells.
+Status TerrainMap::PlaceReturns(const od::RangeImage& image,
+                                const Eigen::Isometry3d& T_world_sensor, FrameSummary& summary) {
+  Scratch& sc = *scratch_;
   const int n = image.size();
   sc.point_class.assign(n, kNone);
   sc.world.resize(n);
-  CellIndex lo = grid_.IndexOf(origin.head<2>());
+  CellIndex lo = grid_.IndexOf(T_world_sensor.translation().head<2>());
   CellIndex hi = lo;
   for (int i = 0; i < n; ++i) {
     if (!image.valid(i)) continue;
@@ -209,72 +311,80 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
     }
     const double cells = (new_hi.x() - new_lo.x() + 1.0) * (new_hi.y() - new_lo.y() + 1.0);
     if (cells > static_cast<double>(kMaxGridCells)) {
-      return Error{where + "the unbounded grid would grow to " + std::to_string(cells) +
+      return Error{"the unbounded grid would grow to " + std::to_string(cells) +
                    " cells, more than kMaxGridCells (" + std::to_string(kMaxGridCells) +
                    "): use a rolling window (map.window_size) or larger cells"};
     }
     if (grid_.Reserve(lo, hi)) PrepareScratch();
   }
-  frames_ = stamp;
+  return Status::Ok();
+}
 
-  // --- lowest return per cell, then each return's class ---
+// The lowest in-range return of each grid cell, in its slot (stamped, listed in `touched`).
+void TerrainMap::FindLowestReturns(std::int64_t stamp, FrameSummary& summary) {
+  Scratch& sc = *scratch_;
   sc.touched.clear();
-  const auto stamp_cell = [&](const CellIndex& c) -> Scratch::Slot& {
-    Scratch::Slot& slot = sc.slots[grid_.Slot(c)];
-    if (slot.stamp != stamp) {
-      slot = Scratch::Slot{};
-      slot.stamp = stamp;
-      sc.touched.push_back(c);
-    }
-    return slot;
-  };
+  const int n = static_cast<int>(sc.point_class.size());
   for (int i = 0; i < n; ++i) {
     if (sc.point_class[i] != kGround) continue;
     const CellIndex c = grid_.IndexOf(sc.world[i].head<2>());
     if (!grid_.Contains(c)) continue;
     ++summary.points_in_range;
-    Scratch::Slot& slot = stamp_cell(c);
+    Scratch::Slot& slot = sc.Stamp(grid_, c, stamp);
     if (sc.world[i].z() < slot.lowest.z()) slot.lowest = sc.world[i].cast<float>();
   }
-  // How far a point stands above the ground around it: the most, over the lowest returns q
-  // of the cells within reach, of p.z - q.z - tan(ground_max_slope) |p - q|_xy.
-  const float rise = static_cast<float>(std::tan(config_.ground_max_slope_rad));
-  const float reach2 = static_cast<float>(config_.ground_radius_m * config_.ground_radius_m);
-  // Returns that and the plain height above the lowest return within reach.
-  const auto height_above_ground = [&](const Eigen::Vector3d& p, const CellIndex& c) {
-    const Eigen::Vector3f pf = p.cast<float>();
-    float height = -kInfinity;
-    float plain = -kInfinity;
-    // Most points of a segment are its foot: a bound from the cell's lowest neighbour,
-    // computed once per cell, settles them without the walk below.
-    Scratch::Slot& slot = sc.slots[grid_.Slot(c)];
-    if (slot.around_stamp != stamp) {
-      slot.around_stamp = stamp;
-      slot.lowest_around = kInfinity;
-      for (const CellIndex& d : sc.ground_disc) {
-        const CellIndex other = c + d;
-        if (!grid_.Contains(other)) continue;
-        const Scratch::Slot& o = sc.slots[grid_.Slot(other)];
-        if (o.stamp == stamp) slot.lowest_around = std::min(slot.lowest_around, o.lowest.z());
-      }
-    }
-    if (pf.z() - slot.lowest_around < config_.obstacle_min_height_m) {
-      return std::make_pair(pf.z() - slot.lowest_around, pf.z() - slot.lowest_around);
-    }
+}
+
+// How far a point stands above the ground around it: the most, over the lowest returns q
+// of the cells within reach, of p.z - q.z - tan(ground_max_slope) |p - q|_xy (rise is that
+// tan, reach2 the squared ground_radius). Returns that and the plain height above the lowest
+// return within reach.
+std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, const CellIndex& c,
+                                                      std::int64_t stamp, float rise,
+                                                      float reach2) {
+  Scratch& sc = *scratch_;
+  const Eigen::Vector3f pf = p.cast<float>();
+  float height = -kInfinity;
+  float plain = -kInfinity;
+  // Most points of a segment are its foot: a bound from the cell's lowest neighbour,
+  // computed once per cell, settles them without the walk below.
+  Scratch::Slot& slot = sc.slots[grid_.Slot(c)];
+  if (slot.around_stamp != stamp) {
+    slot.around_stamp = stamp;
+    slot.lowest_around = kInfinity;
     for (const CellIndex& d : sc.ground_disc) {
       const CellIndex other = c + d;
       if (!grid_.Contains(other)) continue;
       const Scratch::Slot& o = sc.slots[grid_.Slot(other)];
-      if (o.stamp != stamp) continue;
-      const float dxy2 = (pf.head<2>() - o.lowest.head<2>()).squaredNorm();
-      if (dxy2 > reach2) continue;
-      height = std::max(height, pf.z() - o.lowest.z() - rise * std::sqrt(dxy2));
-      plain = std::max(plain, pf.z() - o.lowest.z());
+      if (o.stamp == stamp) slot.lowest_around = std::min(slot.lowest_around, o.lowest.z());
     }
-    return std::make_pair(height, plain);
-  };
+  }
+  if (pf.z() - slot.lowest_around < config_.obstacle_min_height_m) {
+    return std::make_pair(pf.z() - slot.lowest_around, pf.z() - slot.lowest_around);
+  }
+  for (const CellIndex& d : sc.ground_disc) {
+    const CellIndex other = c + d;
+    if (!grid_.Contains(other)) continue;
+    const Scratch::Slot& o = sc.slots[grid_.Slot(other)];
+    if (o.stamp != stamp) continue;
+    const float dxy2 = (pf.head<2>() - o.lowest.head<2>()).squaredNorm();
+    if (dxy2 > reach2) continue;
+    height = std::max(height, pf.z() - o.lowest.z() - rise * std::sqrt(dxy2));
+    plain = std::max(plain, pf.z() - o.lowest.z());
+  }
+  return std::make_pair(height, plain);
+}
 
-  std::vector<FrameSegment> segments(segment_count + 1);
+// The lowest return per cell, then each return's class into its cell; returns segments by label.
+std::vector<TerrainMap::FrameSegment> TerrainMap::ClassifyReturns(
+    const od::Detection& detection, const od::Classification& classification, std::int64_t stamp,
+    FrameSummary& summary) {
+  FindLowestReturns(stamp, summary);
+  Scratch& sc = *scratch_;
+  const float rise = static_cast<float>(std::tan(config_.ground_max_slope_rad));
+  const float reach2 = static_cast<float>(config_.ground_radius_m * config_.ground_radius_m);
+  std::vector<FrameSegment> segments(detection.segments.size() + 1);
+  const int n = static_cast<int>(sc.point_class.size());
   for (int i = 0; i < n; ++i) {
     if (sc.point_class[i] != kGround) continue;
     const Eigen::Vector3d& p = sc.world[i];
@@ -287,52 +397,33 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
     const bool kept =
         label > 0 && classification.verdicts[label - 1].cls == od::SegmentClass::kKept;
     const auto [height, plain_height] =
-        kept ? height_above_ground(p, c) : std::make_pair(0.0f, 0.0f);
+        kept ? HeightAboveGround(p, c, stamp, rise, reach2) : std::make_pair(0.0f, 0.0f);
     if (kept && height >= config_.obstacle_min_height_m) {
       sc.point_class[i] = kObstacle;
       ++summary.obstacle_points;
       ++slot.obstacle;
       ++cell.obstacle_points;
       cell.obstacle_top_m = std::isnan(cell.obstacle_top_m) ? z : std::max(cell.obstacle_top_m, z);
-      FrameSegment& seg = segments[label];
-      seg.label = label;
-      seg.cells.push_back(c);
-      seg.bbox_min = seg.bbox_min.cwiseMin(p);
-      seg.bbox_max = seg.bbox_max.cwiseMax(p);
-      seg.sum += p;
-      ++seg.count;
-      seg.height_m = std::max(seg.height_m, static_cast<double>(plain_height));
+      segments[label].Add(label, c, p, static_cast<double>(plain_height));
     } else {
       ++summary.ground_points;
       ++slot.ground;
-      ++cell.ground_points;
-      if (cell.ground_points == 1) {
-        cell.elevation_mean_m = cell.elevation_min_m = cell.elevation_max_m = z;
-      } else {
-        cell.elevation_mean_m += (z - cell.elevation_mean_m) / cell.ground_points;
-        cell.elevation_min_m = std::min(cell.elevation_min_m, z);
-        cell.elevation_max_m = std::max(cell.elevation_max_m, z);
-      }
+      AddGroundElevation(cell, z);
     }
     cell.observed = true;
   }
-  summary.classify_s = util::SecondsSince(start);
-  start = std::chrono::steady_clock::now();
+  return segments;
+}
 
-  // --- octree: OctoMap's discretised update, one ray per endpoint voxel ---
-  TerrainOcTree& tree = *octree_;
-  const Eigen::Vector2d window_min = grid_.min_index().cast<double>() * s;
-  const Eigen::Vector2d window_max = (grid_.min_index() + grid_.extent()).cast<double>() * s;
-  const auto in_window = [&](const octomap::OcTreeKey& key) {
-    if (!grid_.rolling()) return true;
-    const octomap::point3d c = tree.keyToCoord(key);
-    return c.x() >= window_min.x() && c.x() < window_max.x() && c.y() >= window_min.y() &&
-           c.y() < window_max.y();
-  };
+// The voxels where this frame's rays end, afresh (in range, of obstacles, far; all: ray_ends).
+void TerrainMap::CollectRayEnds() {
+  Scratch& sc = *scratch_;
+  const TerrainOcTree& tree = *octree_;
   sc.endpoints.Clear();
   sc.obstacle_endpoints.Clear();
   sc.far_ends.Clear();
   sc.free_keys.Clear();
+  const int n = static_cast<int>(sc.point_class.size());
   for (int i = 0; i < n; ++i) {
     const std::uint8_t cls = sc.point_class[i];
     if (cls == kNone) continue;
@@ -346,37 +437,30 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
       if (cls == kObstacle) sc.obstacle_endpoints.Insert(key);
     }
   }
-  const octomap::point3d sensor(static_cast<float>(origin.x()), static_cast<float>(origin.y()),
-                                static_cast<float>(origin.z()));
-  // One ray per end voxel, cast by `threads` workers over interleaved ends, each into its
-  // own set; the union does not depend on the split.
   sc.ray_ends.clear();
   const auto collect = [&](const octomap::OcTreeKey& end, bool) { sc.ray_ends.push_back(end); };
   sc.endpoints.ForEach(collect);
   sc.far_ends.ForEach(collect);
-  const int wanted = config_.threads > 0
-                         ? config_.threads
-                         : static_cast<int>(std::thread::hardware_concurrency());
-  const int threads =  // at least 1,024 rays each
-      std::clamp(wanted, 1, std::max(1, static_cast<int>(sc.ray_ends.size() / 1024)));
-  if (static_cast<int>(sc.worker_keys.size()) < threads - 1) sc.worker_keys.resize(threads - 1);
-  const auto cast = [&](int worker, internal::KeyBricks& keys) {
-    octomap::KeyRay ray;
-    keys.Clear();
-    const std::size_t step = static_cast<std::size_t>(threads);
-    for (std::size_t e = static_cast<std::size_t>(worker); e < sc.ray_ends.size(); e += step) {
-      if (tree.computeRayKeys(sensor, tree.keyToCoord(sc.ray_ends[e]), ray)) {
-        for (const octomap::OcTreeKey& key : ray) keys.Insert(key);
-      }
-    }
+}
+
+// OctoMap's discretised update, one ray per endpoint voxel: free space, then the endpoints.
+void TerrainMap::UpdateOctree(const Eigen::Vector3d& origin, std::int64_t stamp,
+                              FrameSummary& summary) {
+  Scratch& sc = *scratch_;
+  TerrainOcTree& tree = *octree_;
+  const double s = config_.cell_size_m;
+  const Eigen::Vector2d window_min = grid_.min_index().cast<double>() * s;
+  const Eigen::Vector2d window_max = (grid_.min_index() + grid_.extent()).cast<double>() * s;
+  const auto in_window = [&](const octomap::OcTreeKey& key) {
+    if (!grid_.rolling()) return true;
+    const octomap::point3d c = tree.keyToCoord(key);
+    return c.x() >= window_min.x() && c.x() < window_max.x() && c.y() >= window_min.y() &&
+           c.y() < window_max.y();
   };
-  {
-    std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(cast, t, std::ref(sc.worker_keys[t - 1]));
-    cast(0, sc.free_keys);
-    for (std::thread& thread : pool) thread.join();
-  }
-  for (int t = 1; t < threads; ++t) sc.free_keys.Merge(sc.worker_keys[t - 1]);
+  CollectRayEnds();
+  const octomap::point3d sensor(static_cast<float>(origin.x()), static_cast<float>(origin.y()),
+                                static_cast<float>(origin.z()));
+  CastFreeRays(tree, sensor, sc.ray_ends, config_.threads, sc.free_keys, sc.worker_keys);
   // Endpoints win: their voxels are not updated as free.
   TerrainOcTree::FreeCursor cursor;
   sc.free_keys.ForEachInMortonOrder(
@@ -388,7 +472,7 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
           // A ray went through where an obstacle was: evidence against the cell below it.
           const octomap::point3d c = tree.keyToCoord(key);
           const CellIndex cell = grid_.IndexOf({c.x(), c.y()});
-          if (grid_.Contains(cell)) stamp_cell(cell).seen_through = true;
+          if (grid_.Contains(cell)) sc.Stamp(grid_, cell, stamp).seen_through = true;
         }
       });
   sc.endpoints.ForEachInMortonOrder(
@@ -401,10 +485,12 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
   // whenever the tree is looked at (octree()); the leaves are always current.
   octree_stale_ = true;
   if (stamp % kOctreeFlushFrames == 0) FlushOctree();
-  summary.octree_s = util::SecondsSince(start);
-  start = std::chrono::steady_clock::now();
+}
 
-  // --- grid: obstacle evidence, one update per touched cell ---
+// Obstacle evidence, one update per touched cell, then terrain and cost around what changed.
+void TerrainMap::UpdateGridEvidence(FrameSummary& summary) {
+  Scratch& sc = *scratch_;
+  const double s = config_.cell_size_m;
   CellIndex dirty_lo = CellIndex::Constant(std::numeric_limits<int>::max());
   CellIndex dirty_hi = CellIndex::Constant(std::numeric_limits<int>::min());
   for (const CellIndex& c : sc.touched) {
@@ -444,10 +530,11 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
     // Inflation from cells that left the window is gone everywhere near its edges.
     UpdateCosts(grid_.min_index(), grid_.min_index() + grid_.extent() - CellIndex::Ones());
   }
-  summary.grid_s = util::SecondsSince(start);
-  start = std::chrono::steady_clock::now();
+}
 
-  // --- persistent obstacles ---
+// The kept segments join or found persistent obstacles; those with no lethal cell left retire.
+void TerrainMap::UpdatePersistentObstacles(std::vector<FrameSegment>& segments, double stamp_s,
+                                           std::int64_t frame_id, FrameSummary& summary) {
   std::vector<FrameSegment> kept;
   for (FrameSegment& seg : segments) {
     if (seg.count == 0) continue;
@@ -461,8 +548,6 @@ Expected<FrameSummary> TerrainMap::Integrate(const od::RangeImage& image,
   FuseObstacles(kept, stamp_s, frame_id, summary);
   RetireObstacles(summary);
   for (const Obstacle& o : obstacles_) summary.lethal_cells += static_cast<int>(o.cells.size());
-  summary.obstacles_s = util::SecondsSince(start);
-  return summary;
 }
 
 void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {

@@ -321,17 +321,44 @@ bool Terrain::IsPlanar() const {
   return waves_.empty() && !grid_ && !function_ && features_.empty();
 }
 
+// A ray's pieces over the features' footprints, in feature order; a few held inline.
+struct Terrain::RaySpans {
+  struct Span {
+    double t0, t1, rate;
+    std::size_t feature;
+    double slack;  // the feature's height below its highest at the last point evaluated
+  };
+  static constexpr std::size_t kInline = 8;
+
+  RaySpans() = default;
+  RaySpans(const RaySpans&) = delete;  // `spans` may point into the object
+  RaySpans& operator=(const RaySpans&) = delete;
+
+  // Appends a span (all of them onto the heap past kInline).
+  void Add(const Span& span) {
+    if (count < kInline) {
+      inline_spans[count] = span;
+    } else {
+      if (more_spans.empty()) more_spans.assign(inline_spans, inline_spans + kInline);
+      more_spans.push_back(span);
+      spans = more_spans.data();
+    }
+    ++count;
+  }
+
+  Span inline_spans[kInline];
+  std::vector<Span> more_spans;
+  Span* spans = inline_spans;
+  std::size_t count = 0;
+};
+
 std::optional<RayHit> Terrain::Intersect(const Ray& ray, double t_max, double tolerance_m) const {
   const Eigen::Vector3d& o = ray.origin;
   const Eigen::Vector3d& d = ray.direction;
   // The plane part is exact along the ray; only the rest needs the gradient bound.
   const double plane_rise = gradient_.x() * d.x() + gradient_.y() * d.y();
-  const Eigen::Vector3d plane_normal =
-      Eigen::Vector3d(-gradient_.x(), -gradient_.y(), 1.0).normalized();
-  RayHit hit;
-  hit.id = kTerrainId;
 
-  double g = o.z() - Height(o.x(), o.y());
+  const double g = o.z() - Height(o.x(), o.y());
   if (!(g > 0.0)) return std::nullopt;  // starts on or below the surface
 
   if (IsPlanar()) {
@@ -339,9 +366,7 @@ std::optional<RayHit> Terrain::Intersect(const Ray& ray, double t_max, double to
     if (!(closing > 0.0)) return std::nullopt;
     const double t = g / closing;
     if (t > t_max) return std::nullopt;
-    hit.t = t;
-    hit.normal = plane_normal;
-    return hit;
+    return PlaneHit(t);
   }
 
   // March: the gap g(t) shrinks at most at rate `closing`, so a step of g / closing cannot
@@ -353,99 +378,63 @@ std::optional<RayHit> Terrain::Intersect(const Ray& ray, double t_max, double to
   // step exists: the surface stays under the envelope that lifts each feature there to its
   // highest (a ditch filled in, a bank at its top), which has no feature slope, so a ray
   // above the envelope may step by its gap to it over the rate without features.
-  const bool smooth = !waves_.empty() || grid_ || function_;
-  const double horizontal = std::hypot(d.x(), d.y());
   const double smooth_closing = SmoothRate(d.x(), d.y()) + plane_rise - d.z();
-  auto highest = [](const Feature& f) { return f.is_ditch ? 0.0 : f.depth; };
-
   if (!(smooth_closing > 0.0)) {
     // The gap to the envelope of every feature never shrinks: if it is open now, the ray
     // never comes down to the surface.
     double envelope_gap = g;
     for (const Feature& f : features_) {
-      envelope_gap += FeatureHeight(f, o.x(), o.y()) - highest(f);
+      envelope_gap += FeatureHeight(f, o.x(), o.y()) - f.Highest();
     }
     if (envelope_gap > 0.0) return std::nullopt;
   }
+  RaySpans spans;
+  FindRaySpans(ray, t_max, spans);
+  return MarchRay(ray, t_max, tolerance_m, g, smooth_closing, spans);
+}
 
-  struct Span {
-    double t0, t1, rate;
-    std::size_t feature;
-    double slack;  // the feature's height below its highest at the last point evaluated
-  };
-  constexpr std::size_t kInline = 8;  // no allocation per ray for a few features
-  Span inline_spans[kInline];
-  std::vector<Span> more_spans;
-  Span* spans = inline_spans;
-  std::size_t span_count = 0;
+RayHit Terrain::PlaneHit(double t) const {
+  RayHit hit;
+  hit.id = kTerrainId;
+  hit.t = t;
+  hit.normal = Eigen::Vector3d(-gradient_.x(), -gradient_.y(), 1.0).normalized();
+  return hit;
+}
+
+void Terrain::FindRaySpans(const Ray& ray, double t_max, RaySpans& spans) const {
+  const Eigen::Vector3d& d = ray.direction;
+  const double horizontal = std::hypot(d.x(), d.y());
   for (std::size_t i = 0; i < features_.size(); ++i) {
     const Feature& f = features_[i];
     double t0 = 0.0, t1 = 0.0;
     if (!(FeatureSpan(f, ray, &t0, &t1) && t1 > 0.0 && t0 < t_max)) continue;
     // A bank's slope is all across its face; a ditch's turns round its ends.
     const double along = f.is_ditch ? horizontal : std::abs(f.v.x() * d.x() + f.v.y() * d.y());
-    const Span span{t0, t1, f.tan_slope * along, i, 0.0};
-    if (span_count < kInline) {
-      inline_spans[span_count] = span;
-    } else {
-      if (more_spans.empty()) more_spans.assign(inline_spans, inline_spans + kInline);
-      more_spans.push_back(span);
-      spans = more_spans.data();
-    }
-    ++span_count;
+    spans.Add({t0, t1, f.tan_slope * along, i, 0.0});
   }
-  // Gap at t; updates each span's slack.
-  auto gaps = [&](double t) {
-    const double x = o.x() + t * d.x(), y = o.y() + t * d.y();
-    double h = RestHeight(x, y);
-    std::size_t k = 0;
-    for (std::size_t i = 0; i < features_.size(); ++i) {
-      const double c = FeatureHeight(features_[i], x, y);
-      h += c;
-      if (k < span_count && spans[k].feature == i) spans[k++].slack = c - highest(features_[i]);
-    }
-    return o.z() + t * d.z() - h;
-  };
+}
 
-  // The crossing is bracketed: gap g_lo > 0 at lo, g_hi <= 0 at hi. Regula falsi with the
-  // Illinois fix shrinks the bracket from both sides (bisection takes over if it stalls);
-  // when an estimate looks within the tolerance, a probe one tolerance past it closes the
-  // bracket at once.
-  auto finish = [&](double lo, double g_lo, double hi, double g_hi) {
-    int side = 0;  // which end moved last: -1 lo, +1 hi
-    auto update = [&](double t_new, double g_new, bool illinois) {
-      if (g_new > 0.0) {
-        lo = t_new;
-        g_lo = g_new;
-        if (illinois && side == -1) g_hi *= 0.5;
-        side = -1;
-      } else {
-        hi = t_new;
-        g_hi = g_new;
-        if (illinois && side == 1) g_lo *= 0.5;
-        side = 1;
-      }
-    };
-    for (int iteration = 0; iteration < 200 && hi - lo > tolerance_m; ++iteration) {
-      double t_new = g_lo - g_hi > 0.0 ? lo + (hi - lo) * g_lo / (g_lo - g_hi) : 0.5 * (lo + hi);
-      if (iteration % 8 == 7 || !(t_new > lo && t_new < hi)) t_new = 0.5 * (lo + hi);
-      const double slope = (g_lo - g_hi) / (hi - lo);  // secant rate of the bracket
-      const double g_new = gaps(t_new);
-      update(t_new, g_new, true);
-      if (hi - lo > tolerance_m && std::abs(g_new) < slope * tolerance_m) {
-        const double probe = g_new > 0.0 ? t_new + tolerance_m : t_new - tolerance_m;
-        if (probe > lo && probe < hi) update(probe, gaps(probe), false);
-      }
+double Terrain::RayGap(const Ray& ray, double t, RaySpans& spans) const {
+  const Eigen::Vector3d& o = ray.origin;
+  const Eigen::Vector3d& d = ray.direction;
+  const double x = o.x() + t * d.x(), y = o.y() + t * d.y();
+  double h = RestHeight(x, y);
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < features_.size(); ++i) {
+    const double c = FeatureHeight(features_[i], x, y);
+    h += c;
+    if (k < spans.count && spans.spans[k].feature == i) {
+      spans.spans[k++].slack = c - features_[i].Highest();
     }
-    hit.t = 0.5 * (lo + hi);
-    const Eigen::Vector3d p = ray.At(hit.t);
-    hit.normal = Normal(p.x(), p.y());
-    hit.id = features_.empty() ? kTerrainId : IdAt(p.x(), p.y());
-    return hit;
-  };
+  }
+  return o.z() + t * d.z() - h;
+}
 
+std::optional<RayHit> Terrain::MarchRay(const Ray& ray, double t_max, double tolerance_m,
+                                        double gap, double smooth_closing, RaySpans& spans) const {
+  const bool smooth = !waves_.empty() || grid_ || function_;
   double t = 0.0;
-  if (span_count > 0) g = gaps(0.0);  // the slacks at the start
+  double g = spans.count > 0 ? RayGap(ray, 0.0, spans) : gap;  // the slacks at the start
   constexpr int kMaxSteps = 1000000;
   constexpr double kInfinity = std::numeric_limits<double>::infinity();
   for (int step = 0; step < kMaxSteps && t < t_max; ++step) {
@@ -454,8 +443,8 @@ std::optional<RayHit> Terrain::Intersect(const Ray& ray, double t_max, double to
     double envelope_gap = g;
     double piece_end = t_max;
     bool on_feature = false;
-    for (std::size_t k = 0; k < span_count; ++k) {
-      const Span& s = spans[k];
+    for (std::size_t k = 0; k < spans.count; ++k) {
+      const RaySpans::Span& s = spans.spans[k];
       if (s.t0 > t) {
         piece_end = std::min(piece_end, s.t0);
       } else if (s.t1 > t) {
@@ -469,9 +458,7 @@ std::optional<RayHit> Terrain::Intersect(const Ray& ray, double t_max, double to
     if (!smooth && !on_feature && reach <= piece_end - t) {
       // Only the plane (and constant offsets) here: the crossing in closed form.
       if (t + reach > t_max) return std::nullopt;
-      hit.t = t + reach;
-      hit.normal = plane_normal;
-      return hit;
+      return PlaneHit(t + reach);
     }
     if (on_feature && envelope_gap > 0.0) {
       reach = std::max(reach, smooth_closing > 0.0 ? envelope_gap / smooth_closing : kInfinity);
@@ -484,12 +471,47 @@ std::optional<RayHit> Terrain::Intersect(const Ray& ray, double t_max, double to
       const double min_step = 1e-4 * std::max(1.0, t);
       t_next = std::min(t + std::max(reach, min_step), piece_end);
     }
-    const double g_next = gaps(t_next);
-    if (g_next <= 0.0) return finish(t, g, t_next, g_next);
+    const double g_next = RayGap(ray, t_next, spans);
+    if (g_next <= 0.0) return RefineRayHit(ray, spans, t, g, t_next, g_next, tolerance_m);
     t = t_next;
     g = g_next;
   }
   return std::nullopt;
+}
+
+RayHit Terrain::RefineRayHit(const Ray& ray, RaySpans& spans, double lo, double g_lo, double hi,
+                             double g_hi, double tolerance_m) const {
+  int side = 0;  // which end moved last: -1 lo, +1 hi
+  auto update = [&](double t_new, double g_new, bool illinois) {
+    if (g_new > 0.0) {
+      lo = t_new;
+      g_lo = g_new;
+      if (illinois && side == -1) g_hi *= 0.5;
+      side = -1;
+    } else {
+      hi = t_new;
+      g_hi = g_new;
+      if (illinois && side == 1) g_lo *= 0.5;
+      side = 1;
+    }
+  };
+  for (int iteration = 0; iteration < 200 && hi - lo > tolerance_m; ++iteration) {
+    double t_new = g_lo - g_hi > 0.0 ? lo + (hi - lo) * g_lo / (g_lo - g_hi) : 0.5 * (lo + hi);
+    if (iteration % 8 == 7 || !(t_new > lo && t_new < hi)) t_new = 0.5 * (lo + hi);
+    const double slope = (g_lo - g_hi) / (hi - lo);  // secant rate of the bracket
+    const double g_new = RayGap(ray, t_new, spans);
+    update(t_new, g_new, true);
+    if (hi - lo > tolerance_m && std::abs(g_new) < slope * tolerance_m) {
+      const double probe = g_new > 0.0 ? t_new + tolerance_m : t_new - tolerance_m;
+      if (probe > lo && probe < hi) update(probe, RayGap(ray, probe, spans), false);
+    }
+  }
+  RayHit hit;
+  hit.t = 0.5 * (lo + hi);
+  const Eigen::Vector3d p = ray.At(hit.t);
+  hit.normal = Normal(p.x(), p.y());
+  hit.id = features_.empty() ? kTerrainId : IdAt(p.x(), p.y());
+  return hit;
 }
 
 }  // namespace cairn::sim

@@ -236,20 +236,56 @@ struct PlyElement {
 using detail::ParseNumber;
 using detail::Tokens;
 
-}  // namespace
-
-Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
-  const std::string name = path.string();
-  Expected<std::string> bytes = ReadBytes(path, "PLY point cloud", kMaxScanPoints * 256);
-  if (!bytes) return bytes.error();
-  if (bytes->empty()) return Error{name + ": the file is empty, expected a PLY header"};
-  const std::string& data = *bytes;
-
-  // Header: one keyword line at a time up to end_header.
-  std::size_t pos = 0;
-  int line_number = 0;
-  bool ascii = false, format_seen = false;
+// A PLY header: its elements, and where the body starts.
+struct PlyHeader {
+  bool ascii = false;
   std::vector<PlyElement> elements;
+  std::size_t body_offset = 0;  // the byte after the end_header line
+  int lines = 0;                // lines up to end_header
+};
+
+// Where the points are: the vertex element and its properties' indices (-1: absent).
+struct PlyVertexLayout {
+  std::size_t element = 0;  // index in PlyHeader::elements
+  int x = -1, y = -1, z = -1, intensity = -1, ring = -1;
+};
+
+// Adds the property of header line `t` ('property ...') to `element`; errors without the line.
+Status AddPlyProperty(const std::vector<std::string_view>& t, PlyElement& element) {
+  PlyProperty property;
+  if (t.size() == 5 && t[1] == "list") {
+    PlyType ignored;
+    std::size_t ignored_size;
+    if (!ParsePlyType(std::string(t[2]), &ignored, &ignored_size) ||
+        !ParsePlyType(std::string(t[3]), &property.type, &property.size)) {
+      return Error{"unknown type in list property '" + std::string(t[4]) + "'"};
+    }
+    property.list = true;
+    property.name = std::string(t[4]);
+    element.has_list = true;
+  } else if (t.size() == 3) {
+    if (!ParsePlyType(std::string(t[1]), &property.type, &property.size)) {
+      return Error{"unknown type '" + std::string(t[1]) + "' of property '" + std::string(t[2]) +
+                   "'"};
+    }
+    property.name = std::string(t[2]);
+    property.offset = element.stride;
+    element.stride += property.size;
+  } else {
+    return Error{
+        "expected 'property <type> <name>' or 'property list <count type> "
+        "<item type> <name>'"};
+  }
+  element.properties.push_back(property);
+  return Status::Ok();
+}
+
+// The header of PLY file `name`, one keyword line at a time up to end_header.
+Expected<PlyHeader> ParsePlyHeader(const std::string& data, const std::string& name) {
+  PlyHeader header;
+  std::size_t& pos = header.body_offset;
+  int& line_number = header.lines;
+  bool format_seen = false;
   auto header_error = [&](const std::string& what) {
     return Error{name + ": PLY header line " + std::to_string(line_number) + ": " + what};
   };
@@ -274,7 +310,7 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
     if (t[0] == "format") {
       if (t.size() != 3 || t[2] != "1.0") return header_error("expected 'format <kind> 1.0'");
       if (t[1] == "ascii") {
-        ascii = true;
+        header.ascii = true;
       } else if (t[1] != "binary_little_endian") {
         return header_error("format '" + std::string(t[1]) +
                             "' is not supported (expected ascii or binary_little_endian)");
@@ -289,49 +325,35 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
         return header_error("element count " + std::string(t[2]) + " is more than the " +
                             std::to_string(kMaxScanPoints) + " a scan may have (limits.hpp)");
       }
-      elements.push_back({std::string(t[1]), static_cast<std::size_t>(count), {}, 0, false});
+      header.elements.push_back({std::string(t[1]), static_cast<std::size_t>(count), {}, 0, false});
     } else if (t[0] == "property") {
-      if (elements.empty()) return header_error("a property before any element");
-      PlyElement& element = elements.back();
-      PlyProperty property;
-      if (t.size() == 5 && t[1] == "list") {
-        PlyType ignored;
-        std::size_t ignored_size;
-        if (!ParsePlyType(std::string(t[2]), &ignored, &ignored_size) ||
-            !ParsePlyType(std::string(t[3]), &property.type, &property.size)) {
-          return header_error("unknown type in list property '" + std::string(t[4]) + "'");
-        }
-        property.list = true;
-        property.name = std::string(t[4]);
-        element.has_list = true;
-      } else if (t.size() == 3) {
-        if (!ParsePlyType(std::string(t[1]), &property.type, &property.size)) {
-          return header_error("unknown type '" + std::string(t[1]) + "' of property '" +
-                              std::string(t[2]) + "'");
-        }
-        property.name = std::string(t[2]);
-        property.offset = element.stride;
-        element.stride += property.size;
-      } else {
-        return header_error(
-            "expected 'property <type> <name>' or 'property list <count type> "
-            "<item type> <name>'");
+      if (header.elements.empty()) return header_error("a property before any element");
+      if (Status s = AddPlyProperty(t, header.elements.back()); !s) {
+        return header_error(s.message());
       }
-      element.properties.push_back(property);
     } else {
       return header_error("unknown keyword '" + std::string(t[0]) + "'");
     }
   }
   if (!format_seen) return Error{name + ": PLY header has no 'format' line"};
-  std::size_t vertex_index = elements.size();
+  return header;
+}
+
+// The vertex element and where x, y, z (required), intensity and ring are among its properties.
+Expected<PlyVertexLayout> FindPlyVertexLayout(const PlyHeader& header, const std::string& name) {
+  const std::vector<PlyElement>& elements = header.elements;
+  PlyVertexLayout layout;
+  layout.element = elements.size();
   for (std::size_t e = 0; e < elements.size(); ++e) {
     if (elements[e].name == "vertex") {
-      vertex_index = e;
+      layout.element = e;
       break;
     }
   }
-  if (vertex_index == elements.size()) return Error{name + ": PLY header has no 'element vertex'"};
-  const PlyElement& vertex = elements[vertex_index];
+  if (layout.element == elements.size()) {
+    return Error{name + ": PLY header has no 'element vertex'"};
+  }
+  const PlyElement& vertex = elements[layout.element];
   if (vertex.count == 0) return Error{name + ": PLY file has no vertices (element vertex 0)"};
   if (vertex.count > kMaxScanPoints) {
     return Error{name + ": PLY header: element vertex " + std::to_string(vertex.count) +
@@ -341,72 +363,93 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
   if (vertex.has_list) {
     return Error{name + ": PLY vertex element has a list property; expected scalar properties"};
   }
-  int ix = -1, iy = -1, iz = -1, ii = -1, ir = -1;
   for (std::size_t k = 0; k < vertex.properties.size(); ++k) {
     const std::string& n = vertex.properties[k].name;
-    if (n == "x") ix = static_cast<int>(k);
-    if (n == "y") iy = static_cast<int>(k);
-    if (n == "z") iz = static_cast<int>(k);
-    if (n == "intensity") ii = static_cast<int>(k);
-    if (n == "ring") ir = static_cast<int>(k);
+    if (n == "x") layout.x = static_cast<int>(k);
+    if (n == "y") layout.y = static_cast<int>(k);
+    if (n == "z") layout.z = static_cast<int>(k);
+    if (n == "intensity") layout.intensity = static_cast<int>(k);
+    if (n == "ring") layout.ring = static_cast<int>(k);
   }
-  if (ix < 0 || iy < 0 || iz < 0) {
+  if (layout.x < 0 || layout.y < 0 || layout.z < 0) {
     return Error{name + ": PLY vertex element lacks property " +
-                 std::string(ix < 0   ? "x"
-                             : iy < 0 ? "y"
-                                      : "z") +
+                 std::string(layout.x < 0   ? "x"
+                             : layout.y < 0 ? "y"
+                                            : "z") +
                  " (expected x, y, z)"};
   }
+  return layout;
+}
 
+// An empty cloud with room for `count` points (and their rings).
+PointCloud ReservePlyCloud(std::size_t count, bool rings) {
   PointCloud cloud;
-  cloud.points.reserve(vertex.count);
-  cloud.intensity.reserve(vertex.count);
-  if (ir >= 0) cloud.ring.reserve(vertex.count);
-  auto add_ring = [&](double value, const auto& where) -> Status {
-    if (!(value >= 0.0 && value <= 65535.0) || value != std::floor(value)) {
-      return Error{name + ": " + where() + ": ring is " + std::to_string(value) +
-                   ", expected a whole number 0..65535"};
-    }
-    cloud.ring.push_back(static_cast<std::int32_t>(value));
-    return Status::Ok();
-  };
-  if (!ascii) {
-    for (std::size_t e = 0; e < vertex_index; ++e) {
-      if (elements[e].has_list) {
-        return Error{name + ": PLY element '" + elements[e].name +
-                     "' before the vertices has a list property (not supported)"};
-      }
-      pos += elements[e].count * elements[e].stride;
-    }
-    const std::size_t need = pos + vertex.count * vertex.stride;
-    if (need > data.size()) {
-      const std::size_t whole = pos <= data.size() ? (data.size() - pos) / vertex.stride : 0;
-      return Error{name + ": PLY body is truncated: " + std::to_string(vertex.count) +
-                   " vertices of " + std::to_string(vertex.stride) + " bytes need " +
-                   std::to_string(need) + " bytes, the file has " + std::to_string(data.size()) +
-                   " (vertex " + std::to_string(whole) + " is incomplete at byte offset " +
-                   std::to_string(pos + whole * vertex.stride) + ")"};
-    }
-    const auto& props = vertex.properties;
-    for (std::size_t i = 0; i < vertex.count; ++i) {
-      const char* record = data.data() + pos + i * vertex.stride;
-      auto get = [&](int k) { return DecodePly(props[k].type, record + props[k].offset); };
-      const double xyz[3] = {get(ix), get(iy), get(iz)};
-      const auto where = [&] {
-        return "vertex " + std::to_string(i) + " (byte offset " +
-               std::to_string(pos + i * vertex.stride) + ")";
-      };
-      const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
-      if (Status s = AddPoint(cloud, xyz, ii >= 0 && !all_nan ? get(ii) : 0.0, name, where); !s) {
-        return s.error();
-      }
-      if (ir >= 0) {
-        if (Status s = add_ring(get(ir), where); !s) return s.error();
-      }
-    }
-    return cloud;
+  cloud.points.reserve(count);
+  cloud.intensity.reserve(count);
+  if (rings) cloud.ring.reserve(count);
+  return cloud;
+}
+
+// Appends a ring number read from a file: a whole number 0..65535 (`where()` names the point).
+template <typename Where>
+Status AddPlyRing(PointCloud& cloud, double value, const std::string& name, const Where& where) {
+  if (!(value >= 0.0 && value <= 65535.0) || value != std::floor(value)) {
+    return Error{name + ": " + where() + ": ring is " + std::to_string(value) +
+                 ", expected a whole number 0..65535"};
   }
-  // ascii: one element per line.
+  cloud.ring.push_back(static_cast<std::int32_t>(value));
+  return Status::Ok();
+}
+
+// The points of a binary_little_endian body: fixed-size records, earlier elements skipped.
+Expected<PointCloud> ReadPlyBinaryBody(const std::string& data, const PlyHeader& header,
+                                       const PlyVertexLayout& layout, const std::string& name) {
+  const std::vector<PlyElement>& elements = header.elements;
+  const PlyElement& vertex = elements[layout.element];
+  std::size_t pos = header.body_offset;
+  for (std::size_t e = 0; e < layout.element; ++e) {
+    if (elements[e].has_list) {
+      return Error{name + ": PLY element '" + elements[e].name +
+                   "' before the vertices has a list property (not supported)"};
+    }
+    pos += elements[e].count * elements[e].stride;
+  }
+  const std::size_t need = pos + vertex.count * vertex.stride;
+  if (need > data.size()) {
+    const std::size_t whole = pos <= data.size() ? (data.size() - pos) / vertex.stride : 0;
+    return Error{name + ": PLY body is truncated: " + std::to_string(vertex.count) +
+                 " vertices of " + std::to_string(vertex.stride) + " bytes need " +
+                 std::to_string(need) + " bytes, the file has " + std::to_string(data.size()) +
+                 " (vertex " + std::to_string(whole) + " is incomplete at byte offset " +
+                 std::to_string(pos + whole * vertex.stride) + ")"};
+  }
+  PointCloud cloud = ReservePlyCloud(vertex.count, layout.ring >= 0);
+  const auto& props = vertex.properties;
+  for (std::size_t i = 0; i < vertex.count; ++i) {
+    const char* record = data.data() + pos + i * vertex.stride;
+    auto get = [&](int k) { return DecodePly(props[k].type, record + props[k].offset); };
+    const double xyz[3] = {get(layout.x), get(layout.y), get(layout.z)};
+    const auto where = [&] {
+      return "vertex " + std::to_string(i) + " (byte offset " +
+             std::to_string(pos + i * vertex.stride) + ")";
+    };
+    const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
+    const double intensity = layout.intensity >= 0 && !all_nan ? get(layout.intensity) : 0.0;
+    if (Status s = AddPoint(cloud, xyz, intensity, name, where); !s) return s.error();
+    if (layout.ring >= 0) {
+      if (Status s = AddPlyRing(cloud, get(layout.ring), name, where); !s) return s.error();
+    }
+  }
+  return cloud;
+}
+
+// The points of an ascii body: one element a line (blank lines skipped), earlier ones skipped.
+Expected<PointCloud> ReadPlyAsciiBody(const std::string& data, const PlyHeader& header,
+                                      const PlyVertexLayout& layout, const std::string& name) {
+  const std::vector<PlyElement>& elements = header.elements;
+  const PlyElement& vertex = elements[layout.element];
+  std::size_t pos = header.body_offset;
+  int line_number = header.lines;
   auto next_line = [&](std::string_view* line) {
     while (pos < data.size()) {
       std::size_t eol = data.find('\n', pos);
@@ -419,7 +462,7 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
     return false;
   };
   std::string_view line;
-  for (std::size_t e = 0; e < vertex_index; ++e) {
+  for (std::size_t e = 0; e < layout.element; ++e) {
     for (std::size_t k = 0; k < elements[e].count; ++k) {
       if (!next_line(&line)) {
         return Error{name + ": PLY body ends at line " + std::to_string(line_number) +
@@ -427,6 +470,7 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
       }
     }
   }
+  PointCloud cloud = ReservePlyCloud(vertex.count, layout.ring >= 0);
   for (std::size_t i = 0; i < vertex.count; ++i) {
     if (!next_line(&line)) {
       return Error{name + ": PLY body ends at line " + std::to_string(line_number) + " after " +
@@ -445,18 +489,31 @@ Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
                      vertex.properties[k].name + ")"};
       }
     }
-    const double xyz[3] = {v[ix], v[iy], v[iz]};
+    const double xyz[3] = {v[layout.x], v[layout.y], v[layout.z]};
     const bool all_nan = std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2]);
-    if (Status s = AddPoint(cloud, xyz, ii >= 0 && !all_nan ? v[ii] : 0.0, name,
-                            [&] { return where; });
-        !s) {
-      return s.error();
-    }
-    if (ir >= 0) {
-      if (Status s = add_ring(v[ir], [&] { return where; }); !s) return s.error();
+    const double intensity = layout.intensity >= 0 && !all_nan ? v[layout.intensity] : 0.0;
+    const auto where_fn = [&] { return where; };
+    if (Status s = AddPoint(cloud, xyz, intensity, name, where_fn); !s) return s.error();
+    if (layout.ring >= 0) {
+      if (Status s = AddPlyRing(cloud, v[layout.ring], name, where_fn); !s) return s.error();
     }
   }
   return cloud;
+}
+
+}  // namespace
+
+Expected<PointCloud> ReadPly(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  Expected<std::string> bytes = ReadBytes(path, "PLY point cloud", kMaxScanPoints * 256);
+  if (!bytes) return bytes.error();
+  if (bytes->empty()) return Error{name + ": the file is empty, expected a PLY header"};
+  Expected<PlyHeader> header = ParsePlyHeader(*bytes, name);
+  if (!header) return header.error();
+  Expected<PlyVertexLayout> layout = FindPlyVertexLayout(*header, name);
+  if (!layout) return layout.error();
+  if (header->ascii) return ReadPlyAsciiBody(*bytes, *header, *layout, name);
+  return ReadPlyBinaryBody(*bytes, *header, *layout, name);
 }
 
 // --- Text scans ---------------------------------------------------------------------------
@@ -918,6 +975,177 @@ void OrganisedColumns(const PointCloud& cloud, std::size_t rings, bool azimuth_d
   model.azimuth_start_rad = std::abs(start_sum) > 0.0 ? std::arg(start_sum) : 0.0;
 }
 
+// What FindLayout's finders share, once the angles are known.
+struct LayoutScan {
+  const PointCloud& cloud;
+  const LayoutOptions& options;
+  const std::string& source;  // names the cloud in errors
+  const PointAngles& angles;  // every point's, NaN for no return
+};
+
+// The ring count of an organised scan (0: none found) and its fit.
+struct OrganisedChoice {
+  std::size_t rings = 0;
+  OrganisedFit fit;
+};
+
+// Appends `text` to a layout's note, "; " between reasons.
+void AddLayoutNote(std::string& note, const std::string& text) {
+  note += (note.empty() ? "" : "; ") + text;
+}
+
+// Every return on the preset's nominal rings and columns; `note` says why.
+FoundLayout NominalLayout(const std::vector<Eigen::Vector3f>& points, const LayoutOptions& options,
+                          std::string note) {
+  const std::size_t n = points.size();
+  FoundLayout layout;
+  layout.note = std::move(note);
+  layout.source = RingSource::kNominal;
+  layout.model = *options.preset;
+  if (options.columns > 0) layout.model.width = options.columns;
+  layout.rows.assign(n, -1);
+  layout.cols.assign(n, -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!IsReturn(points[i])) continue;
+    layout.rows[i] = layout.model.NearestRing(points[i].cast<double>());
+    layout.cols[i] = layout.model.Column(points[i].cast<double>());
+  }
+  return layout;
+}
+
+// Rows found in the data, columns from the azimuth unless given (or the preset's nominal rings).
+Expected<FoundLayout> FinishLayout(const LayoutScan& scan, std::string note, RingSource ring_source,
+                                   RingFit fit, std::vector<std::int32_t> cols) {
+  const LayoutOptions& options = scan.options;
+  const std::vector<Eigen::Vector3f>& points = scan.cloud.points;
+  const std::size_t n = points.size();
+  if (options.preset && fit.model.height() != options.preset->height()) {
+    AddLayoutNote(note, std::string(RingSourceName(ring_source)) + " give " +
+                            std::to_string(fit.model.height()) + " rings, the preset has " +
+                            std::to_string(options.preset->height()) + ": nominal rings used");
+    return NominalLayout(points, options, std::move(note));
+  }
+  FoundLayout layout;
+  layout.note = std::move(note);
+  layout.source = ring_source;
+  layout.rows = std::move(fit.rows);
+  layout.model = std::move(fit.model);
+  if (cols.empty()) {
+    int width = options.columns;
+    if (width == 0 && options.preset) width = options.preset->width;
+    if (width == 0 && layout.model.width > 1) width = layout.model.width;  // chosen already
+    if (width == 0) {
+      Expected<int> measured = MeasureAzimuthSteps(points, layout.rows);
+      if (!measured) return Error{scan.source + ": " + measured.error().message};
+      width = *measured;
+    }
+    layout.model.width = width;
+    // Column centres on the returns' azimuths; forward (+x) in the middle column, so
+    // that range images read like the scene seen from the sensor.
+    layout.model.azimuth_start_rad =
+        WrapPi(FitAzimuthStart(scan.angles, width) + (width / 2) * (2.0 * kPi / width));
+    cols.assign(n, -1);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (layout.rows[i] >= 0) cols[i] = layout.model.ColumnAt(scan.angles.azimuth[i]);
+    }
+  }
+  layout.cols = std::move(cols);
+  if (Status s = layout.model.Validate(); !s) return Error{scan.source + ": " + s.message()};
+  return layout;
+}
+
+// Rows from the file's ring field; columns from the storage order too when it is organised.
+Expected<FoundLayout> LayoutFromRingField(const LayoutScan& scan) {
+  const PointCloud& cloud = scan.cloud;
+  const std::size_t n = cloud.points.size();
+  if (cloud.ring.size() != n) {
+    return Error{scan.source + ": " + std::to_string(cloud.ring.size()) + " ring numbers for " +
+                 std::to_string(n) + " points"};
+  }
+  const std::int32_t rings = *std::max_element(cloud.ring.begin(), cloud.ring.end()) + 1;
+  Expected<RingFit> fit = FitRings(scan.angles, cloud.ring, rings, 1);
+  if (!fit) return Error{scan.source + ": ring field: " + fit.error().message};
+  // Organised as well (Ouster): the columns are the storage order's.
+  std::vector<std::int32_t> cols;
+  const std::size_t r = static_cast<std::size_t>(rings);
+  bool in_order = scan.options.organised != OrganisedMode::kNo && n % r == 0;
+  for (std::size_t i = 0; in_order && i < n; ++i) {
+    in_order = static_cast<std::size_t>(cloud.ring[i]) == i % r;
+  }
+  if (in_order) {
+    const OrganisedFit organised =
+        CheckOrganised(cloud.points, scan.angles.azimuth, scan.angles.elevation, r);
+    OrganisedColumns(cloud, r, organised.azimuth_decreasing, fit->model, cols);
+  }
+  return FinishLayout(scan, "", RingSource::kRingField, std::move(*fit), std::move(cols));
+}
+
+// The ring count that makes the storage order organised (0: none), forced by OrganisedMode::kYes.
+Expected<OrganisedChoice> ChooseOrganisedRings(const LayoutScan& scan) {
+  const LayoutOptions& options = scan.options;
+  const std::vector<Eigen::Vector3f>& points = scan.cloud.points;
+  const std::vector<double>& azimuth = scan.angles.azimuth;
+  const std::vector<double>& elevation = scan.angles.elevation;
+  const std::size_t n = points.size();
+  std::vector<std::size_t> candidates;
+  if (options.preset) {
+    candidates.push_back(static_cast<std::size_t>(options.preset->height()));
+  } else {
+    for (std::size_t r = 2; r <= 1024 && r <= n / 2; ++r) {
+      if (n % r == 0) candidates.push_back(r);
+    }
+  }
+  OrganisedChoice best;
+  for (std::size_t r : candidates) {
+    const OrganisedFit fit = CheckOrganised(points, azimuth, elevation, r);
+    if (fit.ok && fit.resolved > best.fit.resolved) {
+      best.fit = fit;
+      best.rings = r;
+    }
+  }
+  if (best.rings == 0 && options.organised == OrganisedMode::kYes) {
+    if (!options.preset) {
+      return Error{scan.source + ": " + std::to_string(n) +
+                   " points: no ring count makes an organised scan of them (index = col * "
+                   "rings + ring with tight rows); give --sensor"};
+    }
+    best.rings = candidates.front();
+    if (n % best.rings != 0) {
+      return Error{scan.source + ": " + std::to_string(n) +
+                   " points cannot be an organised scan of " + std::to_string(best.rings) +
+                   " rings (not a multiple)"};
+    }
+    best.fit = CheckOrganised(points, azimuth, elevation, best.rings);
+    best.fit.azimuth_decreasing = true;  // forced: Ouster's convention
+  }
+  return best;
+}
+
+// Columns for uniform elevation bins: square cells, about one return per cell.
+Expected<int> SquareCellColumns(const LayoutScan& scan) {
+  // About one return per cell over the directions seen: the band of elevations times the
+  // azimuths covered (in 1-degree sectors; a 2-D laser tilting in front of a robot covers
+  // half a turn).
+  const std::vector<Eigen::Vector3f>& points = scan.cloud.points;
+  const std::vector<double>& azimuth = scan.angles.azimuth;
+  const std::vector<double>& elevation = scan.angles.elevation;
+  double top = -kPi, bottom = kPi;
+  std::size_t returns = 0;
+  std::vector<char> sector(360, 0);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!IsReturn(points[i])) continue;
+    top = std::max(top, elevation[i]);
+    bottom = std::min(bottom, elevation[i]);
+    sector[std::min<std::size_t>(
+        359, static_cast<std::size_t>(WrapPositive(azimuth[i]) / (2.0 * kPi) * 360.0))] = 1;
+    ++returns;
+  }
+  if (returns == 0) return Error{scan.source + ": no returns (every point is at the origin)"};
+  const double covered = 2.0 * kPi * std::count(sector.begin(), sector.end(), 1) / 360.0;
+  const double cell = std::sqrt(covered * std::max(top - bottom, 1e-3) / returns);
+  return static_cast<int>(std::clamp(std::round(2.0 * kPi / cell), 16.0, 65536.0));
+}
+
 }  // namespace
 
 Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& options,
@@ -930,135 +1158,34 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
   }
   if (options.columns < 0) return Error{source + ": columns must be positive (0: automatic)"};
   if (Status s = options.elevation.Validate(); !s) return Error{source + ": " + s.message()};
-  FoundLayout layout;
-  std::string& note = layout.note;
-  auto add_note = [&](const std::string& text) { note += (note.empty() ? "" : "; ") + text; };
+  std::string note;  // why sources were passed over
 
-  auto nominal = [&]() -> Expected<FoundLayout> {
-    layout.source = RingSource::kNominal;
-    layout.model = *options.preset;
-    if (options.columns > 0) layout.model.width = options.columns;
-    layout.rows.assign(n, -1);
-    layout.cols.assign(n, -1);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!IsReturn(points[i])) continue;
-      layout.rows[i] = layout.model.NearestRing(points[i].cast<double>());
-      layout.cols[i] = layout.model.Column(points[i].cast<double>());
-    }
-    return layout;
-  };
-  // Rows found in the data, columns from the azimuth unless given (point_angles is set
-  // before any finder runs).
-  const PointAngles* point_angles = nullptr;
-  auto finish = [&](RingSource ring_source, RingFit fit,
-                    std::vector<std::int32_t> cols) -> Expected<FoundLayout> {
-    if (options.preset && fit.model.height() != options.preset->height()) {
-      add_note(std::string(RingSourceName(ring_source)) + " give " +
-               std::to_string(fit.model.height()) + " rings, the preset has " +
-               std::to_string(options.preset->height()) + ": nominal rings used");
-      return nominal();
-    }
-    layout.source = ring_source;
-    layout.rows = std::move(fit.rows);
-    layout.model = std::move(fit.model);
-    if (cols.empty()) {
-      int width = options.columns;
-      if (width == 0 && options.preset) width = options.preset->width;
-      if (width == 0 && layout.model.width > 1) width = layout.model.width;  // chosen already
-      if (width == 0) {
-        Expected<int> measured = MeasureAzimuthSteps(points, layout.rows);
-        if (!measured) return Error{source + ": " + measured.error().message};
-        width = *measured;
-      }
-      layout.model.width = width;
-      // Column centres on the returns' azimuths; forward (+x) in the middle column, so
-      // that range images read like the scene seen from the sensor.
-      layout.model.azimuth_start_rad =
-          WrapPi(FitAzimuthStart(*point_angles, width) + (width / 2) * (2.0 * kPi / width));
-      cols.assign(n, -1);
-      for (std::size_t i = 0; i < n; ++i) {
-        if (layout.rows[i] >= 0) cols[i] = layout.model.ColumnAt(point_angles->azimuth[i]);
-      }
-    }
-    layout.cols = std::move(cols);
-    if (Status s = layout.model.Validate(); !s) return Error{source + ": " + s.message()};
-    return layout;
-  };
-
-  if (options.preset && options.organised == OrganisedMode::kNo) return nominal();
+  if (options.preset && options.organised == OrganisedMode::kNo) {
+    return NominalLayout(points, options, note);
+  }
 
   // Every point's angles, once (NaN for no return): each finder below reads them.
   const PointAngles angles(points);
-  point_angles = &angles;
-  const std::vector<double>& azimuth = angles.azimuth;
-  const std::vector<double>& elevation = angles.elevation;
+  const LayoutScan scan{cloud, options, source, angles};
 
   // 1. The file's ring field.
-  if (!cloud.ring.empty()) {
-    if (cloud.ring.size() != n) {
-      return Error{source + ": " + std::to_string(cloud.ring.size()) + " ring numbers for " +
-                   std::to_string(n) + " points"};
-    }
-    const std::int32_t rings = *std::max_element(cloud.ring.begin(), cloud.ring.end()) + 1;
-    Expected<RingFit> fit = FitRings(angles, cloud.ring, rings, 1);
-    if (!fit) return Error{source + ": ring field: " + fit.error().message};
-    // Organised as well (Ouster): the columns are the storage order's.
-    std::vector<std::int32_t> cols;
-    const std::size_t r = static_cast<std::size_t>(rings);
-    bool in_order = options.organised != OrganisedMode::kNo && n % r == 0;
-    for (std::size_t i = 0; in_order && i < n; ++i) {
-      in_order = static_cast<std::size_t>(cloud.ring[i]) == i % r;
-    }
-    if (in_order) {
-      const OrganisedFit organised = CheckOrganised(points, azimuth, elevation, r);
-      OrganisedColumns(cloud, r, organised.azimuth_decreasing, fit->model, cols);
-    }
-    return finish(RingSource::kRingField, std::move(*fit), std::move(cols));
-  }
+  if (!cloud.ring.empty()) return LayoutFromRingField(scan);
 
   // 2. The storage order, organised.
   if (options.organised != OrganisedMode::kNo) {
-    std::vector<std::size_t> candidates;
-    if (options.preset) {
-      candidates.push_back(static_cast<std::size_t>(options.preset->height()));
-    } else {
-      for (std::size_t r = 2; r <= 1024 && r <= n / 2; ++r) {
-        if (n % r == 0) candidates.push_back(r);
-      }
-    }
-    std::size_t best_rings = 0;
-    OrganisedFit best;
-    for (std::size_t r : candidates) {
-      const OrganisedFit fit = CheckOrganised(points, azimuth, elevation, r);
-      if (fit.ok && fit.resolved > best.resolved) {
-        best = fit;
-        best_rings = r;
-      }
-    }
-    if (best_rings == 0 && options.organised == OrganisedMode::kYes) {
-      if (!options.preset) {
-        return Error{source + ": " + std::to_string(n) +
-                     " points: no ring count makes an organised scan of them (index = col * "
-                     "rings + ring with tight rows); give --sensor"};
-      }
-      best_rings = candidates.front();
-      if (n % best_rings != 0) {
-        return Error{source + ": " + std::to_string(n) + " points cannot be an organised scan of " +
-                     std::to_string(best_rings) + " rings (not a multiple)"};
-      }
-      best = CheckOrganised(points, azimuth, elevation, best_rings);
-      best.azimuth_decreasing = true;  // forced: Ouster's convention
-    }
-    if (best_rings > 0) {
+    Expected<OrganisedChoice> organised = ChooseOrganisedRings(scan);
+    if (!organised) return organised.error();
+    const std::size_t rings = organised->rings;
+    if (rings > 0) {
       std::vector<std::int32_t> ring(n);
-      for (std::size_t i = 0; i < n; ++i) ring[i] = static_cast<std::int32_t>(i % best_rings);
-      Expected<RingFit> fit = FitRings(angles, ring, static_cast<int>(best_rings), 1);
+      for (std::size_t i = 0; i < n; ++i) ring[i] = static_cast<std::int32_t>(i % rings);
+      Expected<RingFit> fit = FitRings(angles, ring, static_cast<int>(rings), 1);
       if (fit) {
         std::vector<std::int32_t> cols;
-        OrganisedColumns(cloud, best_rings, best.azimuth_decreasing, fit->model, cols);
-        return finish(RingSource::kOrganised, std::move(*fit), std::move(cols));
+        OrganisedColumns(cloud, rings, organised->fit.azimuth_decreasing, fit->model, cols);
+        return FinishLayout(scan, note, RingSource::kOrganised, std::move(*fit), std::move(cols));
       }
-      add_note("organised: " + fit.error().message);
+      AddLayoutNote(note, "organised: " + fit.error().message);
     }
   }
 
@@ -1066,41 +1193,28 @@ Expected<FoundLayout> FindLayout(const PointCloud& cloud, const LayoutOptions& o
   Expected<RingBreaks> breaks = FindRingBreaks(points, angles);
   if (breaks) {
     Expected<RingFit> fit = FitRings(angles, breaks->ring, breaks->rings, 1);
-    if (fit) return finish(RingSource::kRingBreaks, std::move(*fit), {});
-    add_note(fit.error().message);
+    if (fit) return FinishLayout(scan, note, RingSource::kRingBreaks, std::move(*fit), {});
+    AddLayoutNote(note, fit.error().message);
   }
 
   // 4. The elevation histogram.
   Expected<RingFit> clusters = FindElevationRings(points, 1, options.elevation);
-  if (clusters) return finish(RingSource::kElevationClusters, std::move(*clusters), {});
-  add_note(clusters.error().message);
+  if (clusters) {
+    return FinishLayout(scan, note, RingSource::kElevationClusters, std::move(*clusters), {});
+  }
+  AddLayoutNote(note, clusters.error().message);
 
   // 5. No rings in the data.
-  if (options.preset) return nominal();
+  if (options.preset) return NominalLayout(points, options, note);
   int width = options.columns;
   if (width == 0) {
-    // Square cells, about one return per cell over the directions seen: the band of
-    // elevations times the azimuths covered (in 1-degree sectors; a 2-D laser tilting in
-    // front of a robot covers half a turn).
-    double top = -kPi, bottom = kPi;
-    std::size_t returns = 0;
-    std::vector<char> sector(360, 0);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!IsReturn(points[i])) continue;
-      top = std::max(top, elevation[i]);
-      bottom = std::min(bottom, elevation[i]);
-      sector[std::min<std::size_t>(
-          359, static_cast<std::size_t>(WrapPositive(azimuth[i]) / (2.0 * kPi) * 360.0))] = 1;
-      ++returns;
-    }
-    if (returns == 0) return Error{source + ": no returns (every point is at the origin)"};
-    const double covered = 2.0 * kPi * std::count(sector.begin(), sector.end(), 1) / 360.0;
-    const double cell = std::sqrt(covered * std::max(top - bottom, 1e-3) / returns);
-    width = static_cast<int>(std::clamp(std::round(2.0 * kPi / cell), 16.0, 65536.0));
+    Expected<int> square = SquareCellColumns(scan);
+    if (!square) return square.error();
+    width = *square;
   }
   Expected<RingFit> bins = UniformElevationBins(points, width);
   if (!bins) return Error{source + ": " + bins.error().message};
-  return finish(RingSource::kUniformBins, std::move(*bins), {});
+  return FinishLayout(scan, note, RingSource::kUniformBins, std::move(*bins), {});
 }
 
 Expected<PlacedScan> PlaceScan(const PointCloud& cloud, const LayoutOptions& options,

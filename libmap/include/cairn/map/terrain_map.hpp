@@ -29,6 +29,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "cairn/map/cost.hpp"
@@ -156,6 +157,22 @@ class TerrainMap {
   struct FrameSegment;
 
   void PrepareScratch();
+  // Integrate()'s stages, in order (those given the summary add their counts to it).
+  bool MoveWindow(const Eigen::Vector3d& origin);
+  Status PlaceReturns(const od::RangeImage& image, const Eigen::Isometry3d& T_world_sensor,
+                      FrameSummary& summary);
+  std::vector<FrameSegment> ClassifyReturns(const od::Detection& detection,
+                                            const od::Classification& classification,
+                                            std::int64_t stamp, FrameSummary& summary);
+  void UpdateOctree(const Eigen::Vector3d& origin, std::int64_t stamp, FrameSummary& summary);
+  void UpdateGridEvidence(FrameSummary& summary);
+  void UpdatePersistentObstacles(std::vector<FrameSegment>& segments, double stamp_s,
+                                 std::int64_t frame_id, FrameSummary& summary);
+  // Parts of those stages.
+  void FindLowestReturns(std::int64_t stamp, FrameSummary& summary);
+  std::pair<float, float> HeightAboveGround(const Eigen::Vector3d& p, const CellIndex& c,
+                                            std::int64_t stamp, float rise, float reach2);
+  void CollectRayEnds();
   void UpdateCosts(const CellIndex& lo, const CellIndex& hi);
   void UpdateTerrain(const CellIndex& lo, const CellIndex& hi);
   void FuseObstacles(std::vector<FrameSegment>& segments, double stamp_s, std::int64_t frame_id,

@@ -151,6 +151,9 @@ class Terrain {
     double depth = 0.0;                                // ditch depth; bank rise
     double tan_slope = 0.0;                            // the Lipschitz constant of the feature
     double mark_inner = 0.0;  // ditch: walls are where half_width - s in (0, depth/tan)
+
+    // Its height at its highest: 0 at a ditch's rim, the rise at a bank's top.
+    double Highest() const { return is_ditch ? 0.0 : depth; }
   };
   // A sine wave ready to evaluate: h += amplitude * sin(kx x + ky y + phase).
   struct Wave {
@@ -170,6 +173,19 @@ class Terrain {
   // Bound on |d/ds h| along the horizontal direction (dx, dy) (not unit: scales with it),
   // without the plane and the features.
   double SmoothRate(double dx, double dy) const;
+  // Intersect()'s parts.
+  struct RaySpans;                  // the ray's pieces over feature footprints (terrain.cpp)
+  RayHit PlaneHit(double t) const;  // a hit at t, with the plane part's normal
+  // The ray's pieces over each feature's footprint within (0, t_max), with the rate each adds.
+  void FindRaySpans(const Ray& ray, double t_max, RaySpans& spans) const;
+  // Gap between the ray and the surface at t; updates each span's slack.
+  double RayGap(const Ray& ray, double t, RaySpans& spans) const;
+  // Safe steps from the ray's origin (gap `gap` there) to the first crossing (see Intersect).
+  std::optional<RayHit> MarchRay(const Ray& ray, double t_max, double tolerance_m, double gap,
+                                 double smooth_closing, RaySpans& spans) const;
+  // The crossing bracketed by gap g_lo > 0 at lo and g_hi <= 0 at hi, to tolerance_m.
+  RayHit RefineRayHit(const Ray& ray, RaySpans& spans, double lo, double g_lo, double hi,
+                      double g_hi, double tolerance_m) const;
 
   double height_m_ = 0.0;
   Eigen::Vector2d gradient_ = Eigen::Vector2d::Zero();
