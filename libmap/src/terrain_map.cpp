@@ -8,10 +8,10 @@
 #include <cmath>
 #include <limits>
 #include <string>
-#include <thread>
 #include <utility>
 
 #include "cairn/util/format.hpp"
+#include "cairn/util/parallel.hpp"
 #include "key_bricks.hpp"
 
 namespace cairn::map {
@@ -201,30 +201,23 @@ void AddGroundElevation(Cell& cell, float z) {
 void CastFreeRays(const TerrainOcTree& tree, const octomap::point3d& sensor,
                   const std::vector<octomap::OcTreeKey>& ends, int wanted_threads,
                   internal::KeyBricks& free_keys, std::vector<internal::KeyBricks>& worker_keys) {
-  const int wanted =
-      wanted_threads > 0 ? wanted_threads : static_cast<int>(std::thread::hardware_concurrency());
-  const int threads =  // at least 1,024 rays each
-      std::clamp(wanted, 1, std::max(1, static_cast<int>(ends.size() / 1024)));
-  // One ray per end voxel, cast by `threads` workers over interleaved ends, each into its
-  // own set; the union does not depend on the split.
-  if (static_cast<int>(worker_keys.size()) < threads - 1) worker_keys.resize(threads - 1);
-  const auto cast = [&](int worker, internal::KeyBricks& keys) {
-    octomap::KeyRay ray;
-    keys.Clear();
-    const std::size_t step = static_cast<std::size_t>(threads);
-    for (std::size_t e = static_cast<std::size_t>(worker); e < ends.size(); e += step) {
-      if (tree.computeRayKeys(sensor, tree.keyToCoord(ends[e]), ray)) {
-        for (const octomap::OcTreeKey& key : ray) keys.Insert(key);
-      }
-    }
-  };
-  {
-    std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(cast, t, std::ref(worker_keys[t - 1]));
-    cast(0, free_keys);
-    for (std::thread& thread : pool) thread.join();
-  }
-  for (int t = 1; t < threads; ++t) free_keys.Merge(worker_keys[t - 1]);
+  // One ray per end voxel, 1,024 rays at a time to each worker, each worker into its own
+  // set (the first into free_keys); the union does not depend on the split.
+  const int most = util::ThreadCount(wanted_threads);
+  if (static_cast<int>(worker_keys.size()) < most - 1) worker_keys.resize(most - 1);
+  std::vector<octomap::KeyRay> rays(most);
+  free_keys.Clear();
+  for (int t = 0; t < most - 1; ++t) worker_keys[t].Clear();
+  const int used = util::ParallelFor(
+      static_cast<int>(ends.size()), most,
+      [&](int worker, int e) {
+        internal::KeyBricks& keys = worker == 0 ? free_keys : worker_keys[worker - 1];
+        if (tree.computeRayKeys(sensor, tree.keyToCoord(ends[e]), rays[worker])) {
+          for (const octomap::OcTreeKey& key : rays[worker]) keys.Insert(key);
+        }
+      },
+      1024);
+  for (int t = 1; t < used; ++t) free_keys.Merge(worker_keys[t - 1]);
 }
 
 }  // namespace
