@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <random>
 #include <string>
@@ -48,8 +49,44 @@ void ExpectSame(const Detection& a, const Detection& b, const std::string& what)
   }
 }
 
+// The labels of 8-connected blobs of `mask` (width x height) with at least `min_blob`
+// pixels, numbered in row-major order of their first pixel, by flood fill: the blob
+// colouring's definition, apart from the detector's own.
+std::vector<std::int32_t> FloodFillBlobs(const std::vector<bool>& mask, int width, int height,
+                                         int min_blob) {
+  std::vector<std::int32_t> labels(mask.size(), 0);
+  std::vector<int> blob, stack;
+  std::int32_t next = 0;
+  std::vector<bool> seen(mask.size(), false);
+  for (int start = 0; start < static_cast<int>(mask.size()); ++start) {
+    if (!mask[start] || seen[start]) continue;
+    blob.clear();
+    stack = {start};
+    seen[start] = true;
+    while (!stack.empty()) {
+      const int i = stack.back();
+      stack.pop_back();
+      blob.push_back(i);
+      const int r = i / width, c = i % width;
+      for (int dr = -1; dr <= 1; ++dr) {
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int rr = r + dr, cc = c + dc, j = rr * width + cc;
+          if (rr < 0 || rr >= height || cc < 0 || cc >= width || !mask[j] || seen[j]) continue;
+          seen[j] = true;
+          stack.push_back(j);
+        }
+      }
+    }
+    if (static_cast<int>(blob.size()) < min_blob) continue;
+    ++next;
+    for (const int i : blob) labels[i] = next;
+  }
+  return labels;
+}
+
 // The column baseline's pass over each column against its definition (every pair of each
-// column): the same result, every compatible pair counted, fewer tested one by one.
+// column): the same result, every compatible pair counted, fewer tested one by one; and its
+// blobs against a flood fill of its obstacle mask.
 void ExpectSameColumns(const RangeImage& image, const DetectorConfig& detector, int min_blob,
                        const std::string& what) {
   ColumnConfig config = ColumnConfig::From(detector);
@@ -59,6 +96,13 @@ void ExpectSameColumns(const RangeImage& image, const DetectorConfig& detector, 
   ExpectSame(fast, brute, what + " (columns)");
   EXPECT_EQ(fast.stats.pairs_compatible, brute.stats.pairs_compatible) << what << " (columns)";
   EXPECT_LE(fast.stats.pairs_tested, brute.stats.pairs_tested) << what << " (columns)";
+  ColumnConfig all = config;
+  all.min_blob_pixels = 0;
+  const Detection unfiltered = *DetectColumns(image, all);
+  std::vector<bool> mask(unfiltered.labels.size());
+  for (std::size_t i = 0; i < mask.size(); ++i) mask[i] = unfiltered.labels[i] > 0;
+  EXPECT_TRUE(fast.labels == FloodFillBlobs(mask, image.width(), image.height(), min_blob))
+      << what << " (column blobs against a flood fill)";
 }
 
 DetectorConfig RandomConfig(std::mt19937& rng) {

@@ -415,7 +415,6 @@ void TerrainMap::CollectRayEnds() {
   sc.endpoints.Clear();
   sc.obstacle_endpoints.Clear();
   sc.far_ends.Clear();
-  sc.free_keys.Clear();
   const int n = static_cast<int>(sc.point_class.size());
   for (int i = 0; i < n; ++i) {
     const std::uint8_t cls = sc.point_class[i];

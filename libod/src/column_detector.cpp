@@ -96,8 +96,7 @@ void SortColumn(ColumnPoint* points, int m) {
 // of its own and the two neighbouring bins from the first more than HT above it (as the
 // pair test rounds the difference, which grows with the upper height) to the last less than
 // Hmax above, one by one. The points of a bin stop at the first with no point of those bins
-// more than HT above it. Each column is gathered into a buffer of its own, so the image is
-// read once, column band by column band.
+// more than HT above it. Each column is gathered, bottom row first, into one reused buffer.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
                             int height) {
   const int n = width * height;
@@ -216,41 +215,34 @@ Detection Blobs(const RangeImage& image, const internal::LevelPoints& level,
     int begin, end;  // pixels, in one row
   };
   std::vector<Run> runs;
-  std::vector<std::int32_t> parent;  // over runs; a root is its blob's first run
-  const auto find = [&parent](int r) {
-    while (parent[r] != r) r = parent[r] = parent[parent[r]];
-    return r;
-  };
-  int above_begin = 0;  // the previous row's runs: [above_begin, above_end)
+  std::vector<int> row_start(height + 1, 0);  // row r's runs: [row_start[r], row_start[r + 1])
   for (int row = 0; row < height; ++row) {
-    const int above_end = static_cast<int>(runs.size());
-    int a = above_begin;
     const std::uint8_t* mask = obstacle.data() + static_cast<std::size_t>(row) * width;
-    for (int c = 0; c < width;) {
-      if (!mask[c]) {
-        ++c;
-        continue;
-      }
+    for (int c = 0; c < width; ++c) {
+      if (!mask[c]) continue;
       const int begin = c;
-      while (c < width && mask[c]) ++c;
-      const int self = static_cast<int>(runs.size());
-      runs.push_back({row * width + begin, row * width + c});
-      parent.push_back(self);
-      // Runs above touch this one when they reach from column begin - 1 to column c.
-      while (a < above_end && runs[a].end - (row - 1) * width < begin) ++a;
-      for (int b = a; b < above_end && runs[b].begin - (row - 1) * width <= c; ++b) {
-        const int x = find(b), y = find(self);
-        if (x != y) parent[std::max(x, y)] = std::min(x, y);
-      }
+      while (c + 1 < width && mask[c + 1]) ++c;
+      runs.push_back({row * width + begin, row * width + c + 1});
     }
-    above_begin = above_end;
+    row_start[row + 1] = static_cast<int>(runs.size());
+  }
+  // Runs of the row above touch a run when they reach from its column begin - 1 to end.
+  internal::UnionFind blobs(static_cast<int>(runs.size()));  // roots: each blob's first run
+  for (int row = 1; row < height; ++row) {
+    const int above = (row - 1) * width, here = row * width;
+    int a = row_start[row - 1];
+    for (int r = row_start[row]; r < row_start[row + 1]; ++r) {
+      const int begin = runs[r].begin - here, end = runs[r].end - here;
+      while (a < row_start[row] && runs[a].end - above < begin) ++a;
+      for (int b = a; b < row_start[row] && runs[b].begin - above <= end; ++b) blobs.Union(r, b);
+    }
   }
   std::vector<std::int32_t> component(n, -1), area(runs.size(), 0);
   for (int r = 0; r < static_cast<int>(runs.size()); ++r) {
-    area[find(r)] += runs[r].end - runs[r].begin;
+    area[blobs.Find(r)] += runs[r].end - runs[r].begin;
   }
   for (int r = 0; r < static_cast<int>(runs.size()); ++r) {
-    const int root = find(r);
+    const int root = blobs.Find(r);
     if (area[root] < config.min_blob_pixels) continue;
     std::fill(component.begin() + runs[r].begin, component.begin() + runs[r].end,
               runs[root].begin);

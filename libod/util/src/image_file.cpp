@@ -42,8 +42,8 @@ std::string DescribeImageType(int type) {
 
 Status WriteImageAtomic(const std::filesystem::path& path, const cv::Mat& image,
                         const std::string& format, const std::vector<int>& params) {
-  std::string name =
-      format.substr(format.rfind('.') == std::string::npos ? 0 : format.rfind('.') + 1);
+  const std::size_t dot = format.rfind('.');
+  std::string name = format.substr(dot == std::string::npos ? 0 : dot + 1);  // "png" -> "PNG"
   for (char& c : name) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   std::vector<unsigned char> buffer;
   try {
