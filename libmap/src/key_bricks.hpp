@@ -2,7 +2,9 @@
 //
 // The free voxels of a frame are a million insertions with many repeats, along rays: most
 // consecutive keys of a ray fall in the brick of the one before, so an insertion is one bit
-// set in a brick already at hand, and a hash look-up only when the ray leaves it. A brick
+// set in a brick already at hand, and a look-up only when the ray leaves it: by hashing, or
+// by the brick's offset in a box given to Clear (a frame's rays lie in the box of their
+// ends), which is an index read instead of a hash probe. A brick
 // is one octree node three levels above the leaves; its bits are numbered in Morton order
 // (x, y, z bits interleaved), and the bricks are visited in the Morton order of their
 // coordinates, so the keys come out in the Morton order of the whole key: a walk over them
@@ -12,6 +14,7 @@
 #include <octomap/OcTreeKey.h>
 
 #include <algorithm>
+#include <cassert>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -25,22 +28,61 @@ class KeyBricks {
     std::uint64_t bits[8] = {0, 0, 0, 0, 0, 0, 0, 0};  // bit b: the voxel of local Morton code b
   };
 
+  /// Empties the set; it takes keys anywhere (bricks found by hashing).
   void Clear() {
-    std::fill(slots_.begin(), slots_.end(), Slot{});
-    bricks_.clear();
-    last_ = kNone;
-    last_index_ = 0;
+    ClearBricks();
+    dense_.clear();
+  }
+
+  /// Empties the set for keys within [lo, hi] (inclusive, per axis) alone: when that box
+  /// holds at most kMaxDenseBricks bricks, a brick is found by its offset in the box
+  /// instead of by hashing (a ray's walk enters a new brick every few steps). Inserting a
+  /// key outside the box is then a programmer error.
+  void Clear(const octomap::OcTreeKey& lo, const octomap::OcTreeKey& hi) {
+    ClearBricks();
+    dense_.clear();
+    std::uint64_t count = 1;
+    for (int i = 0; i < 3; ++i) {
+      box_lo_[i] = lo[i] >> 3;
+      box_size_[i] = (hi[i] >> 3) - box_lo_[i] + 1;
+      count *= box_size_[i];
+    }
+    if (count <= kMaxDenseBricks) dense_.assign(count, 0);
   }
 
   void Insert(const octomap::OcTreeKey& key) {
     const std::uint64_t packed = PackBrick(key);
     if (packed != last_) {
-      last_index_ = FindOrAdd(packed);
+      last_index_ = dense_.empty() ? FindOrAdd(packed) : FindOrAddDense(packed);
       last_ = packed;
     }
     const unsigned bit = Local(key);
     bricks_[last_index_].bits[bit >> 6] |= std::uint64_t{1} << (bit & 63);
   }
+
+  /// Inserts keys like Insert, with the brick of the last key held in registers: for the
+  /// long runs of keys in one brick that a ray's walk makes. Valid while nothing else
+  /// inserts into the set.
+  class Inserter {
+   public:
+    explicit Inserter(KeyBricks& set) : set_(set) {}
+    void operator()(const octomap::OcTreeKey& key) {
+      const std::uint64_t packed = PackBrick(key);
+      if (packed != last_) {
+        bits_ =
+            set_.bricks_[set_.dense_.empty() ? set_.FindOrAdd(packed) : set_.FindOrAddDense(packed)]
+                .bits;
+        last_ = packed;
+      }
+      const unsigned bit = Local(key);
+      bits_[bit >> 6] |= std::uint64_t{1} << (bit & 63);
+    }
+
+   private:
+    KeyBricks& set_;
+    std::uint64_t last_ = kNone;
+    std::uint64_t* bits_ = nullptr;
+  };
 
   bool Contains(const octomap::OcTreeKey& key) const {
     const Brick* brick = Find(PackBrick(key));
@@ -70,19 +112,42 @@ class KeyBricks {
   void ForEachInMortonOrder(const KeyBricks* other,
                             std::vector<std::pair<std::uint64_t, std::uint32_t>>& order,
                             F&& f) const {
+    ForEachBrickInMortonOrder(
+        other, order, [&f](const Brick& brick, const Brick* theirs) { Visit(brick, theirs, f); });
+  }
+
+  /// Calls f(brick, theirs) for every brick held, in the Morton order of their coordinates,
+  /// with the same brick of `other` (null where it has none, or `other` is null).
+  template <typename F>
+  void ForEachBrickInMortonOrder(const KeyBricks* other,
+                                 std::vector<std::pair<std::uint64_t, std::uint32_t>>& order,
+                                 F&& f) const {
     order.clear();
     for (std::uint32_t i = 0; i < bricks_.size(); ++i) order.emplace_back(bricks_[i].code, i);
     std::sort(order.begin(), order.end());
     for (const auto& [code, index] : order) {
-      const Brick& brick = bricks_[index];
-      Visit(brick, other != nullptr ? other->Find(PackFromCode(code)) : nullptr, f);
+      f(bricks_[index], other != nullptr ? other->Find(PackFromCode(code)) : nullptr);
     }
+  }
+
+  /// The key of the brick's first voxel (its local coordinates 0, 0, 0).
+  static octomap::OcTreeKey BaseKey(const Brick& brick) {
+    return octomap::OcTreeKey(static_cast<octomap::key_type>(Compact3(brick.code) << 3),
+                              static_cast<octomap::key_type>(Compact3(brick.code >> 1) << 3),
+                              static_cast<octomap::key_type>(Compact3(brick.code >> 2) << 3));
+  }
+  /// The key of the voxel of local Morton code `bit` in the brick whose first key is `base`.
+  static octomap::OcTreeKey KeyOf(const octomap::OcTreeKey& base, unsigned bit) {
+    return octomap::OcTreeKey(static_cast<octomap::key_type>(base[0] | Compact3(bit)),
+                              static_cast<octomap::key_type>(base[1] | Compact3(bit >> 1)),
+                              static_cast<octomap::key_type>(base[2] | Compact3(bit >> 2)));
   }
 
   /// Adds the keys of `other`.
   void Merge(const KeyBricks& other) {
     for (const Brick& b : other.bricks_) {
-      Brick& mine = bricks_[FindOrAdd(PackFromCode(b.code))];
+      const std::uint64_t packed = PackFromCode(b.code);
+      Brick& mine = bricks_[dense_.empty() ? FindOrAdd(packed) : FindOrAddDense(packed)];
       for (int w = 0; w < 8; ++w) mine.bits[w] |= b.bits[w];
     }
     last_ = kNone;
@@ -95,6 +160,19 @@ class KeyBricks {
     std::uint32_t index = 0;
   };
   static constexpr std::uint64_t kNone = 0;
+  // 16 MiB of brick indices at most (a 20 m range at 0.1 m voxels needs about 0.5 MiB).
+  static constexpr std::uint64_t kMaxDenseBricks = std::uint64_t{1} << 22;
+
+  void ClearBricks() {
+    if (dense_.empty()) {
+      std::fill(slots_.begin(), slots_.end(), Slot{});
+    } else {
+      for (const Brick& b : bricks_) dense_[DenseOffset(PackFromCode(b.code))] = 0;
+    }
+    bricks_.clear();
+    last_ = kNone;
+    last_index_ = 0;
+  }
 
   // Brick coordinates (13 bits each) packed into 39 bits, + 1.
   static std::uint64_t PackBrick(const octomap::OcTreeKey& k) {
@@ -110,7 +188,8 @@ class KeyBricks {
   }
   // The voxel's Morton code within its brick (9 bits).
   static unsigned Local(const octomap::OcTreeKey& k) {
-    return Spread3(k[0] & 7u) | Spread3(k[1] & 7u) << 1 | Spread3(k[2] & 7u) << 2;
+    static constexpr unsigned kSpread[8] = {0, 1, 8, 9, 64, 65, 72, 73};  // Spread3(0..7)
+    return kSpread[k[0] & 7u] | kSpread[k[1] & 7u] << 1 | kSpread[k[2] & 7u] << 2;
   }
   // Every bit of v (up to 21) to every third bit, and back.
   static std::uint64_t Spread3(std::uint64_t v) {
@@ -167,12 +246,44 @@ class KeyBricks {
   }
 
   const Brick* Find(std::uint64_t packed) const {
+    if (!dense_.empty()) {
+      --packed;
+      for (int i = 0; i < 3; ++i) {
+        const std::uint32_t b = static_cast<std::uint32_t>(packed >> (13 * i) & 0x1fff);
+        if (b < box_lo_[i] || b - box_lo_[i] >= box_size_[i]) return nullptr;
+      }
+      const std::uint32_t slot = dense_[DenseOffset(packed + 1)];
+      return slot == 0 ? nullptr : &bricks_[slot - 1];
+    }
     if (slots_.empty()) return nullptr;
     const std::size_t mask = slots_.size() - 1;
     for (std::size_t i = Hash(packed) & mask;; i = (i + 1) & mask) {
       if (slots_[i].packed == packed) return &bricks_[slots_[i].index];
       if (slots_[i].packed == 0) return nullptr;
     }
+  }
+
+  // The offset of a brick (packed) in the dense box.
+  std::size_t DenseOffset(std::uint64_t packed) const {
+    --packed;
+    const std::uint32_t b[3] = {static_cast<std::uint32_t>(packed & 0x1fff),
+                                static_cast<std::uint32_t>(packed >> 13 & 0x1fff),
+                                static_cast<std::uint32_t>(packed >> 26 & 0x1fff)};
+    for (int i = 0; i < 3; ++i) assert(b[i] >= box_lo_[i] && b[i] - box_lo_[i] < box_size_[i]);
+    return (static_cast<std::size_t>(b[2] - box_lo_[2]) * box_size_[1] + (b[1] - box_lo_[1])) *
+               box_size_[0] +
+           (b[0] - box_lo_[0]);
+  }
+
+  std::uint32_t FindOrAddDense(std::uint64_t packed) {
+    std::uint32_t& slot = dense_[DenseOffset(packed)];  // index + 1; 0: none yet
+    if (slot == 0) {
+      Brick brick;
+      brick.code = Code(packed);
+      bricks_.push_back(brick);
+      slot = static_cast<std::uint32_t>(bricks_.size());
+    }
+    return slot - 1;
   }
 
   std::uint32_t FindOrAdd(std::uint64_t packed) {
@@ -202,6 +313,9 @@ class KeyBricks {
   }
 
   std::vector<Slot> slots_;
+  std::vector<std::uint32_t> dense_;       // with a box: brick index + 1 by offset in it (0: none)
+  std::uint32_t box_lo_[3] = {0, 0, 0};    // the box's first brick coordinates (key >> 3)
+  std::uint32_t box_size_[3] = {0, 0, 0};  // and its size in bricks
   std::vector<Brick> bricks_;
   std::uint64_t last_ = kNone;  // the brick of the last insertion (packed), and its index
   std::uint32_t last_index_ = 0;

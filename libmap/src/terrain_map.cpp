@@ -13,6 +13,7 @@
 #include "cairn/util/format.hpp"
 #include "cairn/util/parallel.hpp"
 #include "key_bricks.hpp"
+#include "ray_keys.hpp"
 
 namespace cairn::map {
 namespace {
@@ -201,20 +202,31 @@ void AddGroundElevation(Cell& cell, float z) {
 void CastFreeRays(const TerrainOcTree& tree, const octomap::point3d& sensor,
                   const std::vector<octomap::OcTreeKey>& ends, int wanted_threads,
                   internal::KeyBricks& free_keys, std::vector<internal::KeyBricks>& worker_keys) {
+  // Every ray lies in the box of its two ends: the sets index their bricks in the box of
+  // them all.
+  octomap::OcTreeKey lo, hi;
+  if (!tree.coordToKeyChecked(sensor, lo)) {
+    free_keys.Clear();  // outside the tree: OctoMap casts no ray either
+    return;
+  }
+  hi = lo;
+  for (const octomap::OcTreeKey& end : ends) {
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = std::min(lo[i], end[i]);
+      hi[i] = std::max(hi[i], end[i]);
+    }
+  }
   // One ray per end voxel, 1,024 rays at a time to each worker, each worker into its own
   // set (the first into free_keys); the union does not depend on the split.
   const int most = util::ThreadCount(wanted_threads);
   if (static_cast<int>(worker_keys.size()) < most - 1) worker_keys.resize(most - 1);
-  std::vector<octomap::KeyRay> rays(most);
-  free_keys.Clear();
-  for (int t = 0; t < most - 1; ++t) worker_keys[t].Clear();
+  free_keys.Clear(lo, hi);
+  for (int t = 0; t < most - 1; ++t) worker_keys[t].Clear(lo, hi);
   const int used = util::ParallelFor(
       static_cast<int>(ends.size()), most,
       [&](int worker, int e) {
-        internal::KeyBricks& keys = worker == 0 ? free_keys : worker_keys[worker - 1];
-        if (tree.computeRayKeys(sensor, tree.keyToCoord(ends[e]), rays[worker])) {
-          for (const octomap::OcTreeKey& key : rays[worker]) keys.Insert(key);
-        }
+        internal::KeyBricks::Inserter insert(worker == 0 ? free_keys : worker_keys[worker - 1]);
+        internal::ForEachRayKey(tree, sensor, tree.keyToCoord(ends[e]), insert);
       },
       1024);
   for (int t = 1; t < used; ++t) free_keys.Merge(worker_keys[t - 1]);
@@ -453,18 +465,34 @@ void TerrainMap::UpdateOctree(const Eigen::Vector3d& origin, std::int64_t stamp,
   const octomap::point3d sensor(static_cast<float>(origin.x()), static_cast<float>(origin.y()),
                                 static_cast<float>(origin.z()));
   CastFreeRays(tree, sensor, sc.ray_ends, config_.threads, sc.free_keys, sc.worker_keys);
-  // Endpoints win: their voxels are not updated as free.
-  TerrainOcTree::FreeCursor cursor;
-  sc.free_keys.ForEachInMortonOrder(
-      &sc.endpoints, sc.brick_order, [&](const octomap::OcTreeKey& key, bool endpoint) {
-        if (endpoint || !in_window(key)) return;
-        const TerrainOcTree::FreeUpdate update = tree.UpdateFree(key, cursor);
-        if (update.changed) ++summary.voxels_free;
-        if (update.was_obstacle) {
-          // A ray went through where an obstacle was: evidence against the cell below it.
-          const octomap::point3d c = tree.keyToCoord(key);
-          const CellIndex cell = grid_.IndexOf({c.x(), c.y()});
-          if (grid_.Contains(cell)) sc.Stamp(grid_, cell, stamp).seen_through = true;
+  // Endpoints win: their voxels are not updated as free. A brick at a time: the tree is
+  // walked to each brick once.
+  sc.free_keys.ForEachBrickInMortonOrder(
+      &sc.endpoints, sc.brick_order,
+      [&](const internal::KeyBricks::Brick& brick, const internal::KeyBricks::Brick* ends) {
+        const octomap::OcTreeKey base = internal::KeyBricks::BaseKey(brick);
+        std::uint64_t voxels[8];
+        for (int w = 0; w < 8; ++w) voxels[w] = brick.bits[w] & ~(ends ? ends->bits[w] : 0);
+        // The window is an interval in x and y: a brick whose corner voxels lie in it does.
+        const octomap::OcTreeKey far(static_cast<octomap::key_type>(base[0] + 7),
+                                     static_cast<octomap::key_type>(base[1] + 7), base[2]);
+        if (!in_window(base) || !in_window(far)) {
+          for (unsigned b = 0; b < 512; ++b) {
+            if (!in_window(internal::KeyBricks::KeyOf(base, b))) {
+              voxels[b >> 6] &= ~(std::uint64_t{1} << (b & 63));
+            }
+          }
+        }
+        std::uint64_t was_obstacle[8];
+        summary.voxels_free += tree.UpdateFreeBrick(base, voxels, was_obstacle);
+        for (unsigned w = 0; w < 8; ++w) {
+          for (std::uint64_t word = was_obstacle[w]; word != 0; word &= word - 1) {
+            // A ray went through where an obstacle was: evidence against the cell below it.
+            const unsigned b = w * 64 + static_cast<unsigned>(__builtin_ctzll(word));
+            const octomap::point3d c = tree.keyToCoord(internal::KeyBricks::KeyOf(base, b));
+            const CellIndex cell = grid_.IndexOf({c.x(), c.y()});
+            if (grid_.Contains(cell)) sc.Stamp(grid_, cell, stamp).seen_through = true;
+          }
         }
       });
   sc.endpoints.ForEachInMortonOrder(

@@ -1,6 +1,7 @@
 #include "cairn/map/terrain_octree.hpp"
 
 #include <algorithm>
+#include <iterator>
 #include <limits>
 
 namespace cairn::map {
@@ -62,59 +63,88 @@ TerrainOcTreeNode* TerrainOcTree::TouchLeaf(const octomap::OcTreeKey& key) {
   return node;
 }
 
-TerrainOcTree::FreeUpdate TerrainOcTree::UpdateFree(const octomap::OcTreeKey& key) {
-  FreeCursor cursor;
-  return UpdateFree(key, cursor);
+namespace {
+constexpr unsigned kBrickLevels = 3;  // a brick: the node this many levels above the leaves
+}  // namespace
+
+// One step of a free update's walk, from `node` to its child `pos`: the child made, or a
+// pruned node expanded first; null when `node` is pruned and saturated free (the update
+// would change nothing below it). `created` says whether `node` was made by this walk (a
+// new node has no children, which then is no sign of pruning); it is updated to the child.
+TerrainOcTreeNode* TerrainOcTree::FreeStep(TerrainOcTreeNode* node, unsigned pos, bool& created) {
+  if (nodeChildExists(node, pos)) {
+    created = false;
+  } else if (!nodeHasChildren(node) && !created) {
+    if (IsSaturatedFree(*node)) return nullptr;
+    expandNode(node);
+    created = false;
+  } else {
+    createNodeChild(node, pos);
+    created = true;
+  }
+  return getNodeChild(node, pos);
 }
 
-TerrainOcTree::FreeUpdate TerrainOcTree::UpdateFree(const octomap::OcTreeKey& key,
-                                                    FreeCursor& cursor) {
-  constexpr unsigned kBrickLevels = 3;
-  const std::uint64_t brick = static_cast<std::uint64_t>(key[0] >> kBrickLevels) |
-                              static_cast<std::uint64_t>(key[1] >> kBrickLevels) << 16 |
-                              static_cast<std::uint64_t>(key[2] >> kBrickLevels) << 32;
-  const unsigned brick_depth = tree_depth - kBrickLevels;
-  TerrainOcTreeNode* node = nullptr;
-  unsigned depth = 0;
-  // Whether `node` was created by this update (its missing children are then not a sign of
-  // pruning). A brick node reached again has children (the first update made one) unless
-  // it is a pruned leaf, so false is right for it.
-  bool created = false;
-  if (brick == cursor.brick) {
-    if (cursor.node == nullptr) return {};  // inside a saturated free pruned node
-    node = cursor.node;
-    depth = brick_depth;
-  } else {
-    cursor.brick = brick;
-    cursor.node = nullptr;
-    if (root == nullptr) {
-      root = new TerrainOcTreeNode();
-      ++tree_size;
-      created = true;
-    }
-    node = root;
-  }
-  for (; depth < tree_depth; ++depth) {
-    if (depth == brick_depth && cursor.node == nullptr) cursor.node = node;
-    const unsigned pos = octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth));
-    if (nodeChildExists(node, pos)) {
-      created = false;
-    } else if (!nodeHasChildren(node) && !created) {
-      if (IsSaturatedFree(*node)) return {};  // pruned, and already as free as can be
-      expandNode(node);
-      created = false;
-    } else {
-      createNodeChild(node, pos);
-      created = true;
-    }
-    node = getNodeChild(node, pos);
-  }
-  if (IsSaturatedFree(*node)) return {};
+// The leaf's update once the walk has reached it.
+TerrainOcTree::FreeUpdate TerrainOcTree::FreeLeaf(TerrainOcTreeNode* leaf) const {
+  if (leaf == nullptr || IsSaturatedFree(*leaf)) return {};
   FreeUpdate result;
   result.changed = true;
-  result.was_obstacle = IsObstacle(*node);
-  Update(node, false, false);
+  result.was_obstacle = IsObstacle(*leaf);
+  Update(leaf, false, false);
   return result;
+}
+
+TerrainOcTree::FreeUpdate TerrainOcTree::UpdateFree(const octomap::OcTreeKey& key) {
+  bool created = false;
+  if (root == nullptr) {
+    root = new TerrainOcTreeNode();
+    ++tree_size;
+    created = true;
+  }
+  TerrainOcTreeNode* node = root;
+  for (unsigned depth = 0; depth < tree_depth && node != nullptr; ++depth) {
+    node = FreeStep(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth)),
+                    created);
+  }
+  return FreeLeaf(node);
+}
+
+int TerrainOcTree::UpdateFreeBrick(const octomap::OcTreeKey& base, const std::uint64_t (&voxels)[8],
+                                   std::uint64_t (&was_obstacle)[8]) {
+  std::fill(std::begin(was_obstacle), std::end(was_obstacle), 0);
+  if (std::all_of(std::begin(voxels), std::end(voxels), [](std::uint64_t w) { return w == 0; })) {
+    return 0;  // no walk: it would make nodes
+  }
+  bool created = false;
+  if (root == nullptr) {
+    root = new TerrainOcTreeNode();
+    ++tree_size;
+    created = true;
+  }
+  TerrainOcTreeNode* brick = root;
+  for (unsigned depth = 0; depth + kBrickLevels < tree_depth; ++depth) {
+    brick = FreeStep(
+        brick, octomap::computeChildIdx(base, static_cast<int>(tree_depth - 1 - depth)), created);
+    if (brick == nullptr) return 0;  // inside a pruned node saturated free
+  }
+  int changed = 0;
+  for (unsigned w = 0; w < 8; ++w) {
+    for (std::uint64_t word = voxels[w]; word != 0; word &= word - 1) {
+      const unsigned b = w * 64 + static_cast<unsigned>(__builtin_ctzll(word));
+      // Three levels down, each picked by three bits of the local Morton code; only the
+      // first voxel's walk can meet the brick node as made by this update.
+      TerrainOcTreeNode* node = brick;
+      for (int level = 2; level >= 0 && node != nullptr; --level) {
+        node = FreeStep(node, b >> (3 * level) & 7u, created);
+      }
+      created = false;
+      const FreeUpdate update = FreeLeaf(node);
+      changed += update.changed;
+      if (update.was_obstacle) was_obstacle[w] |= std::uint64_t{1} << (b & 63);
+    }
+  }
+  return changed;
 }
 
 void TerrainOcTree::Update(TerrainOcTreeNode* leaf, bool occupied, bool obstacle) const {

@@ -18,6 +18,7 @@
 #include "cairn/od/units.hpp"
 #include "cairn/sim/scene.hpp"
 #include "key_bricks.hpp"  // libmap/src: the free-space key set
+#include "ray_keys.hpp"    // libmap/src: the ray walk
 #include "sim_frames.hpp"
 
 namespace cairn::map {
@@ -484,6 +485,98 @@ std::vector<octomap::OcTreeKey> RayKeys(std::mt19937& rng, int rays) {
   return keys;
 }
 
+// The ray walk visits what OctoMap's computeRayKeys stores, key for key and in order: rays
+// from origins on and off voxel centres, of every length (within one voxel, along an axis,
+// along a diagonal through voxel corners, 25 m), at three resolutions, and rays that leave
+// the tree.
+TEST(RayKeys, TheWalkVisitsTheKeysOfComputeRayKeysInOrder) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  octomap::KeyRay ray;
+  std::int64_t keys_compared = 0;
+  for (const double resolution : {0.05, 0.1, 0.25}) {
+    const TerrainOcTree tree(resolution);
+    const auto check = [&](const octomap::point3d& from, const octomap::point3d& to) {
+      std::vector<octomap::OcTreeKey> walked;
+      const bool walk_ok = internal::ForEachRayKey(
+          tree, from, to, [&](const octomap::OcTreeKey& k) { walked.push_back(k); });
+      const bool ray_ok = tree.computeRayKeys(from, to, ray);
+      ASSERT_EQ(walk_ok, ray_ok) << from << " -> " << to;
+      const std::vector<octomap::OcTreeKey> stored(ray.begin(), ray.end());
+      ASSERT_EQ(walked, stored) << from << " -> " << to << " at " << resolution << " m";
+      keys_compared += static_cast<std::int64_t>(walked.size());
+    };
+    const float r = static_cast<float>(resolution);
+    for (int k = 0; k < 3000; ++k) {
+      const octomap::point3d from(u(rng) * 2.0f, u(rng) * 2.0f, 1.0f + u(rng));
+      const float length = k % 3 == 0 ? 25.0f : (k % 3 == 1 ? 5.0f : 0.7f * r);
+      check(from, from + octomap::point3d(u(rng), u(rng), u(rng) * 0.3f).normalized() * length);
+    }
+    // Along the axes and diagonals from a voxel centre and from a voxel corner.
+    const octomap::point3d centre = tree.keyToCoord(tree.coordToKey(0.0, 0.0, 1.0));
+    const octomap::point3d corner = centre + octomap::point3d(r, r, r) * 0.5f;
+    for (const octomap::point3d& from : {centre, corner}) {
+      for (const octomap::point3d& d :
+           {octomap::point3d(1, 0, 0), octomap::point3d(0, -1, 0), octomap::point3d(0, 0, 1),
+            octomap::point3d(1, 1, 0), octomap::point3d(-1, 1, 1), octomap::point3d(0, 0, 0)}) {
+        check(from, from + d * 7.3f);
+      }
+    }
+    // An end beyond the tree's extent: neither walks.
+    check(centre, octomap::point3d(1e7f, 0.0f, 0.0f));
+  }
+  EXPECT_GT(keys_compared, 1000000);
+}
+
+// A set cleared for a box indexes its bricks densely: the same keys, order and Morton walk
+// as a hashed set, cleared and reused, and merged with another box set.
+TEST(KeyBricks, ADenseBoxHoldsTheSameKeysAsHashing) {
+  std::mt19937 rng(17);
+  const std::vector<octomap::OcTreeKey> keys = RayKeys(rng, 700);
+  octomap::OcTreeKey lo = keys.front(), hi = keys.front();
+  for (const octomap::OcTreeKey& k : keys) {
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = std::min(lo[i], k[i]);
+      hi[i] = std::max(hi[i], k[i]);
+    }
+  }
+  internal::KeyBricks hashed, dense, dense_half, other_half;
+  for (int pass = 0; pass < 2; ++pass) {
+    hashed.Clear();
+    dense.Clear(lo, hi);
+    dense_half.Clear(lo, hi);
+    other_half.Clear(lo, hi);
+    internal::KeyBricks::Inserter insert(dense);
+    for (std::size_t k = 0; k < keys.size(); ++k) {
+      hashed.Insert(keys[k]);
+      insert(keys[k]);
+      (k % 2 == 0 ? dense_half : other_half).Insert(keys[k]);
+    }
+    dense_half.Merge(other_half);
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+    std::vector<std::uint64_t> from_hashed, from_dense, from_merged;
+    hashed.ForEachInMortonOrder(nullptr, order, [&](const octomap::OcTreeKey& k, bool) {
+      from_hashed.push_back(MortonOf(k));
+    });
+    dense.ForEachInMortonOrder(&hashed, order, [&](const octomap::OcTreeKey& k, bool in) {
+      EXPECT_TRUE(in);
+      from_dense.push_back(MortonOf(k));
+    });
+    dense_half.ForEachInMortonOrder(nullptr, order, [&](const octomap::OcTreeKey& k, bool) {
+      from_merged.push_back(MortonOf(k));
+    });
+    EXPECT_GT(from_hashed.size(), 10000u);
+    EXPECT_EQ(from_dense, from_hashed);
+    EXPECT_EQ(from_merged, from_hashed);
+    EXPECT_EQ(dense.size(), hashed.size());
+    for (std::size_t k = 0; k < keys.size(); k += 11) EXPECT_TRUE(dense.Contains(keys[k]));
+    // Outside the box, and inside it where nothing was put.
+    EXPECT_FALSE(dense.Contains(
+        octomap::OcTreeKey(static_cast<octomap::key_type>(hi[0] + 9), lo[1], lo[2])));
+    EXPECT_EQ(dense.Contains(lo), hashed.Contains(lo));
+  }
+}
+
 TEST(KeyBricks, HoldsEveryKeyOnceAndGivesThemInMortonOrder) {
   std::mt19937 rng(11);
   for (int trial = 0; trial < 3; ++trial) {
@@ -538,9 +631,10 @@ TEST(KeyBricks, HoldsEveryKeyOnceAndGivesThemInMortonOrder) {
   }
 }
 
-// The free update started from a cursor (a walk in Morton order) changes the tree exactly as
-// the walk from the root, on a tree with occupied, free and pruned saturated regions.
-TEST(TerrainOcTree, FreeUpdatesFromACursorEqualThoseFromTheRoot) {
+// The free updates of a brick at a time (a walk in Morton order) change the tree exactly as
+// the walk from the root for each voxel, on a tree with occupied, free and pruned saturated
+// regions.
+TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
   std::mt19937 rng(5);
   TerrainOcTree a(0.1), b(0.1);
   std::uniform_int_distribution<int> near(32700, 32835);
@@ -580,17 +674,28 @@ TEST(TerrainOcTree, FreeUpdatesFromACursorEqualThoseFromTheRoot) {
     return MortonOf(x) < MortonOf(y);
   });
   keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-  TerrainOcTree::FreeCursor cursor;
   int changed = 0, obstacles = 0, unchanged = 0;
   for (const octomap::OcTreeKey& key : keys) {
     const TerrainOcTree::FreeUpdate from_root = a.UpdateFree(key);
-    const TerrainOcTree::FreeUpdate from_cursor = b.UpdateFree(key, cursor);
-    ASSERT_EQ(from_root.changed, from_cursor.changed);
-    ASSERT_EQ(from_root.was_obstacle, from_cursor.was_obstacle);
     changed += from_root.changed;
     unchanged += !from_root.changed;
     obstacles += from_root.was_obstacle;
   }
+  // The same keys into b, a brick at a time, in the Morton order of the bricks.
+  internal::KeyBricks bricks;
+  for (const octomap::OcTreeKey& key : keys) bricks.Insert(key);
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+  int brick_changed = 0, brick_obstacles = 0;
+  bricks.ForEachBrickInMortonOrder(
+      nullptr, order,
+      [&](const internal::KeyBricks::Brick& brick, const internal::KeyBricks::Brick*) {
+        std::uint64_t was_obstacle[8];
+        brick_changed +=
+            b.UpdateFreeBrick(internal::KeyBricks::BaseKey(brick), brick.bits, was_obstacle);
+        for (const std::uint64_t w : was_obstacle) brick_obstacles += __builtin_popcountll(w);
+      });
+  EXPECT_EQ(brick_changed, changed);
+  EXPECT_EQ(brick_obstacles, obstacles);
   EXPECT_GT(changed, 1000);
   EXPECT_GT(unchanged, 100);  // inside the pruned saturated regions
   EXPECT_GT(obstacles, 0);

@@ -91,16 +91,16 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   };
   FreeUpdate UpdateFree(const octomap::OcTreeKey& key);
 
-  /// Where the last free update left the tree, three levels above the leaves: successive
-  /// updates of keys that share that node (a brick of 8 x 8 x 8 voxels, as in a walk in
-  /// Morton order) start there instead of at the root. Valid while only UpdateFree changes
-  /// the tree; a default cursor starts at the root.
-  struct FreeCursor {
-    std::uint64_t brick = ~std::uint64_t{0};  // the keys >> 3, packed; ~0: none yet
-    TerrainOcTreeNode* node = nullptr;        // null: the brick lies in a saturated free node
-  };
-  /// The same update as UpdateFree(key), starting from the cursor when it holds key's brick.
-  FreeUpdate UpdateFree(const octomap::OcTreeKey& key, FreeCursor& cursor);
+  /// Free updates of the voxels of one brick: the node three levels above the leaves (8 x 8
+  /// x 8 voxels) whose first voxel is `base` (its keys' low three bits zero). Bit b of
+  /// `voxels` (bit b % 64 of word b / 64) is the voxel whose local coordinates, interleaved
+  /// x, y, z from the lowest bit, make b: the same Morton code that picks the child at each
+  /// of the three levels. The tree walks to the brick once, then three levels per voxel; the
+  /// tree and the answers are those of UpdateFree on each voxel in ascending b. Sets bit b
+  /// of `was_obstacle` for the voxels that were obstacle voxels before; returns how many
+  /// voxels changed.
+  int UpdateFreeBrick(const octomap::OcTreeKey& base, const std::uint64_t (&voxels)[8],
+                      std::uint64_t (&was_obstacle)[8]);
 
   /// Whether a node is saturated free in both values (a free update changes nothing).
   bool IsSaturatedFree(const TerrainOcTreeNode& node) const;
@@ -114,6 +114,8 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   std::size_t DeleteOutsideXY(const Eigen::Vector2d& min, const Eigen::Vector2d& max);
 
  private:
+  TerrainOcTreeNode* FreeStep(TerrainOcTreeNode* node, unsigned pos, bool& created);
+  FreeUpdate FreeLeaf(TerrainOcTreeNode* leaf) const;
   // Deletes every descendant of `node` (not the node itself); counts them.
   void DeleteDescendants(TerrainOcTreeNode* node, std::size_t& count);
   // Returns true when `node` has no child left and must go too.
