@@ -110,7 +110,7 @@ Status SameRun(const RunState& saved, const RunState& now, const std::string& ch
                const std::string& config);
 
 /// The frames of the input `o` names (--rawlog, --kitti or --frames), stereo pairs matched
-/// with `stereo`.
+/// with `stereo`, each read while the one before is mapped (sources::ReadAhead).
 Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(const MapOptions& o,
                                                                 const od::io::StereoConfig& stereo);
 

@@ -38,9 +38,12 @@ constexpr const char* kFormat = "cairn map resume state 3";
 
 Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(
     const MapOptions& o, const od::io::StereoConfig& stereo) {
-  if (!o.rawlog.empty()) return sources::OpenRawlogFrames(o.rawlog, o.label, stereo);
-  if (!o.kitti.empty()) return sources::OpenKittiFrames(o.kitti, o.sequence, o.range, o.lidar);
-  return sources::OpenDepthFolderFrames(o.frames, o.poses, o.intrinsics);
+  Expected<std::unique_ptr<sources::FrameSource>> opened =
+      !o.rawlog.empty() ? sources::OpenRawlogFrames(o.rawlog, o.label, stereo)
+      : !o.kitti.empty() ? sources::OpenKittiFrames(o.kitti, o.sequence, o.range, o.lidar)
+                         : sources::OpenDepthFolderFrames(o.frames, o.poses, o.intrinsics);
+  if (!opened) return opened.error();
+  return sources::ReadAhead(std::move(*opened));  // the next frame is read while this one maps
 }
 
 // The fields of FrameRecord and FrameSummary that the outputs use, by name. json keeps

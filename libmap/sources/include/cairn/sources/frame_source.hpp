@@ -116,4 +116,11 @@ Expected<std::unique_ptr<FrameSource>> OpenDepthFolderFrames(const std::string& 
                                                              const std::string& poses,
                                                              const std::string& intrinsics);
 
+/// `source` read one frame ahead: while the caller works on a frame, the next is read (file,
+/// decoding, range image) on a thread of its own, so that reading overlaps the Mapper's
+/// work. The same frames in the same order, the same skips and errors, each when the
+/// caller reaches it; after an error or the end nothing more is read. A frame read ahead
+/// and not taken is read for nothing (a run that stops early).
+std::unique_ptr<FrameSource> ReadAhead(std::unique_ptr<FrameSource> source);
+
 }  // namespace cairn::sources
