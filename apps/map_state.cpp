@@ -39,7 +39,7 @@ constexpr const char* kFormat = "cairn map resume state 3";
 Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(
     const MapOptions& o, const od::io::StereoConfig& stereo) {
   Expected<std::unique_ptr<sources::FrameSource>> opened =
-      !o.rawlog.empty() ? sources::OpenRawlogFrames(o.rawlog, o.label, stereo)
+      !o.rawlog.empty()  ? sources::OpenRawlogFrames(o.rawlog, o.label, stereo)
       : !o.kitti.empty() ? sources::OpenKittiFrames(o.kitti, o.sequence, o.range, o.lidar)
                          : sources::OpenDepthFolderFrames(o.frames, o.poses, o.intrinsics);
   if (!opened) return opened.error();

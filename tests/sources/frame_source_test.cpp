@@ -1,5 +1,7 @@
 // sources::ReadAhead: the frames of the source it wraps, in order, with the same skips,
 // errors and end, while each next frame is read on a thread of its own.
+#include "cairn/sources/frame_source.hpp"
+
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -8,8 +10,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include "cairn/sources/frame_source.hpp"
 
 namespace cairn::sources {
 namespace {
@@ -83,12 +83,12 @@ TEST(ReadAhead, GivesTheSameFramesSkipsErrorsAndEndAsTheSourceItWraps) {
   struct Case {
     int count, missing, broken, skip_first;
   };
-  for (const Case c : {Case{6, 2, -1, 0}, Case{6, -1, 3, 0}, Case{0, -1, -1, 0},
-                       Case{5, 4, -1, 2}, Case{4, -1, -1, 9}, Case{1, 0, 0, 0}}) {
+  for (const Case c : {Case{6, 2, -1, 0}, Case{6, -1, 3, 0}, Case{0, -1, -1, 0}, Case{5, 4, -1, 2},
+                       Case{4, -1, -1, 9}, Case{1, 0, 0, 0}}) {
     std::vector<std::string> plain_calls, ahead_calls;
     ScriptedSource plain(c.count, c.missing, c.broken, &plain_calls);
-    std::unique_ptr<FrameSource> ahead = ReadAhead(
-        std::make_unique<ScriptedSource>(c.count, c.missing, c.broken, &ahead_calls));
+    std::unique_ptr<FrameSource> ahead =
+        ReadAhead(std::make_unique<ScriptedSource>(c.count, c.missing, c.broken, &ahead_calls));
     const std::vector<std::string> expected = Drain(plain, c.skip_first);
     EXPECT_EQ(Drain(*ahead, c.skip_first), expected)
         << c.count << " frames, missing " << c.missing << ", broken " << c.broken << ", skip "

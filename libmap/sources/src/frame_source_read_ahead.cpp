@@ -17,7 +17,8 @@ class ReadAheadSource final : public FrameSource {
   ~ReadAheadSource() override { Settle(); }
 
   Expected<std::optional<SequenceFrame>> Next() override {
-    Expected<std::optional<SequenceFrame>> next = pending_.valid() ? pending_.get() : inner_->Next();
+    Expected<std::optional<SequenceFrame>> next =
+        pending_.valid() ? pending_.get() : inner_->Next();
     // After an error or the end the caller stops: nothing more is read.
     if (next && *next) {
       pending_ = std::async(std::launch::async, [source = inner_.get()] { return source->Next(); });
