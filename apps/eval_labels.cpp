@@ -14,11 +14,11 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/figures.hpp"
+#include "cairn/eval/label_eval.hpp"
+#include "cairn/eval/methods.hpp"
+#include "cairn/eval/report.hpp"
 #include "cairn/od/io/detect_config.hpp"
-#include "cairn/sim/eval/figures.hpp"
-#include "cairn/sim/eval/label_eval.hpp"
-#include "cairn/sim/eval/methods.hpp"
-#include "cairn/sim/eval/report.hpp"
 #include "cairn/util/atomic_file.hpp"
 #include "detect.hpp"
 #include "eval_run.hpp"
@@ -27,7 +27,7 @@ namespace cairn::apps::eval {
 namespace {
 
 namespace fs = std::filesystem;
-namespace ev = sim::eval;
+namespace ev = cairn::eval;
 
 // ---------------------------------------------------------------------------------------
 // Real labels: one scan, its .label file and a class mapping.

@@ -14,11 +14,11 @@
 #include <string>
 #include <vector>
 
-#include "cairn/sim/eval/figures.hpp"
-#include "cairn/sim/eval/methods.hpp"
-#include "cairn/sim/eval/report.hpp"
-#include "cairn/sim/eval/score.hpp"
-#include "cairn/sim/eval/sweep.hpp"
+#include "cairn/eval/figures.hpp"
+#include "cairn/eval/methods.hpp"
+#include "cairn/eval/report.hpp"
+#include "cairn/eval/score.hpp"
+#include "cairn/eval/sweep.hpp"
 #include "cairn/util/atomic_file.hpp"
 #include "eval_worlds.hpp"
 

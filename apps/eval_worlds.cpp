@@ -1,4 +1,6 @@
 // cairn eval over synthetic worlds or one depth frame with truth images (eval_run.hpp).
+#include "eval_worlds.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <chrono>
@@ -14,15 +16,14 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/figures.hpp"
+#include "cairn/eval/methods.hpp"
+#include "cairn/eval/report.hpp"
+#include "cairn/eval/score.hpp"
+#include "cairn/eval/sweep.hpp"
+#include "cairn/eval/truth.hpp"
 #include "cairn/od/io/detect_config.hpp"
-#include "cairn/sim/eval/figures.hpp"
-#include "cairn/sim/eval/methods.hpp"
-#include "cairn/sim/eval/report.hpp"
-#include "cairn/sim/eval/score.hpp"
-#include "cairn/sim/eval/sweep.hpp"
-#include "cairn/sim/eval/truth.hpp"
 #include "cairn/sim/world.hpp"
-#include "eval_worlds.hpp"
 
 namespace cairn::apps::eval {
 namespace {

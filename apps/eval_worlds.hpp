@@ -7,16 +7,16 @@
 #include <utility>
 #include <vector>
 
+#include "cairn/eval/methods.hpp"
+#include "cairn/eval/score.hpp"
+#include "cairn/eval/sweep.hpp"
+#include "cairn/eval/truth.hpp"
 #include "cairn/od/io/detect_config.hpp"
-#include "cairn/sim/eval/methods.hpp"
-#include "cairn/sim/eval/score.hpp"
-#include "cairn/sim/eval/sweep.hpp"
-#include "cairn/sim/eval/truth.hpp"
 #include "eval_run.hpp"
 
 namespace cairn::apps::eval {
 
-namespace ev = sim::eval;
+namespace ev = cairn::eval;
 
 /// One world (or the single frame), with everything measured on it.
 struct WorldRun {

@@ -1,4 +1,4 @@
-// The evaluation (cairn::sim_eval) on frames whose scores are known:
+// The evaluation (cairn::eval) on frames whose scores are known:
 //  - hand-made truth and label images where precision, recall, IoU, objects found, false
 //    obstacles and segment links can be counted by hand;
 //  - the foot band on a rendered pole against the definition, tested pixel by pixel;
@@ -17,22 +17,24 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/figures.hpp"
+#include "cairn/eval/methods.hpp"
+#include "cairn/eval/report.hpp"
+#include "cairn/eval/score.hpp"
+#include "cairn/eval/sweep.hpp"
+#include "cairn/eval/truth.hpp"
 #include "cairn/od/column_detector.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/rules.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
-#include "cairn/sim/eval/figures.hpp"
-#include "cairn/sim/eval/methods.hpp"
-#include "cairn/sim/eval/report.hpp"
-#include "cairn/sim/eval/score.hpp"
-#include "cairn/sim/eval/sweep.hpp"
-#include "cairn/sim/eval/truth.hpp"
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 namespace {
+
+using namespace cairn::sim;  // NOLINT: the synthetic scenes the evaluation is tested on
 
 // Hand-made frames: truth ids and segment labels drawn as text, one character per pixel.
 //   truth: '.' terrain, '#' no return, '1'..'9' object ids
@@ -701,4 +703,4 @@ TEST_F(EvalCli, BadInputsNameTheFileAndExitOne) {
 #endif  // CAIRN_EXE
 
 }  // namespace
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

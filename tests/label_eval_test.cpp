@@ -1,4 +1,4 @@
-// Evaluation on real labels (cairn/sim/eval/label_eval.hpp):
+// Evaluation on real labels (cairn/eval/label_eval.hpp):
 //  - the class mapping file: what it reads, and every malformed file rejected with a message
 //    naming the file and the key;
 //  - the per-point score against hand counts (every branch: no return, ignored, TP, FP, FN,
@@ -9,7 +9,7 @@
 //  - the RELLIS-3D frame (skipped when ../shared/datasets is absent): the numbers that
 //    datasets/rellis3d/REPORT.md quotes are reproduced, and the cone detector's F1 is above
 //    the column baseline's; `cairn eval --points` end to end.
-#include "cairn/sim/eval/label_eval.hpp"
+#include "cairn/eval/label_eval.hpp"
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -27,14 +27,14 @@
 #include <tuple>
 #include <vector>
 
+#include "cairn/eval/methods.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/rules.hpp"
-#include "cairn/sim/eval/methods.hpp"
 #include "io/cairn_command.hpp"
 #include "io/temp_dir.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 namespace {
 
 namespace fs = std::filesystem;
@@ -763,4 +763,4 @@ TEST(EvalLabelsCli, MissingOptionsAndBadMappingAreClearErrors) {
 #endif  // CAIRN_EXE
 
 }  // namespace
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

@@ -1,17 +1,17 @@
 // cairn.load_class_map, cairn.score_labels: the per-point scores of `cairn eval --labels`
-// (cairn::sim::eval::ScoreLabels) on any per-point result, such as DetectionResult's
+// (cairn::eval::ScoreLabels) on any per-point result, such as DetectionResult's
 // point_labels, against SemanticKITTI-style labels.
 #include <cstdint>
 #include <string>
 #include <vector>
 
-#include "cairn/sim/eval/label_eval.hpp"
+#include "cairn/eval/label_eval.hpp"
 #include "common.hpp"
 
 namespace cairn::python {
 namespace {
 
-namespace ev = cairn::sim::eval;
+namespace ev = cairn::eval;
 
 /// cairn.LabelScore: the scored points and the classes of the map they were scored with.
 struct LabelScore {

@@ -5,7 +5,7 @@
 //   depth.png        16-bit z-depth, metres = value * depth_scale, 0 = no return (od::io)
 //   intrinsics.yaml  width, height, fx, fy, cx, cy, depth_scale, up (od::io::LoadIntrinsics)
 //   truth.png        object id per pixel: 0 terrain, 1..254 objects, 255 no return (8-bit,
-//                    as sim::eval::LoadTruth and the demo frame have it); 16-bit with 65535
+//                    as eval::LoadTruth and the demo frame have it); 16-bit with 65535
 //                    = no return when some id exceeds 254
 //   truth.yaml       objects: - {id, name, is_obstacle, height_m}; every object of the
 //                    scene, height_m its top above the ground under its centre

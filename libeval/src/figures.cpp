@@ -1,4 +1,4 @@
-#include "cairn/sim/eval/figures.hpp"
+#include "cairn/eval/figures.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,11 +9,11 @@
 #include <set>
 #include <sstream>
 
-#include "cairn/sim/eval/report.hpp"
+#include "cairn/eval/report.hpp"
 #include "cairn/util/image_file.hpp"
 #include "opencv_image.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 namespace {
 
 using od::io::RgbImage;
@@ -373,4 +373,4 @@ Status WritePng(const std::filesystem::path& path, const RgbImage& image) {
   return util::WriteImageAtomic(path, ToMat(image), ".png", {cv::IMWRITE_PNG_COMPRESSION, 9});
 }
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

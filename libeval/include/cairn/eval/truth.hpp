@@ -17,7 +17,7 @@
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 
 struct TruthObject {
   int id = 1;  ///< > 0
@@ -54,11 +54,11 @@ struct EvalFrame {
 
 /// Truth of a rendered frame: the renderer's object ids (set to kNoHitId where the depth,
 /// noise included, is not valid) and every object of the scene that is seen.
-Expected<FrameTruth> TruthFromRender(const DepthFrame& frame, const Scene& scene);
+Expected<FrameTruth> TruthFromRender(const sim::DepthFrame& frame, const sim::Scene& scene);
 
 /// A rendered frame (see TruthFromRender), its points made with the frame's up vector.
-Expected<EvalFrame> FrameFromRender(const std::string& name, const DepthFrame& frame,
-                                    const Scene& scene);
+Expected<EvalFrame> FrameFromRender(const std::string& name, const sim::DepthFrame& frame,
+                                    const sim::Scene& scene);
 
 /// Truth from files: `truth_png` holds the object id per pixel, 8-bit (0 terrain, 1..254
 /// objects, 255 no return) or 16-bit (65535 no return); `truth_yaml` lists the objects:
@@ -75,4 +75,4 @@ Expected<EvalFrame> LoadFrame(const std::filesystem::path& depth_png,
                               const std::filesystem::path& truth_png,
                               const std::filesystem::path& truth_yaml, std::string name = {});
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

@@ -31,16 +31,16 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/methods.hpp"
+#include "cairn/eval/score.hpp"
 #include "cairn/od/expected.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/io/detection_files.hpp"
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/sensor_model.hpp"
-#include "cairn/sim/eval/methods.hpp"
-#include "cairn/sim/eval/score.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 
 /// What a dataset class is for the obstacle score.
 enum class ClassRole : std::uint8_t { kObstacle, kGround, kIgnored };
@@ -204,4 +204,4 @@ std::string LabelErrorsMarkdown(const ClassMap& map, const std::vector<Method>& 
 std::string LabelResultsCsv(const ClassMap& map, const std::vector<Method>& methods,
                             const std::vector<LabelMethodResult>& results);
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

@@ -1,4 +1,4 @@
-#include "cairn/sim/eval/label_eval.hpp"
+#include "cairn/eval/label_eval.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -19,14 +19,14 @@
 #include "cairn/util/yaml.hpp"
 #include "opencv_image.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 namespace {
 
 namespace io = od::io;
 using Rgb = std::array<std::uint8_t, 3>;
 
 constexpr std::uint32_t kMaxClassId = 0xFFFF;  // a .label entry's lower 16 bits
-constexpr int kBirdsEyePanelsPerRow = 3;  // wider figures do not fit a page
+constexpr int kBirdsEyePanelsPerRow = 3;       // wider figures do not fit a page
 
 // ---------------------------------------------------------------------------------------
 // Class mapping file.
@@ -929,4 +929,4 @@ std::string LabelResultsCsv(const ClassMap& map, const std::vector<Method>& meth
   return csv.str();
 }
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

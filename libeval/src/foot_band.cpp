@@ -16,9 +16,9 @@
 #include <unordered_map>
 #include <vector>
 
-#include "cairn/sim/eval/score.hpp"
+#include "cairn/eval/score.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 namespace {
 
 struct FineCell {
@@ -116,7 +116,7 @@ std::vector<std::int32_t> FootBand(const od::RangeImage& image, const FrameTruth
   }
 
   for (int i = 0; i < n; ++i) {
-    if (truth.object_id[i] != kTerrainId || !image.valid(i)) continue;
+    if (truth.object_id[i] != sim::kTerrainId || !image.valid(i)) continue;
     const Eigen::Vector3d& t = level[i];
     // reach - horizontal distance for obstacle point j (>= 0: t is in its band).
     const auto margin = [&](int j) {
@@ -166,4 +166,4 @@ std::vector<std::int32_t> FootBand(const od::RangeImage& image, const FrameTruth
   return band;
 }
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

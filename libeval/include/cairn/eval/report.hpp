@@ -5,12 +5,12 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/methods.hpp"
+#include "cairn/eval/score.hpp"
+#include "cairn/eval/sweep.hpp"
 #include "cairn/od/io/detect_config.hpp"
-#include "cairn/sim/eval/methods.hpp"
-#include "cairn/sim/eval/score.hpp"
-#include "cairn/sim/eval/sweep.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 
 /// Scores of one method on one world (summed over its frames), or on the whole gallery.
 struct ResultRow {
@@ -102,4 +102,4 @@ std::vector<ClaimCheck> CheckWorld(const WorldScores& world, const std::vector<M
 std::vector<ClaimCheck> CheckGallery(const Score& cone_rules, const Score& cone_no_rules,
                                      const std::string& with, const std::string& without);
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

@@ -29,13 +29,13 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/truth.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/expected.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
-#include "cairn/sim/eval/truth.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 
 struct ScoreOptions {
   double found_fraction = 0.5;  ///< share of an object's pixels detected to find it, (0, 1]
@@ -134,4 +134,4 @@ Expected<FrameScore> ScoreDetection(const FrameTruth& truth,
                                     const od::Classification& classification,
                                     const ScoreOptions& options = {});
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

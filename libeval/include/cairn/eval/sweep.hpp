@@ -9,13 +9,13 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/methods.hpp"
+#include "cairn/eval/score.hpp"
+#include "cairn/eval/truth.hpp"
 #include "cairn/od/expected.hpp"
 #include "cairn/od/io/detect_config.hpp"
-#include "cairn/sim/eval/methods.hpp"
-#include "cairn/sim/eval/score.hpp"
-#include "cairn/sim/eval/truth.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 
 /// Keys a sweep may step: min_height, max_height, min_slope, window_scale (detector),
 /// min_blob_pixels (column) and every rules key (min_points, min_volume, min_perimeter,
@@ -60,4 +60,4 @@ Expected<SweepScores> SweepFrame(const EvalFrame& frame, const od::io::DetectSet
                                  const ScoreOptions& options = {},
                                  const std::function<void(int value_index)>& on_value = {});
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

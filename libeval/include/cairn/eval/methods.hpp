@@ -7,14 +7,14 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/score.hpp"
+#include "cairn/eval/truth.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/expected.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/rules.hpp"
-#include "cairn/sim/eval/score.hpp"
-#include "cairn/sim/eval/truth.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 
 enum class DetectorKind { kCone, kColumn };
 
@@ -66,4 +66,4 @@ Expected<FrameEvaluation> EvaluateFrame(const EvalFrame& frame,
                                         const std::vector<Method>& methods,
                                         const ScoreOptions& options = {});
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

@@ -1,4 +1,4 @@
-#include "cairn/sim/eval/methods.hpp"
+#include "cairn/eval/methods.hpp"
 
 #include <chrono>
 #include <map>
@@ -8,7 +8,7 @@
 
 #include "cairn/od/column_detector.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -127,4 +127,4 @@ Expected<FrameEvaluation> EvaluateFrame(const EvalFrame& frame,
   return out;
 }
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

@@ -1,4 +1,4 @@
-#include "cairn/sim/eval/sweep.hpp"
+#include "cairn/eval/sweep.hpp"
 
 #include <cmath>
 #include <cstdlib>
@@ -7,7 +7,7 @@
 #include "cairn/od/column_detector.hpp"
 #include "cairn/od/units.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 namespace {
 
 enum class Unit { kMetre, kDegree, kCubicMetre, kScale, kCount, kPixels };
@@ -215,4 +215,4 @@ Expected<SweepScores> SweepFrame(const EvalFrame& frame, const od::io::DetectSet
   return scores;
 }
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

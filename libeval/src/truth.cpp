@@ -1,4 +1,4 @@
-#include "cairn/sim/eval/truth.hpp"
+#include "cairn/eval/truth.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -15,7 +15,7 @@
 #include "cairn/sim/geometry.hpp"
 #include "cairn/util/yaml.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 namespace {
 
 constexpr int kNoReturnLabel8 = 255;     ///< "no return" in an 8-bit truth.png
@@ -127,7 +127,7 @@ Status FrameTruth::Validate() const {
   }
   for (std::size_t i = 0; i < object_id.size(); ++i) {
     const int id = object_id[i];
-    if (id < kNoHitId) {
+    if (id < sim::kNoHitId) {
       return Error{"truth: object id " + std::to_string(id) + " at " + At(i, width)};
     }
     if (id > 0 && Find(id) == nullptr) {
@@ -138,7 +138,7 @@ Status FrameTruth::Validate() const {
   return Status::Ok();
 }
 
-Expected<FrameTruth> TruthFromRender(const DepthFrame& frame, const Scene& scene) {
+Expected<FrameTruth> TruthFromRender(const sim::DepthFrame& frame, const sim::Scene& scene) {
   FrameTruth truth;
   truth.width = frame.width();
   truth.height = frame.height();
@@ -149,11 +149,11 @@ Expected<FrameTruth> TruthFromRender(const DepthFrame& frame, const Scene& scene
   }
   std::set<int> seen;
   for (std::size_t i = 0; i < truth.object_id.size(); ++i) {
-    if (!ValidDepth(frame.depth_m[i])) truth.object_id[i] = kNoHitId;
+    if (!ValidDepth(frame.depth_m[i])) truth.object_id[i] = sim::kNoHitId;
     if (truth.object_id[i] > 0) seen.insert(truth.object_id[i]);
   }
   for (const int id : seen) {
-    const Object* object = scene.Find(id);
+    const sim::Object* object = scene.Find(id);
     if (object == nullptr) {
       return Error{"rendered frame: object id " + std::to_string(id) + " is not in the scene"};
     }
@@ -163,8 +163,8 @@ Expected<FrameTruth> TruthFromRender(const DepthFrame& frame, const Scene& scene
   return truth;
 }
 
-Expected<EvalFrame> FrameFromRender(const std::string& name, const DepthFrame& frame,
-                                    const Scene& scene) {
+Expected<EvalFrame> FrameFromRender(const std::string& name, const sim::DepthFrame& frame,
+                                    const sim::Scene& scene) {
   Expected<FrameTruth> truth = TruthFromRender(frame, scene);
   if (!truth) return Error{name + ": " + truth.error().message};
   Expected<od::RangeImage> image =
@@ -213,7 +213,7 @@ Expected<FrameTruth> LoadTruth(const std::filesystem::path& truth_png,
     for (int c = 0; c < image.cols; ++c) {
       const int label = wide ? image.at<std::uint16_t>(r, c) : image.at<std::uint8_t>(r, c);
       if (label == no_return) {
-        truth.object_id.push_back(kNoHitId);
+        truth.object_id.push_back(sim::kNoHitId);
         continue;
       }
       if (label > 0 && listed.count(label) == 0) {
@@ -244,7 +244,7 @@ Expected<EvalFrame> LoadFrame(const std::filesystem::path& depth_png,
   }
   // Pixels without a return take no part, whatever the truth image says.
   for (std::size_t i = 0; i < depth->data.size(); ++i) {
-    if (!ValidDepth(depth->data[i])) truth->object_id[i] = kNoHitId;
+    if (!ValidDepth(depth->data[i])) truth->object_id[i] = sim::kNoHitId;
   }
   Expected<od::RangeImage> image =
       od::RangeImage::FromDepth(depth->data, intrinsics->model, intrinsics->up);
@@ -258,4 +258,4 @@ Expected<EvalFrame> LoadFrame(const std::filesystem::path& depth_png,
   return frame;
 }
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

@@ -13,13 +13,13 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/methods.hpp"
+#include "cairn/eval/sweep.hpp"
+#include "cairn/eval/truth.hpp"
 #include "cairn/od/expected.hpp"
 #include "cairn/od/io/detection_files.hpp"
-#include "cairn/sim/eval/methods.hpp"
-#include "cairn/sim/eval/sweep.hpp"
-#include "cairn/sim/eval/truth.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 
 struct FigureOptions {
   int cell_width = 320;  ///< frames wider than this are scaled down to it [px]
@@ -45,4 +45,4 @@ od::io::RgbImage PrecisionRecallPlot(const SweepSpec& sweep, const std::vector<M
 /// Writes an image as PNG, atomically. Errors name the file.
 Status WritePng(const std::filesystem::path& path, const od::io::RgbImage& image);
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

@@ -1,4 +1,4 @@
-// What the figure makers of cairn::sim_eval share to draw with OpenCV: the font of every
+// What the figure makers of cairn::eval share to draw with OpenCV: the font of every
 // label and the way from an OpenCV BGR image to the RGB image od_io writes.
 #pragma once
 
@@ -7,7 +7,7 @@
 
 #include "cairn/od/io/detection_files.hpp"
 
-namespace cairn::sim::eval::detail {
+namespace cairn::eval::detail {
 
 inline constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
 
@@ -22,4 +22,4 @@ inline od::io::RgbImage FromMat(const cv::Mat& bgr) {
   return out;
 }
 
-}  // namespace cairn::sim::eval::detail
+}  // namespace cairn::eval::detail

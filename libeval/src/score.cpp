@@ -1,11 +1,11 @@
-#include "cairn/sim/eval/score.hpp"
+#include "cairn/eval/score.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <unordered_map>
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -132,10 +132,10 @@ Expected<FrameScore> ScoreDetection(const FrameTruth& truth,
                    std::to_string(i) + " (the detection has " + std::to_string(segment_count) +
                    " segments)"};
     }
-    if (id == kNoHitId) continue;
+    if (id == sim::kNoHitId) continue;
     const TruthObject* object = id > 0 ? &truth.objects[position[id]] : nullptr;
     const bool positive = object != nullptr && object->is_obstacle;
-    const bool in_band = !foot_band.empty() && foot_band[i] != 0 && id == kTerrainId;
+    const bool in_band = !foot_band.empty() && foot_band[i] != 0 && id == sim::kTerrainId;
     const bool detected = label != 0 && kept[label];
 
     PointCounts& strict = out.score.strict;
@@ -214,4 +214,4 @@ Expected<FrameScore> ScoreDetection(const FrameTruth& truth,
   return out;
 }
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval

@@ -1,4 +1,4 @@
-#include "cairn/sim/eval/report.hpp"
+#include "cairn/eval/report.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -11,7 +11,7 @@
 #include "cairn/od/units.hpp"
 #include "cairn/util/format.hpp"
 
-namespace cairn::sim::eval {
+namespace cairn::eval {
 namespace {
 
 // A table cell: the value with `decimals` digits, or empty when there is none (NaN).
@@ -422,4 +422,4 @@ std::vector<ClaimCheck> CheckGallery(const Score& cone_rules, const Score& cone_
   return {c};
 }
 
-}  // namespace cairn::sim::eval
+}  // namespace cairn::eval
