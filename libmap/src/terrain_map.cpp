@@ -55,12 +55,14 @@ struct TerrainMap::Scratch {
     Eigen::Vector3f lowest = Eigen::Vector3f::Constant(kInfinity);  // lowest return this frame
     std::int64_t around_stamp = -1;
     float lowest_around = kInfinity;  // the lowest of `lowest` over the cells within reach
+    int around_begin = 0, around_end = 0;  // those lowest returns: around[begin, end)
     int ground = 0;
     int obstacle = 0;
     bool seen_through = false;
   };
   std::vector<Slot> slots;
   std::vector<CellIndex> touched;  // cells stamped this frame
+  std::vector<Eigen::Vector3f> around;  // per cell that asked: the lowest returns within reach
   std::vector<std::uint8_t> point_class;
   std::vector<Eigen::Vector3d> world;  // per pixel: the return (or the clipped ray end)
   internal::KeyBricks endpoints;           // voxels where in-range returns end
@@ -351,31 +353,32 @@ std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, 
   const Eigen::Vector3f pf = p.cast<float>();
   float height = -kInfinity;
   float plain = -kInfinity;
-  // Most points of a segment are its foot: a bound from the cell's lowest neighbour,
-  // computed once per cell, settles them without the walk below.
+  // The lowest returns of the cells within reach, gathered once per cell and frame (the
+  // points of a segment crowd into few cells); their lowest settles most points, the foot.
   Scratch::Slot& slot = sc.slots[grid_.Slot(c)];
   if (slot.around_stamp != stamp) {
     slot.around_stamp = stamp;
     slot.lowest_around = kInfinity;
+    slot.around_begin = static_cast<int>(sc.around.size());
     for (const CellIndex& d : sc.ground_disc) {
       const CellIndex other = c + d;
       if (!grid_.Contains(other)) continue;
       const Scratch::Slot& o = sc.slots[grid_.Slot(other)];
-      if (o.stamp == stamp) slot.lowest_around = std::min(slot.lowest_around, o.lowest.z());
+      if (o.stamp != stamp) continue;
+      sc.around.push_back(o.lowest);
+      slot.lowest_around = std::min(slot.lowest_around, o.lowest.z());
     }
+    slot.around_end = static_cast<int>(sc.around.size());
   }
   if (pf.z() - slot.lowest_around < config_.obstacle_min_height_m) {
     return std::make_pair(pf.z() - slot.lowest_around, pf.z() - slot.lowest_around);
   }
-  for (const CellIndex& d : sc.ground_disc) {
-    const CellIndex other = c + d;
-    if (!grid_.Contains(other)) continue;
-    const Scratch::Slot& o = sc.slots[grid_.Slot(other)];
-    if (o.stamp != stamp) continue;
-    const float dxy2 = (pf.head<2>() - o.lowest.head<2>()).squaredNorm();
+  for (int k = slot.around_begin; k < slot.around_end; ++k) {
+    const Eigen::Vector3f& q = sc.around[k];
+    const float dxy2 = (pf.head<2>() - q.head<2>()).squaredNorm();
     if (dxy2 > reach2) continue;
-    height = std::max(height, pf.z() - o.lowest.z() - rise * std::sqrt(dxy2));
-    plain = std::max(plain, pf.z() - o.lowest.z());
+    height = std::max(height, pf.z() - q.z() - rise * std::sqrt(dxy2));
+    plain = std::max(plain, pf.z() - q.z());
   }
   return std::make_pair(height, plain);
 }
@@ -386,6 +389,7 @@ std::vector<TerrainMap::FrameSegment> TerrainMap::ClassifyReturns(
     FrameSummary& summary) {
   FindLowestReturns(stamp, summary);
   Scratch& sc = *scratch_;
+  sc.around.clear();
   const float rise = static_cast<float>(std::tan(config_.ground_max_slope_rad));
   const float reach2 = static_cast<float>(config_.ground_radius_m * config_.ground_radius_m);
   std::vector<FrameSegment> segments(detection.segments.size() + 1);
