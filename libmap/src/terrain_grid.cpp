@@ -44,6 +44,22 @@ std::size_t TerrainGrid::Slot(const CellIndex& index) const {
          PositiveMod(index.x(), buffer_.x());
 }
 
+TerrainGrid::SlotTable::SlotTable(const TerrainGrid& grid, const CellIndex& lo,
+                                  const CellIndex& hi)
+    : lo_(lo) {
+  const CellIndex from = grid.min_;
+  const CellIndex to = grid.min_ + grid.extent_;  // exclusive
+  for (int j = lo.y(); j <= hi.y(); ++j) {
+    row_.push_back(j >= from.y() && j < to.y()
+                       ? static_cast<std::ptrdiff_t>(PositiveMod(j, grid.buffer_.y())) *
+                             grid.buffer_.x()
+                       : -1);
+  }
+  for (int i = lo.x(); i <= hi.x(); ++i) {
+    col_.push_back(i >= from.x() && i < to.x() ? PositiveMod(i, grid.buffer_.x()) : -1);
+  }
+}
+
 const Cell* TerrainGrid::Find(const CellIndex& index) const {
   return Contains(index) ? &cells_[Slot(index)] : nullptr;
 }

@@ -577,10 +577,18 @@ void TerrainMap::UpdatePersistentObstacles(std::vector<FrameSegment>& segments, 
 void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
   const CellIndex from = lo.cwiseMax(grid_.min_index());
   const CellIndex to = hi.cwiseMin(grid_.min_index() + grid_.extent() - CellIndex::Ones());
+  if (from.x() > to.x() || from.y() > to.y()) return;
   const double s = config_.cell_size_m;
+  const int fit = static_cast<int>(std::floor(config_.plane_fit_radius_m / s));
+  const TerrainGrid::SlotTable slots(grid_, Grow(from, -fit), Grow(to, fit));
+  // The neighbour at offset d of cell (i, j), or null outside the grid.
+  const auto neighbour = [&](int i, int j, const CellIndex& d) -> const Cell* {
+    const std::ptrdiff_t slot = slots(CellIndex(i + d.x(), j + d.y()));
+    return slot < 0 ? nullptr : &grid_.AtSlot(static_cast<std::size_t>(slot));
+  };
   for (int j = from.y(); j <= to.y(); ++j) {
     for (int i = from.x(); i <= to.x(); ++i) {
-      Cell& cell = grid_.At({i, j});
+      Cell& cell = grid_.AtSlot(static_cast<std::size_t>(slots({i, j})));
       cell.slope_rad = cell.roughness_m = kNaN;
       cell.terrain_cost = kFreeCost;
       if (!cell.has_elevation()) continue;
@@ -590,7 +598,7 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
       Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
       int count = 0;
       for (const CellIndex& d : scratch_->fit_disc) {
-        const Cell* other = grid_.Find(CellIndex(i, j) + d);
+        const Cell* other = neighbour(i, j, d);
         if (other == nullptr || !other->has_elevation()) continue;
         const Eigen::Vector3d row(1.0, d.x() * s, d.y() * s);
         normal += row * row.transpose();
@@ -606,7 +614,7 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
       const Eigen::Vector3d plane = ldlt.solve(rhs);
       double residual2 = 0.0;
       for (const CellIndex& d : scratch_->fit_disc) {
-        const Cell* other = grid_.Find(CellIndex(i, j) + d);
+        const Cell* other = neighbour(i, j, d);
         if (other == nullptr || !other->has_elevation()) continue;
         const double r =
             other->elevation_mean_m - (plane.x() + plane.y() * d.x() * s + plane.z() * d.y() * s);

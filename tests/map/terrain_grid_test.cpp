@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <map>
 #include <random>
+#include <string>
 #include <utility>
 
 #include "cairn/map/cost.hpp"
@@ -106,6 +107,40 @@ TEST(TerrainGrid, UnboundedGridGrowsKeepingEveryCell) {
   }
   EXPECT_LE(reallocations, 8) << "the buffer at least doubles when it grows";
   EXPECT_FALSE(grid.MoveTo({100.0, 100.0}));
+}
+
+// The slot table gives Slot() for every index of a box that lies in the extent and -1 for
+// the rest, on rolling windows moved to negative and wrapped positions and on an unbounded
+// grid grown in steps.
+TEST(TerrainGrid, TheSlotTableGivesSlotInsideTheExtentAndNothingOutside) {
+  const auto check = [](const TerrainGrid& grid, const std::string& what) {
+    const CellIndex lo = grid.min_index() - CellIndex(5, 3);
+    const CellIndex hi = grid.min_index() + grid.extent() + CellIndex(4, 6);
+    const TerrainGrid::SlotTable table(grid, lo, hi);
+    int inside = 0;
+    for (int j = lo.y(); j <= hi.y(); ++j) {
+      for (int i = lo.x(); i <= hi.x(); ++i) {
+        const CellIndex c(i, j);
+        const std::ptrdiff_t expected =
+            grid.Contains(c) ? static_cast<std::ptrdiff_t>(grid.Slot(c)) : -1;
+        ASSERT_EQ(table(c), expected) << what << " at " << i << ", " << j;
+        inside += expected >= 0;
+      }
+    }
+    EXPECT_EQ(inside, grid.extent().x() * grid.extent().y()) << what;
+  };
+  TerrainGrid rolling(0.2, 40);
+  check(rolling, "rolling, at the start");
+  for (const Eigen::Vector2d& xy : {Eigen::Vector2d(3.3, -1.1), Eigen::Vector2d(-17.0, 9.9),
+                                    Eigen::Vector2d(123.4, -56.7)}) {
+    rolling.MoveTo(xy);
+    check(rolling, "rolling, moved");
+  }
+  TerrainGrid unbounded(0.1, 0);
+  unbounded.Reserve({-7, 2}, {30, 9});
+  check(unbounded, "unbounded");
+  unbounded.Reserve({-100, -45}, {12, 80});
+  check(unbounded, "unbounded, grown");
 }
 
 TEST(Cost, InflationFollowsNav2) {

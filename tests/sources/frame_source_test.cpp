@@ -24,7 +24,7 @@ class ScriptedSource final : public FrameSource {
         missing_(missing),
         broken_(broken),
         calls_(calls),
-        trajectory_(Trajectory::FromOdometry({{0.0, Eigen::Isometry3d::Identity()}}, {}).value()) {}
+        trajectory_(Trajectory::FromOdometry({{0.0, Eigen::Isometry3d::Identity(), "scripted"}}, {}).value()) {}
 
   Expected<std::optional<SequenceFrame>> Next() override {
     std::this_thread::sleep_for(std::chrono::milliseconds(1));

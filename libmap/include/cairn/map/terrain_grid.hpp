@@ -88,6 +88,28 @@ class TerrainGrid {
   /// Position of a cell in the buffer, stable while the extent holds it; for side arrays.
   std::size_t Slot(const CellIndex& index) const;
   std::size_t slot_count() const { return cells_.size(); }
+  /// The cell in a slot (< slot_count()).
+  const Cell& AtSlot(std::size_t slot) const { return cells_[slot]; }
+  Cell& AtSlot(std::size_t slot) { return cells_[slot]; }
+
+  /// The slots of the cells of a box of indices, by row and column: for loops over a box
+  /// and each cell's neighbours, a look-up without Slot's two divisions per cell. Valid
+  /// while the extent and the buffer stay as they were.
+  class SlotTable {
+   public:
+    /// The box [lo, hi] (inclusive); its cells may lie outside the extent.
+    SlotTable(const TerrainGrid& grid, const CellIndex& lo, const CellIndex& hi);
+    /// The slot of `index` (which must lie in the box), or -1 outside the extent.
+    std::ptrdiff_t operator()(const CellIndex& index) const {
+      const std::ptrdiff_t row = row_[index.y() - lo_.y()];
+      const std::ptrdiff_t col = col_[index.x() - lo_.x()];
+      return row < 0 || col < 0 ? -1 : row + col;
+    }
+
+   private:
+    CellIndex lo_;
+    std::vector<std::ptrdiff_t> row_, col_;  // slot of the row's first column, column offset
+  };
 
   /// Rolling: centres the window on the cell of `xy`; the cells that leave are reset (their
   /// slots take the cells that enter). Returns true when the window moved. Unbounded: does
