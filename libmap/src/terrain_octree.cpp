@@ -38,44 +38,27 @@ std::ostream& TerrainOcTreeNode::writeData(std::ostream& s) const {
 TerrainOcTree::TerrainOcTree(double resolution_m)
     : octomap::OccupancyOcTreeBase<TerrainOcTreeNode>(resolution_m) {}
 
-TerrainOcTreeNode* TerrainOcTree::TouchLeaf(const octomap::OcTreeKey& key) {
-  bool created = false;
-  if (root == nullptr) {
+// The root, made when the tree is empty (then `created`).
+TerrainOcTreeNode* TerrainOcTree::Root(bool& created) {
+  created = root == nullptr;
+  if (created) {
     root = new TerrainOcTreeNode();
     ++tree_size;
-    created = true;
   }
-  TerrainOcTreeNode* node = root;
-  for (unsigned depth = 0; depth < tree_depth; ++depth) {
-    const unsigned pos = octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth));
-    if (nodeChildExists(node, pos)) {
-      created = false;
-    } else if (!nodeHasChildren(node) && !created) {
-      // A pruned node: its eight children take its values, then the walk goes on.
-      expandNode(node);
-      created = false;
-    } else {
-      createNodeChild(node, pos);
-      created = true;
-    }
-    node = getNodeChild(node, pos);
-  }
-  return node;
+  return root;
 }
 
-namespace {
-constexpr unsigned kBrickLevels = 3;  // a brick: the node this many levels above the leaves
-}  // namespace
-
-// One step of a free update's walk, from `node` to its child `pos`: the child made, or a
-// pruned node expanded first; null when `node` is pruned and saturated free (the update
-// would change nothing below it). `created` says whether `node` was made by this walk (a
-// new node has no children, which then is no sign of pruning); it is updated to the child.
-TerrainOcTreeNode* TerrainOcTree::FreeStep(TerrainOcTreeNode* node, unsigned pos, bool& created) {
+// One step of a walk down, from `node` to its child `pos`: the child made, or a pruned node
+// expanded first (its eight children take its values). A free update stops instead (null)
+// at a pruned node saturated free: it would change nothing below it. `created` says
+// whether `node` was made by this walk (a new node has no children, which then is no sign
+// of pruning); it is updated to the child.
+TerrainOcTreeNode* TerrainOcTree::Step(TerrainOcTreeNode* node, unsigned pos, bool& created,
+                                       bool free_update) {
   if (nodeChildExists(node, pos)) {
     created = false;
   } else if (!nodeHasChildren(node) && !created) {
-    if (IsSaturatedFree(*node)) return nullptr;
+    if (free_update && IsSaturatedFree(*node)) return nullptr;
     expandNode(node);
     created = false;
   } else {
@@ -84,6 +67,20 @@ TerrainOcTreeNode* TerrainOcTree::FreeStep(TerrainOcTreeNode* node, unsigned pos
   }
   return getNodeChild(node, pos);
 }
+
+TerrainOcTreeNode* TerrainOcTree::TouchLeaf(const octomap::OcTreeKey& key) {
+  bool created = false;
+  TerrainOcTreeNode* node = Root(created);
+  for (unsigned depth = 0; depth < tree_depth; ++depth) {
+    node = Step(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth)),
+                created, false);
+  }
+  return node;
+}
+
+namespace {
+constexpr unsigned kBrickLevels = 3;  // a brick: the node this many levels above the leaves
+}  // namespace
 
 // The leaf's update once the walk has reached it.
 TerrainOcTree::FreeUpdate TerrainOcTree::FreeLeaf(TerrainOcTreeNode* leaf) const {
@@ -97,15 +94,10 @@ TerrainOcTree::FreeUpdate TerrainOcTree::FreeLeaf(TerrainOcTreeNode* leaf) const
 
 TerrainOcTree::FreeUpdate TerrainOcTree::UpdateFree(const octomap::OcTreeKey& key) {
   bool created = false;
-  if (root == nullptr) {
-    root = new TerrainOcTreeNode();
-    ++tree_size;
-    created = true;
-  }
-  TerrainOcTreeNode* node = root;
+  TerrainOcTreeNode* node = Root(created);
   for (unsigned depth = 0; depth < tree_depth && node != nullptr; ++depth) {
-    node = FreeStep(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth)),
-                    created);
+    node = Step(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth)),
+                created, true);
   }
   return FreeLeaf(node);
 }
@@ -117,15 +109,10 @@ int TerrainOcTree::UpdateFreeBrick(const octomap::OcTreeKey& base, const std::ui
     return 0;  // no walk: it would make nodes
   }
   bool created = false;
-  if (root == nullptr) {
-    root = new TerrainOcTreeNode();
-    ++tree_size;
-    created = true;
-  }
-  TerrainOcTreeNode* brick = root;
+  TerrainOcTreeNode* brick = Root(created);
   for (unsigned depth = 0; depth + kBrickLevels < tree_depth; ++depth) {
-    brick = FreeStep(
-        brick, octomap::computeChildIdx(base, static_cast<int>(tree_depth - 1 - depth)), created);
+    brick = Step(brick, octomap::computeChildIdx(base, static_cast<int>(tree_depth - 1 - depth)),
+                 created, true);
     if (brick == nullptr) return 0;  // inside a pruned node saturated free
   }
   int changed = 0;
@@ -136,7 +123,7 @@ int TerrainOcTree::UpdateFreeBrick(const octomap::OcTreeKey& base, const std::ui
       // first voxel's walk can meet the brick node as made by this update.
       TerrainOcTreeNode* node = brick;
       for (int level = 2; level >= 0 && node != nullptr; --level) {
-        node = FreeStep(node, b >> (3 * level) & 7u, created);
+        node = Step(node, b >> (3 * level) & 7u, created, true);
       }
       created = false;
       const FreeUpdate update = FreeLeaf(node);

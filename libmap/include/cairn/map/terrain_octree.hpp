@@ -114,7 +114,8 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   std::size_t DeleteOutsideXY(const Eigen::Vector2d& min, const Eigen::Vector2d& max);
 
  private:
-  TerrainOcTreeNode* FreeStep(TerrainOcTreeNode* node, unsigned pos, bool& created);
+  TerrainOcTreeNode* Root(bool& created);
+  TerrainOcTreeNode* Step(TerrainOcTreeNode* node, unsigned pos, bool& created, bool free_update);
   FreeUpdate FreeLeaf(TerrainOcTreeNode* leaf) const;
   // Deletes every descendant of `node` (not the node itself); counts them.
   void DeleteDescendants(TerrainOcTreeNode* node, std::size_t& count);
