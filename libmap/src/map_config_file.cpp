@@ -11,12 +11,7 @@
 namespace cairn::map {
 namespace {
 
-namespace detail = util;  // the strict field reader
-struct Field {
-  const char* key;
-  double* target;
-  double scale;  // file unit -> struct unit
-};
+using Field = util::DoubleField;
 
 std::vector<Field> Fields(MapConfig& c) {
   return {{"voxel_size", &c.voxel_size_m, 1.0},
@@ -49,30 +44,27 @@ std::vector<Field> Fields(MapConfig& c) {
 Expected<MapConfig> ParseMapConfig(const std::string& yaml_text, const std::string& source) {
   Expected<YAML::Node> root = util::ParseYaml(yaml_text, source);
   if (!root) return root.error();
-  const util::FieldReader reader(source);
+  return ReadMapConfig(*root, util::FieldReader(source));
+}
+
+Expected<MapConfig> ReadMapConfig(const YAML::Node& root, const util::FieldReader& reader) {
   MapConfig config;
-  if (root->IsNull()) return config;  // an empty file sets nothing
-  if (!root->IsMap()) {
-    return Error{source + ": expected a mapping of sections, got " + util::Describe(*root)};
+  if (root.IsNull()) return config;  // an empty file sets nothing
+  if (!root.IsMap()) {
+    return Error{reader.source() + ": expected a mapping of sections, got " +
+                 util::Describe(root)};
   }
   const std::vector<Field> fields = Fields(config);
-  const YAML::Node section = (*root)["map"];
+  const YAML::Node section = root["map"];
+  if (Status s = util::ReadFields(reader, section, "map", fields, {}, {"threads"}); !s) {
+    return s.error();
+  }
   if (section && !section.IsNull()) {
-    std::vector<std::string> keys = {"threads"};
-    for (const Field& f : fields) keys.emplace_back(f.key);
-    if (Status s = reader.CheckMapping(section, "map", keys); !s) return s.error();
     if (const YAML::Node value = section["threads"]) {
       Expected<std::int64_t> v = reader.Integer(value, "map.threads");
       if (!v) return v.error();
       // Out of int's range: Validate() names it below.
       config.threads = static_cast<int>(std::clamp<std::int64_t>(*v, -1, 1 << 20));
-    }
-    for (const Field& f : fields) {
-      const YAML::Node value = section[f.key];
-      if (!value) continue;
-      Expected<double> v = reader.Double(value, std::string("map.") + f.key);
-      if (!v) return v.error();
-      *f.target = *v * f.scale;
     }
   }
   if (Status s = config.Validate(); !s) {

@@ -12,43 +12,9 @@ namespace cairn::map {
 namespace {
 
 namespace yaml = util;  // the strict field reader
-struct DoubleField {
-  const char* key;
-  double* target;
-  double scale;  // file unit -> struct unit
-};
-struct IntField {
-  const char* key;
-  int* target;
-  std::int64_t min, max;
-};
-
-Status ReadFields(const yaml::FieldReader& reader, const YAML::Node& section,
-                  const std::string& name, const std::vector<DoubleField>& doubles,
-                  const std::vector<IntField>& ints, std::vector<std::string> keys) {
-  for (const DoubleField& f : doubles) keys.emplace_back(f.key);
-  for (const IntField& f : ints) keys.emplace_back(f.key);
-  if (Status s = reader.CheckMapping(section, name, keys); !s) return s;
-  for (const DoubleField& f : doubles) {
-    if (const YAML::Node v = section[f.key]) {
-      Expected<double> value = reader.Double(v, name + "." + f.key);
-      if (!value) return value.error();
-      *f.target = *value * f.scale;
-    }
-  }
-  for (const IntField& f : ints) {
-    if (const YAML::Node v = section[f.key]) {
-      Expected<std::int64_t> value = reader.Integer(v, name + "." + f.key);
-      if (!value) return value.error();
-      if (*value < f.min || *value > f.max) {
-        return reader.Fail(name + "." + f.key,
-                           "expected " + std::to_string(f.min) + " .. " + std::to_string(f.max));
-      }
-      *f.target = static_cast<int>(*value);
-    }
-  }
-  return {};
-}
+using util::DoubleField;
+using util::IntField;
+using util::ReadFields;
 
 Status ParseTilt(const yaml::FieldReader& reader, const YAML::Node& root, TiltConfig& tilt) {
   const YAML::Node section = root["tilt"];
@@ -116,20 +82,21 @@ Status ParseFrames(const yaml::FieldReader& reader, const YAML::Node& root,
 Expected<MapperSettings> ParseMapperSettings(const std::string& yaml_text,
                                              const std::string& source) {
   MapperSettings settings;
+  // Parsed once; each library reads its own sections with the same strict reader.
   Expected<YAML::Node> root = yaml::ParseYaml(yaml_text, source);
   if (!root) return root.error();
   if (root->IsNull()) return settings;  // an empty file sets nothing
+  const yaml::FieldReader reader(source);
   Expected<od::io::DetectSettings> detect =
-      od::io::ParseDetectSettings(yaml_text, source, {"map", "tilt", "frames"});  // ours
+      od::io::ReadDetectSettings(*root, reader, {"map", "tilt", "frames"});  // ours
   if (!detect) return detect.error();
   settings.mapper.detector = detect->detector;
   settings.mapper.rules = detect->rules;
   settings.stereo = detect->stereo;
-  Expected<MapConfig> map = ParseMapConfig(yaml_text, source);
+  Expected<MapConfig> map = ReadMapConfig(*root, reader);
   if (!map) return map.error();
   settings.mapper.map = *map;
   if (root->IsMap()) {
-    const yaml::FieldReader reader(source);
     if (Status s = ParseTilt(reader, *root, settings.mapper.tilt); !s) return s.error();
     if (Status s = ParseFrames(reader, *root, settings.mapper.frames); !s) return s.error();
   }

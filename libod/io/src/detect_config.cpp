@@ -192,22 +192,27 @@ Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
                                              const std::vector<std::string>& other_sections) {
   Expected<YAML::Node> root = util::ParseYaml(yaml_text, source);
   if (!root) return root.error();
-  const util::FieldReader reader(source);
+  return ReadDetectSettings(*root, util::FieldReader(source), other_sections);
+}
+
+Expected<DetectSettings> ReadDetectSettings(const YAML::Node& root,
+                                            const util::FieldReader& reader,
+                                            const std::vector<std::string>& other_sections) {
   // One settings file configures every stage; the other stages' sections are read, as
   // strictly, by their own loaders.
   std::vector<std::string> sections = {"detector", "rules", "column", "stereo"};
   sections.insert(sections.end(), other_sections.begin(), other_sections.end());
-  if (Status s = reader.CheckMapping(*root, "", sections); !s) return s.error();
+  if (Status s = reader.CheckMapping(root, "", sections); !s) return s.error();
 
   DetectSettings settings;
   const std::vector<Field> detector = DetectorFields(settings.detector);
   const std::vector<Field> rules = RuleFields(settings.rules);
   const std::vector<Field> column = ColumnFields(settings);
   const std::vector<Field> stereo = StereoFields(settings.stereo);
-  if (Status s = ReadSection(reader, *root, "detector", detector); !s) return s.error();
-  if (Status s = ReadSection(reader, *root, "rules", rules); !s) return s.error();
-  if (Status s = ReadSection(reader, *root, "column", column); !s) return s.error();
-  if (Status s = ReadSection(reader, *root, "stereo", stereo); !s) return s.error();
+  if (Status s = ReadSection(reader, root, "detector", detector); !s) return s.error();
+  if (Status s = ReadSection(reader, root, "rules", rules); !s) return s.error();
+  if (Status s = ReadSection(reader, root, "column", column); !s) return s.error();
+  if (Status s = ReadSection(reader, root, "stereo", stereo); !s) return s.error();
 
   if (Status s = settings.detector.Validate(); !s) {
     return Located(reader, "detector", detector, s.message());

@@ -129,4 +129,32 @@ Expected<std::string> FieldReader::String(const YAML::Node& node, const std::str
   return node.Scalar();
 }
 
+Status ReadFields(const FieldReader& reader, const YAML::Node& section, const std::string& name,
+                  const std::vector<DoubleField>& doubles, const std::vector<IntField>& ints,
+                  std::vector<std::string> other_keys) {
+  if (!section || section.IsNull()) return {};
+  for (const DoubleField& f : doubles) other_keys.emplace_back(f.key);
+  for (const IntField& f : ints) other_keys.emplace_back(f.key);
+  if (Status s = reader.CheckMapping(section, name, other_keys); !s) return s;
+  for (const DoubleField& f : doubles) {
+    if (const YAML::Node v = section[f.key]) {
+      Expected<double> value = reader.Double(v, name + "." + f.key);
+      if (!value) return value.error();
+      *f.target = *value * f.scale;
+    }
+  }
+  for (const IntField& f : ints) {
+    if (const YAML::Node v = section[f.key]) {
+      Expected<std::int64_t> value = reader.Integer(v, name + "." + f.key);
+      if (!value) return value.error();
+      if (*value < f.min || *value > f.max) {
+        return reader.Fail(name + "." + f.key,
+                           "expected " + std::to_string(f.min) + " .. " + std::to_string(f.max));
+      }
+      *f.target = static_cast<int>(*value);
+    }
+  }
+  return {};
+}
+
 }  // namespace cairn::util

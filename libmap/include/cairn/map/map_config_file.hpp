@@ -15,6 +15,7 @@
 
 #include "cairn/map/map_config.hpp"
 #include "cairn/od/expected.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::map {
 
@@ -22,5 +23,8 @@ Expected<MapConfig> LoadMapConfig(const std::filesystem::path& path);
 
 /// The same from YAML text; `source` names it in error messages.
 Expected<MapConfig> ParseMapConfig(const std::string& yaml_text, const std::string& source);
+
+/// The same from a settings file already parsed (`root`, its top level); `reader` names it.
+Expected<MapConfig> ReadMapConfig(const YAML::Node& root, const util::FieldReader& reader);
 
 }  // namespace cairn::map

@@ -45,6 +45,27 @@ class FieldReader {
 Expected<double> Angle(const FieldReader& reader, const YAML::Node& node, const std::string& field,
                        double max_abs_deg);
 
+/// A number of a settings section read into a struct member; `scale` turns the file's unit
+/// into the member's (degrees to radians).
+struct DoubleField {
+  const char* key;
+  double* target;
+  double scale = 1.0;
+};
+/// A whole number of a settings section, within [min, max].
+struct IntField {
+  const char* key;
+  int* target;
+  std::int64_t min, max;
+};
+
+/// Reads the keys present in `section` (a mapping named `name`, or null: nothing set) into
+/// their fields. Its keys must be these fields' and `other_keys` (read by the caller); a
+/// value of the wrong type or out of range is an error naming "name.key".
+Status ReadFields(const FieldReader& reader, const YAML::Node& section, const std::string& name,
+                  const std::vector<DoubleField>& doubles, const std::vector<IntField>& ints,
+                  std::vector<std::string> other_keys = {});
+
 /// "a scalar 'abc'", "a sequence", "a mapping", "null": what was found, for messages.
 std::string Describe(const YAML::Node& node);
 

@@ -38,6 +38,7 @@
 #include "cairn/od/expected.hpp"
 #include "cairn/od/io/stereo.hpp"
 #include "cairn/od/rules.hpp"
+#include "cairn/util/yaml.hpp"
 
 namespace cairn::od::io {
 
@@ -58,6 +59,11 @@ Expected<DetectSettings> LoadDetectSettings(const std::filesystem::path& path);
 Expected<DetectSettings> ParseDetectSettings(
     const std::string& yaml_text, const std::string& source,
     const std::vector<std::string>& other_sections = {"map", "tilt", "frames"});
+
+/// The same from a settings file already parsed (`root`, its top level), for a loader that
+/// parses the file once and hands each library its sections; `reader` names the file.
+Expected<DetectSettings> ReadDetectSettings(const YAML::Node& root, const util::FieldReader& reader,
+                                            const std::vector<std::string>& other_sections);
 
 /// "exact" | "paper_window".
 const char* SearchModeName(SearchMode mode);
