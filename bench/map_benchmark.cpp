@@ -8,6 +8,12 @@
 //   Mapper*      the whole frame, tilt mode prior (the odometry pose as it is);
 //   MapperTilt/* the camera drive in each tilt mode, with the drive's raw IMU (100 Hz) for
 //                gravity: tilt_ms is the stage that mode adds;
+//   FreeRays/*   the free-space rays of a LiDAR-like frame (52,000 ends within 20 m, 0.1 m
+//                voxels, in azimuth order as a scan gives them) into a brick set: `walk` as TerrainMap casts them (ForEachRayKey
+//                into a set indexed in the rays' box), `computeRayKeys` as OctoMap does
+//                (each ray stored in a KeyRay, then inserted into a hashed set); one
+//                thread. The walk's counter octomap_x is the reference's time over its own,
+//                both measured in the same process; the sets are checked equal.
 //   MapFiles     every file `cairn map` writes of the map the camera drive built
 //                (map::WriteMapFiles: map.bt, map.ot, obstacles.ot, cost.pgm/.png,
 //                elevation.tiff, obstacles.json), into a temporary folder.
@@ -15,8 +21,12 @@
 #include <benchmark/benchmark.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <random>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -28,6 +38,8 @@
 #include "cairn/od/units.hpp"
 #include "cairn/sim/drive.hpp"
 #include "cairn/sim/world.hpp"
+#include "key_bricks.hpp"  // libmap/src: the free-space key set
+#include "ray_keys.hpp"    // libmap/src: the ray walk
 #include "sim_frames.hpp"  // tests/map: the drive's IMU as the Mapper takes it
 
 namespace {
@@ -222,6 +234,116 @@ void BM_MapFiles(benchmark::State& state) {
   state.counters["kib_written"] = static_cast<double>(bytes) / 1024.0;
   std::filesystem::remove_all(dir, ec);
 }
+
+// The end voxels of a LiDAR-like frame: a sensor 1.7 m above flat ground, returns on the
+// ground out to 20 m and on upright surfaces (trunks, walls) 2-20 m away up to 4 m high.
+struct RayFrame {
+  map::TerrainOcTree tree{0.1};
+  octomap::point3d sensor{0.05f, -0.03f, 1.7f};
+  std::vector<octomap::OcTreeKey> ends;
+  octomap::OcTreeKey lo, hi;  // the box of the sensor and the ends
+};
+
+void MakeRays(RayFrame& f) {
+  std::mt19937 rng(7);
+  {
+    std::uniform_real_distribution<float> angle(-3.14159f, 3.14159f), u(0.0f, 1.0f);
+    map::internal::KeyBricks unique;
+    while (f.ends.size() < 52000) {
+      const float a = angle(rng);
+      const bool ground = u(rng) < 0.6f;
+      const float r = ground ? 2.0f + 18.0f * u(rng) * u(rng) : 2.0f + 18.0f * u(rng);
+      const float z = ground ? 0.0f : 4.0f * u(rng);
+      const octomap::OcTreeKey key = f.tree.coordToKey(r * std::cos(a), r * std::sin(a), z);
+      if (unique.Contains(key)) continue;
+      unique.Insert(key);
+      f.ends.push_back(key);
+    }
+    // In scan order, as a sensor's returns come (by azimuth): neighbouring rays share bricks.
+    const auto azimuth = [&f](const octomap::OcTreeKey& k) {
+      const octomap::point3d p = f.tree.keyToCoord(k);
+      return std::atan2(p.y(), p.x());
+    };
+    std::sort(f.ends.begin(), f.ends.end(),
+              [&](const octomap::OcTreeKey& a, const octomap::OcTreeKey& b) {
+                return azimuth(a) < azimuth(b);
+              });
+    f.lo = f.hi = f.tree.coordToKey(f.sensor);
+    for (const octomap::OcTreeKey& k : f.ends) {
+      for (int i = 0; i < 3; ++i) {
+        f.lo[i] = std::min(f.lo[i], k[i]);
+        f.hi[i] = std::max(f.hi[i], k[i]);
+      }
+    }
+  }
+}
+
+const RayFrame& Rays() {
+  static RayFrame frame;
+  static const bool made = (MakeRays(frame), true);
+  (void)made;
+  return frame;
+}
+
+// OctoMap's way: computeRayKeys into a KeyRay, then each key into a hashed set.
+void CastWithComputeRayKeys(const RayFrame& f, map::internal::KeyBricks& keys) {
+  keys.Clear();
+  octomap::KeyRay ray;
+  for (const octomap::OcTreeKey& end : f.ends) {
+    if (!f.tree.computeRayKeys(f.sensor, f.tree.keyToCoord(end), ray)) continue;
+    for (const octomap::OcTreeKey& k : ray) keys.Insert(k);
+  }
+}
+
+// TerrainMap's way: the walk into a set indexed in the rays' box.
+std::int64_t CastWithWalk(const RayFrame& f, map::internal::KeyBricks& keys) {
+  keys.Clear(f.lo, f.hi);
+  std::int64_t steps = 0;
+  for (const octomap::OcTreeKey& end : f.ends) {
+    map::internal::KeyBricks::Inserter insert(keys);
+    map::internal::ForEachRayKey(f.tree, f.sensor, f.tree.keyToCoord(end),
+                                 [&](const octomap::OcTreeKey& k) {
+                                   insert(k);
+                                   ++steps;
+                                 });
+  }
+  return steps;
+}
+
+double SecondsOf(const std::function<void()>& run) {
+  const auto start = std::chrono::steady_clock::now();
+  run();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+void BM_FreeRays(benchmark::State& state, bool walk) {
+  const RayFrame& f = Rays();
+  map::internal::KeyBricks keys, reference;
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    if (walk) {
+      steps = CastWithWalk(f, keys);
+    } else {
+      CastWithComputeRayKeys(f, keys);
+    }
+    benchmark::DoNotOptimize(keys);
+  }
+  if (!walk) return;
+  // The reference, in the same process: the same keys, and how much longer it takes.
+  const double reference_s = SecondsOf([&] { CastWithComputeRayKeys(f, reference); });
+  const double walk_s = SecondsOf([&] { CastWithWalk(f, keys); });
+  if (keys.size() != reference.size()) {
+    state.SkipWithError("the walk's keys differ from computeRayKeys'");
+    return;
+  }
+  state.counters["rays"] = static_cast<double>(f.ends.size());
+  state.counters["steps"] = static_cast<double>(steps);
+  state.counters["free_voxels"] = static_cast<double>(keys.size());
+  state.counters["ns_per_step"] = 1e9 * walk_s / static_cast<double>(steps);
+  state.counters["octomap_x"] = reference_s / walk_s;
+}
+BENCHMARK_CAPTURE(BM_FreeRays, walk, true)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_FreeRays, computeRayKeys, false)->Unit(benchmark::kMillisecond);
 
 // One pass over the 12 frames of the drive per run.
 BENCHMARK(BM_MapperDepth640x480)
