@@ -55,9 +55,11 @@ int RunSequenceBench(const MapOptions& o, double rate_hz) {
   const int total = o.max_frames > 0 ? std::min(o.max_frames, source.total()) : source.total();
   Progress progress("cairn bench", total, o.progress_every);
   const auto run_start = Clock::now();
+  LookaheadFeed feed(source, mapper);  // as cairn map reads and detects
   while (o.max_frames <= 0 || read < o.max_frames) {
     const auto t = Clock::now();
-    Expected<std::optional<sources::SequenceFrame>> next = source.Next();
+    Expected<std::optional<sources::SequenceFrame>> next =
+        feed.Next(o.max_frames > 0 && read + 1 >= o.max_frames);
     if (!next) return SequenceFail(next.error().message);
     if (!*next) break;
     sources::SequenceFrame& frame = **next;

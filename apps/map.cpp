@@ -160,6 +160,7 @@ int RunMap(const MapOptions& options) {
   const int total =
       options.max_frames > 0 ? std::min(options.max_frames, source.total()) : source.total();
   Progress progress("cairn map", total, options.progress_every, state.frames_read);
+  LookaheadFeed feed(source, mapper);  // each frame detected while the one before is fused
   while (options.max_frames <= 0 || state.frames_read < options.max_frames) {
     if (g_interrupted) {
       progress.Finish();
@@ -174,7 +175,8 @@ int RunMap(const MapOptions& options) {
       return 130;
     }
     const Clock::time_point t = Clock::now();
-    Expected<std::optional<sources::SequenceFrame>> next = source.Next();
+    Expected<std::optional<sources::SequenceFrame>> next =
+        feed.Next(options.max_frames > 0 && state.frames_read + 1 >= options.max_frames);
     if (!next) {
       progress.Finish();
       return MapFail(next.error().message);

@@ -109,6 +109,23 @@ Expected<RunState> ResumeStateFromJson(const std::string& text, const std::strin
 Status SameRun(const RunState& saved, const RunState& now, const std::string& checkpoint,
                const std::string& config);
 
+/// A source's frames for a Mapper, one read ahead: each frame comes with the one after it
+/// already read and told to the Mapper (Mapper::Expect), which levels and detects that one
+/// while it fuses this one. The frames, skips and errors are the source's, in its order.
+class LookaheadFeed {
+ public:
+  LookaheadFeed(sources::FrameSource& source, map::Mapper& mapper)
+      : source_(source), mapper_(mapper) {}
+  /// The next frame, or nullopt at the end. `last`: the run stops after it (--max-frames),
+  /// so nothing more is read.
+  Expected<std::optional<sources::SequenceFrame>> Next(bool last);
+
+ private:
+  sources::FrameSource& source_;
+  map::Mapper& mapper_;
+  std::optional<Expected<std::optional<sources::SequenceFrame>>> ahead_;  // read, not given
+};
+
 /// The frames of the input `o` names (--rawlog, --kitti or --frames), stereo pairs matched
 /// with `stereo`, each read while the one before is mapped (sources::ReadAhead).
 Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(const MapOptions& o,

@@ -36,6 +36,20 @@ constexpr const char* kFormat = "cairn map resume state 3";
 
 }  // namespace
 
+Expected<std::optional<sources::SequenceFrame>> LookaheadFeed::Next(bool last) {
+  Expected<std::optional<sources::SequenceFrame>> next =
+      ahead_ ? std::move(*ahead_) : source_.Next();
+  ahead_.reset();
+  if (!last && next && *next && (*next)->used()) {
+    ahead_ = source_.Next();
+    if (*ahead_ && **ahead_ && (**ahead_)->used()) {
+      const sources::SequenceFrame& following = ***ahead_;
+      mapper_.Expect(following.image, following.T_world_sensor, following.stamp_s);
+    }
+  }
+  return next;
+}
+
 Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(
     const MapOptions& o, const od::io::StereoConfig& stereo) {
   Expected<std::unique_ptr<sources::FrameSource>> opened =

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <exception>
 #include <nlohmann/json.hpp>
+#include <future>
 #include <optional>
 #include <sstream>
 #include <utility>
@@ -75,6 +76,50 @@ Status MapperConfig::Validate() const {
   return {};
 }
 
+namespace {
+
+// A frame levelled with its prior and, when it has the valid returns to be fused, detected
+// and classified: what Process does before the tilt step.
+struct Levelled {
+  od::RangeImage image;
+  int valid_points = 0;
+  std::optional<od::Detection> detection;  // none: too few valid returns, or not asked
+  od::Classification classification;
+  std::optional<Error> detect_error;  // the detector's or the rules' failure
+};
+
+Expected<Levelled> LevelAndDetect(od::RangeImage image, const Eigen::Isometry3d& prior,
+                                  const MapperConfig& config, bool detect) {
+  Levelled out;
+  if (Status st = image.SetUp(UpIn(prior)); !st) return Error{"mapper: " + st.message()};
+  // Returns of the vehicle itself are no returns for the map either (detector.min_range).
+  if (config.detector.min_range_m > 0.0) image.DropReturnsNearerThan(config.detector.min_range_m);
+  out.valid_points = image.valid_count();
+  if (detect && out.valid_points >= config.frames.min_valid_points) {
+    Expected<od::Detection> detection = od::Detect(image, config.detector);
+    Expected<od::Classification> classification =
+        detection ? od::Classify(*detection, config.rules) : Expected<od::Classification>(detection.error());
+    if (classification) {
+      out.detection = std::move(*detection);
+      out.classification = std::move(*classification);
+    } else {
+      out.detect_error = classification.error();
+    }
+  }
+  out.image = std::move(image);
+  return out;
+}
+
+// A frame told ahead (Mapper::Expect), and its levelling and detection under way.
+struct Lookahead {
+  od::RangeImage image;
+  Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
+  double stamp_s = 0.0;
+  std::future<Expected<Levelled>> result;  // valid once started
+};
+
+}  // namespace
+
 struct Mapper::State {
   MapperConfig config;
   TerrainMap map;
@@ -84,6 +129,10 @@ struct Mapper::State {
   // The previous frame given to Process (the jump check's reference).
   std::optional<std::pair<double, Eigen::Isometry3d>> previous;
   Eigen::Isometry3d T_body_sensor = Eigen::Isometry3d::Identity();  // SetSensorMount
+  // Expect()'s frame: told (expected), then levelled and detected while the frame before is
+  // fused (started), for the Process call of that frame. Declared last: the task that may
+  // be under way ends before the rest goes.
+  std::optional<Lookahead> expected, started;
 
   State(const MapperConfig& c, TerrainMap m, std::unique_ptr<TiltStep> t)
       : config(c), map(std::move(m)), tilt(std::move(t)) {}
@@ -146,12 +195,18 @@ Expected<MapperRecord> Mapper::Process(od::RangeImage image,
   if (!r.skip_detail.empty()) r.skip = FrameSkip::kPoseJump;
 
   Clock::time_point t = Clock::now();
-  // --- level: the detector measures heights along the prior's up vector ---
-  const Eigen::Isometry3d prior = s.tilt->Prior(T_world_sensor);
-  if (Status st = image.SetUp(UpIn(prior)); !st) return Error{"mapper: " + st.message()};
-  // Returns of the vehicle itself are no returns for the map either (detector.min_range).
-  if (s.config.detector.min_range_m > 0.0) image.DropReturnsNearerThan(s.config.detector.min_range_m);
-  r.valid_points = image.valid_count();
+  // --- level: the detector measures heights along the prior's up vector; detect ---
+  // The look-ahead's result when it is this frame (Expect): the prior it was levelled with
+  // is this one (the tilt step has estimated nothing since; the mount does not enter it).
+  std::optional<Lookahead> ahead = std::move(s.started);
+  s.started.reset();
+  Expected<Levelled> levelled =
+      ahead && ahead->result.valid() && ahead->stamp_s == stamp_s &&
+              ahead->T_world_sensor.matrix() == T_world_sensor.matrix()
+          ? ahead->result.get()
+          : LevelAndDetect(std::move(image), s.tilt->Prior(T_world_sensor), s.config, r.used());
+  if (!levelled) return levelled.error();
+  r.valid_points = levelled->valid_points;
   if (r.used() && r.valid_points < s.config.frames.min_valid_points) {
     r.skip = FrameSkip::kNoValidPoints;
     r.skip_detail = std::to_string(r.valid_points) + " valid returns (frames.min_valid_points " +
@@ -162,41 +217,52 @@ Expected<MapperRecord> Mapper::Process(od::RangeImage image,
     ++s.processed;
     return r;
   }
-
-  // --- detect ---
-  Expected<od::Detection> detection = od::Detect(image, s.config.detector);
-  if (!detection) return detection.error();
-  Expected<od::Classification> classification = od::Classify(*detection, s.config.rules);
-  if (!classification) return classification.error();
+  if (levelled->detect_error) return *levelled->detect_error;
+  const od::RangeImage& levelled_image = levelled->image;
+  const od::Detection* detection = &*levelled->detection;
+  const od::Classification* classification = &levelled->classification;
   r.detect_s = util::SecondsSince(t);
   r.segments = static_cast<int>(detection->segments.size());
   r.kept = classification->kept;
   r.rejected = r.segments - r.kept;
+  const Eigen::Isometry3d prior = s.tilt->Prior(T_world_sensor);
 
   // --- tilt ---
   t = Clock::now();
   std::vector<Eigen::Vector3f> ground;
   if (s.tilt->UsesGroundPoints()) {
-    ground.reserve(image.size());
-    for (int i = 0; i < image.size(); ++i) {
-      if (!image.valid(i)) continue;
+    ground.reserve(levelled_image.size());
+    for (int i = 0; i < levelled_image.size(); ++i) {
+      if (!levelled_image.valid(i)) continue;
       const int label = detection->labels[i];
       if (label > 0 && classification->verdicts[label - 1].cls == od::SegmentClass::kKept) continue;
-      ground.push_back(image.point(i).cast<float>());
+      ground.push_back(levelled_image.point(i).cast<float>());
     }
   }
   const TiltFrame frame{s.fused, stamp_s, T_world_sensor, prior, s.T_body_sensor, imu,
-                        image,       *detection,      *classification, ground};
+                        levelled_image,       *detection,      *classification, ground};
   Expected<TiltOutcome> tilt = s.tilt->Estimate(frame, s.map);
   if (!tilt) return Error{"tilt: " + tilt.error().message};
   r.tilt = std::move(*tilt);
   r.T_world_sensor = r.tilt.T_world_sensor;
   r.tilt_s = util::SecondsSince(t);
 
+  // --- look ahead: the next frame levelled and detected while this one is fused ---
+  if (s.expected) {
+    s.started = std::move(s.expected);
+    s.expected.reset();
+    s.started->result = std::async(
+        std::launch::async,
+        [image = std::move(s.started->image), prior = s.tilt->Prior(s.started->T_world_sensor),
+         config = s.config]() mutable {
+          return LevelAndDetect(std::move(image), prior, config, true);
+        });
+  }
+
   // --- fuse ---
   t = Clock::now();
   Expected<FrameSummary> fused =
-      s.map.Integrate(image, *detection, *classification, r.T_world_sensor, stamp_s, s.fused);
+      s.map.Integrate(levelled_image, *detection, *classification, r.T_world_sensor, stamp_s, s.fused);
   if (!fused) return fused.error();
   r.fuse_s = util::SecondsSince(t);
   r.fused = *fused;
@@ -272,6 +338,15 @@ Expected<Mapper> Mapper::FromCheckpoint(const std::filesystem::path& dir_or_file
     return Error{"checkpoint " + file + ": the Mapper's state is unreadable (" + e.what() + ")"};
   }
   return Mapper(std::move(state));
+}
+
+void Mapper::Expect(od::RangeImage image, const Eigen::Isometry3d& T_world_sensor,
+                    double stamp_s) {
+  State& s = *state_;
+  s.expected.emplace();
+  s.expected->image = std::move(image);
+  s.expected->T_world_sensor = T_world_sensor;
+  s.expected->stamp_s = stamp_s;
 }
 
 Status Mapper::SetSensorMount(const Eigen::Isometry3d& T_body_sensor) {

@@ -197,6 +197,42 @@ void ExpectResumeGivesTheSameMap(TiltMode mode, double bias_rad) {
   fs::remove_all(dir);
 }
 
+// Each frame told ahead (Expect), so that it is levelled and detected while the one before
+// is fused: the same records and map files as one Process call after the other, in every
+// tilt mode (the prior the look-ahead levels with must be the one after the previous
+// frame's estimate). A frame told wrongly (another stamp) is detected afresh.
+void ExpectLookaheadChangesNothing(TiltMode mode, double bias_rad) {
+  const std::vector<InputFrame> frames = Drive(bias_rad);
+  ASSERT_EQ(frames.size(), 12u);
+  const MapperConfig config = Config(mode);
+  Expected<Mapper> plain = Mapper::Create(config);
+  Expected<Mapper> ahead = Mapper::Create(config);
+  ASSERT_TRUE(plain.ok() && ahead.ok());
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (k + 1 < frames.size()) {
+      const InputFrame& next = frames[k + 1];
+      // Frame 6 is told with another stamp: its look-ahead must not be taken.
+      ahead->Expect(next.image, next.T_world_sensor, next.stamp_s + (k + 1 == 6 ? 0.01 : 0.0));
+    }
+    const Expected<MapperRecord> a = Feed(*plain, frames[k]);
+    const Expected<MapperRecord> b = Feed(*ahead, frames[k]);
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_EQ(a->valid_points, b->valid_points) << "frame " << k;
+    EXPECT_EQ(a->segments, b->segments) << "frame " << k;
+    EXPECT_EQ(a->kept, b->kept) << "frame " << k;
+    EXPECT_TRUE(a->T_world_sensor.matrix() == b->T_world_sensor.matrix()) << "frame " << k;
+    EXPECT_EQ(a->fused.obstacle_points, b->fused.obstacle_points) << "frame " << k;
+    EXPECT_EQ(a->fused.voxels_free, b->fused.voxels_free) << "frame " << k;
+  }
+  ExpectSameMapFiles(plain->map(), ahead->map(), std::string("ahead_") + TiltModeName(mode));
+}
+
+TEST(Mapper, FramesToldAheadGiveTheSameMapInEveryTiltMode) {
+  ExpectLookaheadChangesNothing(TiltMode::kPrior, 0.0);
+  ExpectLookaheadChangesNothing(TiltMode::kRefineToMap, 1.5 * kDegToRad);
+  ExpectLookaheadChangesNothing(TiltMode::kGravity, 1.0 * kDegToRad);
+}
+
 TEST(Mapper, ResumedWithPriorTiltGivesTheSameMap) {
   ExpectResumeGivesTheSameMap(TiltMode::kPrior, 0.0);
 }

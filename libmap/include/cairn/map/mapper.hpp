@@ -17,7 +17,7 @@
 // after N frames and fed the rest ends exactly like the one that was never interrupted.
 //
 // World frame z up; sensor frames as od::RangeImage has them; metres, radians, seconds.
-// Not thread-safe.
+// Not thread-safe (it runs threads of its own: the detector's, and Expect's look-ahead).
 #pragma once
 
 #include <Eigen/Core>
@@ -120,6 +120,15 @@ class Mapper {
                                  const std::vector<ImuSample>& imu = {},
                                  const std::vector<std::int32_t>& rows = {},
                                  const std::vector<std::int32_t>& cols = {});
+
+  /// The frame the next Process call after this one will be given (the same image, pose
+  /// and stamp), told ahead: the next Process call levels and detects it on a thread of its
+  /// own while it fuses its own frame, and Process for that frame takes the result instead
+  /// of detecting again. Levelling needs only the tilt step's prior, which this frame's tilt
+  /// estimate settles before fusion starts, so the records and the map are those of one
+  /// Process call after the other; a frame that turns out otherwise (another pose or stamp)
+  /// is detected afresh. Its detect_s is then the wait for that result.
+  void Expect(od::RangeImage image, const Eigen::Isometry3d& T_world_sensor, double stamp_s);
 
   /// Saves the map, the tilt step's state and the jump check's reference to
   /// CheckpointPath(dir_or_file), atomically, with `app_data` (the caller's own resume state)
