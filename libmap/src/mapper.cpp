@@ -76,7 +76,9 @@ Status MapperConfig::Validate() const {
   return {};
 }
 
-namespace {
+// Named, not anonymous: Mapper::State holds these (GCC warns of a member of anonymous type
+// in a unity batch).
+namespace internal {
 
 // A frame levelled with its prior and, when it has the valid returns to be fused, detected
 // and classified: what Process does before the tilt step.
@@ -118,7 +120,11 @@ struct Lookahead {
   std::future<Expected<Levelled>> result;  // valid once started
 };
 
-}  // namespace
+}  // namespace internal
+
+using internal::LevelAndDetect;
+using internal::Levelled;
+using internal::Lookahead;
 
 struct Mapper::State {
   MapperConfig config;
