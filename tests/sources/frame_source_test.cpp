@@ -113,7 +113,8 @@ TEST(ReadAhead, ReadsTheNextFrameWhileTheCallerWorks) {
   const Expected<std::optional<SequenceFrame>> last = ahead->Next();
   ASSERT_TRUE(last && *last);
   EXPECT_EQ((*last)->index, 2);
-  EXPECT_EQ(calls, (std::vector<std::string>{"next 0", "next 1", "next 2"}));
+  EXPECT_EQ(ahead->total(), 3);  // waits for the read ahead (of the end) before `calls` is read
+  EXPECT_EQ(calls, (std::vector<std::string>{"next 0", "next 1", "next 2", "next 3"}));
   EXPECT_FALSE(ahead->Next().value().has_value());
 }
 
