@@ -163,12 +163,10 @@ class KeyBricks {
   // 16 MiB of brick indices at most (a 20 m range at 0.1 m voxels needs about 0.5 MiB).
   static constexpr std::uint64_t kMaxDenseBricks = std::uint64_t{1} << 22;
 
+  // Forgets the bricks; the caller then drops or remakes the dense index (slots_ is only
+  // written while hashing, so it is clean after a dense frame).
   void ClearBricks() {
-    if (dense_.empty()) {
-      std::fill(slots_.begin(), slots_.end(), Slot{});
-    } else {
-      for (const Brick& b : bricks_) dense_[DenseOffset(PackFromCode(b.code))] = 0;
-    }
+    if (dense_.empty()) std::fill(slots_.begin(), slots_.end(), Slot{});
     bricks_.clear();
     last_ = kNone;
     last_index_ = 0;

@@ -3,8 +3,8 @@
 #include <chrono>
 #include <cmath>
 #include <exception>
-#include <nlohmann/json.hpp>
 #include <future>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
 #include <utility>
@@ -204,13 +204,14 @@ Expected<MapperRecord> Mapper::Process(od::RangeImage image,
   // --- level: the detector measures heights along the prior's up vector; detect ---
   // The look-ahead's result when it is this frame (Expect): the prior it was levelled with
   // is this one (the tilt step has estimated nothing since; the mount does not enter it).
+  const Eigen::Isometry3d prior = s.tilt->Prior(T_world_sensor);
   std::optional<Lookahead> ahead = std::move(s.started);
   s.started.reset();
   Expected<Levelled> levelled =
       ahead && ahead->result.valid() && ahead->stamp_s == stamp_s &&
               ahead->T_world_sensor.matrix() == T_world_sensor.matrix()
           ? ahead->result.get()
-          : LevelAndDetect(std::move(image), s.tilt->Prior(T_world_sensor), s.config, r.used());
+          : LevelAndDetect(std::move(image), prior, s.config, r.used());
   if (!levelled) return levelled.error();
   r.valid_points = levelled->valid_points;
   if (r.used() && r.valid_points < s.config.frames.min_valid_points) {
@@ -231,7 +232,6 @@ Expected<MapperRecord> Mapper::Process(od::RangeImage image,
   r.segments = static_cast<int>(detection->segments.size());
   r.kept = classification->kept;
   r.rejected = r.segments - r.kept;
-  const Eigen::Isometry3d prior = s.tilt->Prior(T_world_sensor);
 
   // --- tilt ---
   t = Clock::now();
