@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/map/frame_imu.hpp"
 #include "cairn/map/mapper_config_file.hpp"
 #include "cairn/util/format.hpp"
 #include "map_run.hpp"
@@ -74,7 +75,7 @@ int RunSequenceBench(const MapOptions& o, double rate_hz) {
       return SequenceFail(frame.name + ": " + st.message());
     }
     Expected<map::MapperRecord> r = mapper.Process(std::move(frame.image), frame.T_world_sensor,
-                                                   frame.stamp_s, sources::MapperImuSamples(frame));
+                                                   frame.stamp_s, map::ImuSamplesOf(frame));
     if (!r) return SequenceFail(frame.name + ": " + r.error().message);
     if (!r->used()) {
       ++skipped;

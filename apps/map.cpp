@@ -21,6 +21,7 @@
 #include <memory>
 
 #include "cairn/map/checkpoint.hpp"
+#include "cairn/map/frame_imu.hpp"
 #include "cairn/map/map_files.hpp"
 #include "cairn/map/mapper_config_file.hpp"
 #include "cairn/util/yaml.hpp"
@@ -192,9 +193,8 @@ int RunMap(const MapOptions& options) {
       if (Status st = mapper.SetSensorMount(frame.T_body_sensor()); !st) {
         return MapFail(frame.name + ": " + st.message());
       }
-      Expected<map::MapperRecord> r =
-          mapper.Process(std::move(frame.image), frame.T_world_sensor, frame.stamp_s,
-                         sources::MapperImuSamples(frame));
+      Expected<map::MapperRecord> r = mapper.Process(std::move(frame.image), frame.T_world_sensor,
+                                                     frame.stamp_s, map::ImuSamplesOf(frame));
       if (!r) return MapFail(frame.name + ": " + r.error().message);
       if (r->used()) {
         const FrameRecord record = RecordOf(frame, *r, read_s);

@@ -6,6 +6,7 @@
 #include <iostream>
 #include <stdexcept>
 
+#include "cairn/sources/rawlog_frames.hpp"
 #include "cairn/util/format.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"

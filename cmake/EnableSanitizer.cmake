@@ -6,7 +6,8 @@
 #                    instrumented themselves. Inline code of the libraries' headers compiled
 #                    into a program is not checked.
 #   SCOPE a;b;c      only the named library targets (e.g. cairn_od;cairn_od_io;cairn_map;
-#                    cairn_sources: the code that reads and processes input).
+#                    cairn_sources;cairn_sources_mrpt: the code that reads and processes
+#                    input).
 #   SKIP             checks of -fsanitize=undefined left out, e.g. "alignment,null": they
 #                    double the compile time of Eigen-heavy code under GCC; a null
 #                    dereference still stops the run as an ASan SEGV report, and unaligned

@@ -5,12 +5,14 @@
 #include <string>
 #include <utility>
 
+#include "cairn/map/frame_imu.hpp"
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/detection_files.hpp"
 #include "cairn/od/io/intrinsics.hpp"
 #include "cairn/od/io/kitti.hpp"
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/sources/frame_source.hpp"
+#include "cairn/sources/rawlog_frames.hpp"
 #include "types.hpp"
 
 namespace cairn::python {
@@ -90,7 +92,7 @@ Frame NextFrame(FrameIterator& it) {
   f.T_world_body = next->T_world_body;
   f.tilt_from_imu = next->tilt_from_imu;
   // As `cairn map` hands the IMU readings to the Mapper.
-  f.imu = sources::MapperImuSamples(*next);
+  f.imu = map::ImuSamplesOf(*next);
   f.skip = next->used() ? std::string() : std::string(sources::SourceSkipName(next->skip));
   f.skip_detail = next->skip_detail;
   f.image = std::move(next->image);

@@ -4,15 +4,19 @@
 #include "cairn/sources/trajectory.hpp"
 
 #include <gtest/gtest.h>
+#include <mrpt/math/slerp.h>
+#include <mrpt/poses/CPose3D.h>
 #include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
 #include <vector>
 
 #include "cairn/od/units.hpp"
+#include "cairn/sources/mrpt_convert.hpp"
 #include "cairn/sources/rawlog_source.hpp"
 
 namespace cairn::sources {
@@ -80,6 +84,50 @@ TEST(Trajectory, LinearInterpolationOnACircleStaysWithinTheChordError) {
       1e-6);
   // 20 s at 2 m/s: 40 m of chords, each slightly shorter than its arc.
   EXPECT_NEAR(trajectory->PathLength(), 40.0, 0.01);
+}
+
+// The trajectory interpolates without MRPT, as MRPT's CPose3DInterpolator with imLinearSlerp
+// did before: position linear, rotation by MRPT's slerp, the reference here (random 3-D poses
+// up to 170 deg apart, uneven stamps, queried between and at the samples). The fraction is
+// the same in both; MRPT's interpolator itself rounds the time on its clock, which counts
+// from 1601 (about 1e-6 s as a double), so it is not the reference.
+TEST(Trajectory, InterpolatesAsMrptsSlerp) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::vector<StampedPose> poses;
+  double t = 1.7e9;
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  for (int k = 0; k < 60; ++k) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = 20.0 * Eigen::Vector3d(unit(rng), unit(rng), unit(rng));
+    const Eigen::Vector3d axis = Eigen::Vector3d(unit(rng), unit(rng), unit(rng)).normalized();
+    q = q * Eigen::Quaterniond(Eigen::AngleAxisd(2.97 * std::abs(unit(rng)), axis));
+    T.linear() = q.normalized().toRotationMatrix();
+    poses.push_back({t, T});
+    t += 0.05 + 0.5 * std::abs(unit(rng));
+  }
+  Expected<Trajectory> trajectory = Trajectory::FromPoses(poses, "random");
+  ASSERT_TRUE(trajectory) << trajectory.error().message;
+  int checked = 0;
+  for (std::size_t k = 0; k + 1 < poses.size(); ++k) {
+    const StampedPose& a = poses[k];
+    const StampedPose& b = poses[k + 1];
+    for (const double f : {0.0, 0.125, 0.5, 0.7, 0.999}) {
+      const double s = a.stamp_s + f * (b.stamp_s - a.stamp_s);
+      Expected<BodyPose> ours = trajectory->PoseAt(s);
+      ASSERT_TRUE(ours) << ours.error().message;
+      ::mrpt::math::TPose3D theirs;
+      ::mrpt::math::slerp(ToCPose3D(a.T_world_x).asTPose(), ToCPose3D(b.T_world_x).asTPose(),
+                          (s - a.stamp_s) / (b.stamp_s - a.stamp_s), theirs);
+      const Eigen::Isometry3d T = FromCPose3D(::mrpt::poses::CPose3D(theirs));
+      EXPECT_LT((ours->T_world_body.translation() - T.translation()).norm(), 1e-9) << k << " " << f;
+      EXPECT_LT(Eigen::AngleAxisd(ours->T_world_body.linear().transpose() * T.linear()).angle(),
+                1e-8)
+          << k << " " << f;
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 59 * 5);
 }
 
 TEST(Trajectory, ExtrapolatesAtConstantVelocityUpToTheLimitThenNamesTheFrame) {

@@ -11,13 +11,13 @@
 //  - TUM pose files (ReadTumTrajectory): "stamp tx ty tz qx qy qz qw", the pose of the
 //    sensor (or body) in the file's world frame.
 //
-// Interpolation: mrpt::poses::CPose3DInterpolator with imLinearSlerp -- linear in position,
-// spherical-linear in rotation between the two samples around the stamp. Linear and not a
-// spline because (1) odometry and ground-truth files are sampled at or above the frame rate,
-// so the chord error is small and bounded (a circle of radius r sampled every dtheta
-// rad: at most r (1 - cos(dtheta / 2))); (2) it never overshoots between samples, where a
-// spline does on the step changes of real odometry; (3) MRPT's splines need two samples on
-// each side and give nothing in the first and last interval.
+// Interpolation: linear in position, spherical-linear in rotation (along the geodesic)
+// between the two samples around the stamp, as MRPT's CPose3DInterpolator with imLinearSlerp
+// (the tests compare it with MRPT's slerp). Linear and not a spline because (1) odometry and
+// ground-truth files are sampled at or above the frame rate, so the chord error is small and
+// bounded (a circle of radius r sampled every dtheta rad: at most r (1 - cos(dtheta / 2))); (2) it
+// never overshoots between samples, where a spline does on the step changes of real odometry; (3)
+// MRPT's splines need two samples on each side and give nothing in the first and last interval.
 //
 // Attitude: 2-D odometry knows no tilt. Where an IMU attitude lies within
 // TrajectoryOptions::max_imu_age_s of the stamp, its roll and pitch (interpolated linearly
@@ -34,8 +34,6 @@
 // Frames: world z up; body x forward, y left, z up (frame.hpp). Metres, radians, seconds
 // (Unix seconds for rawlogs, the file's own clock for KITTI and TUM).
 #pragma once
-
-#include <mrpt/poses/CPose3DInterpolator.h>
 
 #include <Eigen/Geometry>
 #include <filesystem>
@@ -119,10 +117,8 @@ class Trajectory {
 
   TrajectoryOptions options_;
   std::string source_;
-  std::vector<StampedPose> samples_;                 // by stamp, strictly increasing
-  std::vector<ImuAttitude> imu_;                     // by stamp, strictly increasing
-  ::mrpt::poses::CPose3DInterpolator interpolator_;  // on stamps - clock_origin_s_
-  double clock_origin_s_ = 0.0;
+  std::vector<StampedPose> samples_;  // by stamp, strictly increasing
+  std::vector<ImuAttitude> imu_;      // by stamp, strictly increasing
 };
 
 /// Reads a TUM pose file: '#' comment lines and blank lines skipped, else per line

@@ -1,10 +1,10 @@
-// OpenRawlogFrames (frame_source.hpp): an MRPT rawlog read twice, poses first.
+// OpenRawlogFrames (rawlog_frames.hpp): an MRPT rawlog read twice, poses first.
 #include <mrpt/obs/CObservationIMU.h>
 
 #include <algorithm>
 
 #include "cairn/sources/decode.hpp"
-#include "cairn/sources/frame_source.hpp"
+#include "cairn/sources/rawlog_frames.hpp"
 #include "cairn/sources/rawlog_source.hpp"
 
 namespace cairn::sources {
@@ -23,8 +23,8 @@ Eigen::Vector3d UpIn(const Eigen::Isometry3d& T_world_sensor) {
 class RawlogFrames final : public FrameSource {
  public:
   RawlogFrames(std::string path, std::string label, const od::io::StereoConfig& stereo,
-               Trajectory trajectory, std::vector<ImuAttitude> imu,
-               std::vector<ImuSample> imu_raw, int total, RawlogSource source)
+               Trajectory trajectory, std::vector<ImuAttitude> imu, std::vector<ImuSample> imu_raw,
+               int total, RawlogSource source)
       : path_(std::move(path)),
         label_(std::move(label)),
         stereo_(stereo),
@@ -163,9 +163,9 @@ Expected<std::unique_ptr<FrameSource>> OpenRawlogFrames(const std::string& path,
   read.label = label;
   Expected<RawlogSource> second = RawlogSource::Open(path, read);
   if (!second) return second.error();
-  return std::unique_ptr<FrameSource>(std::make_unique<RawlogFrames>(
-      path, label, stereo, std::move(*trajectory), std::move(imu), std::move(imu_raw), total,
-      std::move(*second)));
+  return std::unique_ptr<FrameSource>(
+      std::make_unique<RawlogFrames>(path, label, stereo, std::move(*trajectory), std::move(imu),
+                                     std::move(imu_raw), total, std::move(*second)));
 }
 
 }  // namespace cairn::sources

@@ -1,7 +1,5 @@
 #include "cairn/sources/trajectory.hpp"
 
-#include <mrpt/poses/CPose3D.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -10,7 +8,6 @@
 #include <map>
 #include <sstream>
 
-#include "cairn/sources/mrpt_convert.hpp"
 #include "cairn/util/atomic_file.hpp"
 
 namespace cairn::sources {
@@ -177,19 +174,6 @@ Expected<Trajectory> Trajectory::FromKitti(const od::io::KittiSequence& sequence
 
 Status Trajectory::Build(const std::string& source) {
   source_ = source;
-  interpolator_.clear();
-  interpolator_.setInterpolationMethod(::mrpt::poses::imLinearSlerp);
-  // MRPT interpolates on its clock converted to seconds as a double: Unix stamps (1.7e9 s,
-  // 2.4e-7 s apart as doubles) would put 1e-4 of a 1 ms step into the fraction. Counting
-  // from the first sample keeps the fraction exact to MRPT's 100 ns tick.
-  clock_origin_s_ = samples_.front().stamp_s;
-  for (const StampedPose& s : samples_) {
-    interpolator_.insert(ToMrptTime(s.stamp_s - clock_origin_s_), ToCPose3D(s.T_world_x));
-  }
-  // Two distinct stamps closer than MRPT's 100 ns tick would collapse into one.
-  if (interpolator_.size() != samples_.size()) {
-    return Error{source + ": two poses less than 100 ns apart"};
-  }
   return {};
 }
 
@@ -255,11 +239,13 @@ Expected<BodyPose> Trajectory::PoseAt(double stamp_s) const {
                      " s) of " + source_};
       }
     }
-    ::mrpt::poses::CPose3D pose;
-    bool valid = false;
-    interpolator_.interpolate(ToMrptTime(stamp_s - clock_origin_s_), pose, valid);
-    if (!valid) return Error{"t = " + Seconds(stamp_s, 6) + " s: no pose (" + span + ")"};
-    out.T_world_body = FromCPose3D(pose);
+    if (after->stamp_s == stamp_s) {
+      out.T_world_body = after->T_world_x;
+    } else {
+      const StampedPose& a = *std::prev(after);
+      out.T_world_body = Blend(a.T_world_x, after->T_world_x,
+                               (stamp_s - a.stamp_s) / (after->stamp_s - a.stamp_s));
+    }
   }
   double roll = 0.0, pitch = 0.0;
   if (ImuTiltAt(stamp_s, &roll, &pitch)) {

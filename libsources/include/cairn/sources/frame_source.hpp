@@ -1,9 +1,7 @@
 // FrameSource: a recorded sequence handed out one frame at a time, each frame a range image
 // placed in the world, for the Mapper (cairn/map/mapper.hpp) or any per-frame loop.
 //
-//   OpenRawlogFrames       an MRPT rawlog: a first pass gathers the odometry and IMU (and
-//                          checks the whole file), a second decodes the range frames one at
-//                          a time (stereo pairs are matched with the given StereoConfig)
+//   OpenRawlogFrames       an MRPT rawlog (cairn::sources_mrpt, rawlog_frames.hpp)
 //   OpenKittiFrames        a KITTI odometry sequence: velodyne scans placed by poses.txt
 //   OpenDepthFolderFrames  a folder of 16-bit depth PNGs with a TUM file of the camera's
 //                          poses (optical frame, z-up world): files named by their stamp
@@ -29,9 +27,7 @@
 #include <variant>
 #include <vector>
 
-#include "cairn/map/imu.hpp"
 #include "cairn/od/expected.hpp"
-#include "cairn/od/io/stereo.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/sources/frame.hpp"
 #include "cairn/sources/trajectory.hpp"
@@ -50,9 +46,9 @@ const char* SourceSkipName(SourceSkip skip);
 
 /// One frame of a sequence, placed in the world.
 struct SequenceFrame {
-  int index = 0;        ///< among the source's frames (0-based), skipped ones included
+  int index = 0;  ///< among the source's frames (0-based), skipped ones included
   double stamp_s = 0.0;
-  std::string name;     ///< for messages: "FILE: frame 3 ('CAMERA', entry 12)", a file name
+  std::string name;  ///< for messages: "FILE: frame 3 ('CAMERA', entry 12)", a file name
   Eigen::Isometry3d T_world_body = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
   bool tilt_from_imu = false;  ///< the pose's roll and pitch came from an IMU
@@ -69,11 +65,6 @@ struct SequenceFrame {
   /// The sensor's pose on the body: T_world_body^-1 T_world_sensor.
   Eigen::Isometry3d T_body_sensor() const { return T_world_body.inverse() * T_world_sensor; }
 };
-
-/// The frame's IMU readings as the Mapper takes them (map::ImuSample), by stamp: each
-/// attitude, and each raw sample with both an accelerometer and a gyro reading, rotated
-/// from the IMU's frame into the body's (the IMU's lever arm is not modelled).
-std::vector<map::ImuSample> MapperImuSamples(const SequenceFrame& frame);
 
 /// What a source reads, for summaries and for telling two runs' inputs apart: "kind",
 /// "path", "frames", "poses", and per kind "label" and "imu_samples" (rawlog), "lidar"
@@ -93,13 +84,6 @@ class FrameSource {
   /// Where the frames' poses come from.
   virtual const Trajectory& trajectory() const = 0;
 };
-
-/// An MRPT rawlog's range frames (of sensor `label`, or every one when empty). Fails, naming
-/// the file, when it cannot be read to its end, holds no range frames (of that label: the
-/// labels it holds are named) or no odometry.
-Expected<std::unique_ptr<FrameSource>> OpenRawlogFrames(const std::string& path,
-                                                        const std::string& label,
-                                                        const od::io::StereoConfig& stereo);
 
 /// A KITTI odometry sequence folder (or DIR/sequences/NN when `sequence` is given), its scans
 /// `range` ("A:B", see od::io::SelectKittiFrames; empty: all), read as LiDAR preset `lidar`.

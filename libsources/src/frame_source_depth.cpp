@@ -116,30 +116,6 @@ Expected<std::unique_ptr<FrameSource>> OpenDepthFolderFrames(const std::string& 
       dir, poses, std::move(files), std::move(stamps), *camera, std::move(*trajectory)));
 }
 
-std::vector<map::ImuSample> MapperImuSamples(const SequenceFrame& frame) {
-  std::vector<map::ImuSample> samples;
-  for (const ImuAttitude& a : frame.imu) {
-    map::ImuSample s;
-    s.stamp_s = a.stamp_s;
-    s.roll_rad = a.roll_rad;
-    s.pitch_rad = a.pitch_rad;
-    s.has_attitude = true;
-    samples.push_back(s);
-  }
-  for (const ImuSample& r : frame.imu_raw) {
-    if (!r.specific_force_mps2 || !r.angular_rate_radps) continue;
-    map::ImuSample s;
-    s.stamp_s = r.stamp_s;
-    s.specific_force_mps2 = r.T_body_imu.linear() * *r.specific_force_mps2;
-    s.angular_rate_radps = r.T_body_imu.linear() * *r.angular_rate_radps;
-    s.has_raw = true;
-    samples.push_back(s);
-  }
-  std::stable_sort(samples.begin(), samples.end(),
-                   [](const map::ImuSample& a, const map::ImuSample& b) { return a.stamp_s < b.stamp_s; });
-  return samples;
-}
-
 const char* SourceSkipName(SourceSkip skip) {
   switch (skip) {
     case SourceSkip::kNone:
