@@ -415,6 +415,14 @@ Expected<int> MeasureAzimuthSteps(const std::vector<Eigen::Vector3f>& points,
     }
   }
   if (gaps.empty()) return Error{"azimuth steps: no row has two returns at distinct azimuths"};
+  // Rays without a return leave gaps of two or more steps; those above 1.5 times the lower
+  // quartile do not count, or a few per cent of them would pull the median off one step.
+  std::vector<double> quartile = gaps;
+  const auto q = quartile.begin() + static_cast<std::ptrdiff_t>((quartile.size() - 1) / 4);
+  std::nth_element(quartile.begin(), q, quartile.end());
+  const double limit = 1.5 * *q;
+  gaps.erase(std::remove_if(gaps.begin(), gaps.end(), [limit](double g) { return g > limit; }),
+             gaps.end());
   const double steps = std::round(2.0 * kPi / Median(gaps));
   return static_cast<int>(std::clamp(steps, 16.0, 65536.0));
 }

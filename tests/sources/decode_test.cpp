@@ -2,6 +2,8 @@
 // as raw packets and the same scan as a rotating scan) checked against MRPT's own geometry,
 // and synthetic observations with known answers (range vs depth conventions, lens
 // distortion, externally stored images, ring finding, stereo pairs, IMU and odometry).
+#include "cairn/sources/decode.hpp"
+
 #include <gtest/gtest.h>
 #include <mrpt/img/CImage.h>
 #include <mrpt/maps/CPointsMapXYZI.h>
@@ -21,10 +23,9 @@
 #include <random>
 #include <set>
 
-#include "cairn/sources/decode.hpp"
+#include "cairn/od/io/point_cloud.hpp"
 #include "cairn/sources/frame.hpp"
 #include "cairn/sources/rawlog_file.hpp"
-#include "cairn/sources/rings.hpp"
 #include "helpers.hpp"
 #include "io/temp_dir.hpp"
 
@@ -408,7 +409,7 @@ TEST(DecodePointClouds, RingsAndColumnsComeFromTheData) {
     if (truth.ring[i] < 0) continue;
     ASSERT_EQ(scan.cols[i], scan.model.Column(truth.points[i].cast<double>()));
   }
-  EXPECT_NE(scan.layout.find("8 rings found"), std::string::npos) << scan.layout;
+  EXPECT_NE(scan.layout.find("8 rows (elevation clusters)"), std::string::npos) << scan.layout;
   EXPECT_TRUE(frame->T_body_sensor.translation().isApprox(Eigen::Vector3d(0.2, 0, 1.8)));
 }
 
@@ -417,22 +418,29 @@ TEST(DecodePointClouds, CloudsWithoutRingsGetEvenElevationBins) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> elevation(-10 * kDegToRad, 10 * kDegToRad),
       azimuth(-kPi, kPi);
+  auto map = ::mrpt::maps::CSimplePointsMap::Create();
   std::vector<Eigen::Vector3f> points;
   for (int i = 0; i < 20000; ++i) {
     const double e = elevation(rng), a = azimuth(rng);
     points.emplace_back(5 * std::cos(e) * std::cos(a), 5 * std::cos(e) * std::sin(a),
                         5 * std::sin(e));
+    map->insertPointFast(points.back().x(), points.back().y(), points.back().z());
   }
-  Expected<RingLayout> layout = FindRings(points);
-  ASSERT_TRUE(layout.ok()) << layout.error().message;
-  EXPECT_FALSE(layout->rings_found);
-  EXPECT_EQ(layout->model.height(), 50);  // 20 deg in 0.4 deg bins
+  ::mrpt::obs::CObservationPointCloud obs;
+  obs.sensorLabel = "TOF";
+  obs.pointcloud = map;
+  Expected<Frame> frame = DecodePointCloud(obs);
+  ASSERT_TRUE(frame.ok()) << frame.error().message;
+  const PointScan& scan = *frame->points();
+  EXPECT_NE(scan.layout.find("uniform elevation bins"), std::string::npos) << scan.layout;
+  ASSERT_GT(scan.model.height(), 1);
+  // Each point lies in its row's elevation bin (rows top first, even bins).
+  const auto& e = scan.model.ring_elevation_rad;
+  const double bin = e[0] - e[1];
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const double top = layout->model.ring_elevation_rad[layout->rows[i]] + 0.2 * kDegToRad;
-    ASSERT_LE(Elevation(points[i]), top + 1e-9);
-    ASSERT_GE(Elevation(points[i]), top - 0.4 * kDegToRad - 1e-9);
+    ASSERT_GE(scan.rows[i], 0);
+    ASSERT_NEAR(Elevation(points[i]), e[scan.rows[i]], 0.5 * bin + 1e-6) << "point " << i;
   }
-  EXPECT_FALSE(FindRings({Eigen::Vector3f(1, 0, 0)}).ok());  // one return: nothing to find
 }
 
 // ---------------------------------------------------------------------------------------

@@ -149,7 +149,8 @@ Expected<RingFit> UniformElevationBins(const std::vector<Eigen::Vector3f>& point
                                        double bin_rad = 0.0);
 
 /// Azimuth steps per revolution measured on rows: the median angle between neighbouring
-/// returns of one row (sorted by azimuth, repeated azimuths skipped), as 2 pi / step
+/// returns of one row (sorted by azimuth, repeated azimuths skipped; gaps over 1.5 times
+/// the lower quartile, left by rays without a return, not counted), as 2 pi / step
 /// rounded, within 16..65536. Fails when no row has two returns at distinct azimuths.
 Expected<int> MeasureAzimuthSteps(const std::vector<Eigen::Vector3f>& points,
                                   const std::vector<std::int32_t>& rows);

@@ -27,8 +27,9 @@
 //     16x too wide and fills every other column); azimuths grow clockwise for Velodyne-made
 //     scans, as the packets count them.
 //   CObservationPointCloud -> PointScan. Any CPointsMap, points in input order (intensity
-//     from a CPointsMapXYZI). Rings found from the points' elevations (FindRings in
-//     rings.hpp), columns from the azimuth at the azimuth step found in the data.
+//     from a CPointsMapXYZI). Rows and columns found from the data by
+//     od::io::FindLayout (point_cloud.hpp), as for point files: organised or ring-after-ring
+//     storage, elevation clusters, else even elevation bins.
 //   CObservationStereoImages -> StereoPair. Grey left and right images; when the left
 //     camera has distortion (MRPT's mark of raw images) the pair is rectified with MRPT's
 //     CStereoRectifyMap (alpha 0: only valid pixels) and the rectified poses are used.
@@ -51,16 +52,16 @@
 #include <string>
 
 #include "cairn/od/expected.hpp"
+#include "cairn/od/io/point_cloud.hpp"
 #include "cairn/sources/frame.hpp"
-#include "cairn/sources/rings.hpp"
 
 namespace cairn::sources {
 
 struct DecodeOptions {
   /// Velodyne returns nearer than this are dropped [m] (MRPT's generatePointCloud default).
   double velodyne_min_range_m = 1.0;
-  /// How rings are found in point clouds that carry no laser ids.
-  RingOptions rings;
+  /// How rows and columns are found in point clouds that carry no laser ids.
+  od::io::LayoutOptions layout;
 };
 
 /// True for the classes that decode into frames (the five above).
