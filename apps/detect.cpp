@@ -1,6 +1,8 @@
 // cairn detect: one depth frame or one LiDAR scan in, obstacles out (segments.png,
 // classes.png, segments.json, overlay.png, segments_color.png; for a scan also labels.label,
 // one SemanticKITTI-layout entry per input point, and birds_eye.png).
+#include "detect.hpp"
+
 #include <Eigen/Core>
 #include <chrono>
 #include <filesystem>
@@ -10,6 +12,7 @@
 #include <sstream>
 #include <string>
 
+#include "cairn/map/mapper_config_file.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/detect_config.hpp"
@@ -19,7 +22,6 @@
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
-#include "detect.hpp"
 #include "subcommands.hpp"
 
 namespace cairn::apps {
@@ -30,9 +32,14 @@ double MillisecondsSince(DetectClock::time_point start) {
 
 int DetectFail(const std::string& message) { return CommandFailure("detect", message); }
 
+Expected<od::io::DetectSettings> LoadDetectSettingsFile(const std::string& path) {
+  // One settings file configures every stage; the Mapper's sections are read by its loader.
+  return od::io::LoadDetectSettings(path, map::MapperSettingsSections());
+}
+
 Expected<od::io::DetectSettings> LoadDetectSettingsOrDefaults(const DetectOptions& options) {
   if (options.config.empty()) return od::io::DetectSettings{};
-  return od::io::LoadDetectSettings(options.config);
+  return LoadDetectSettingsFile(options.config);
 }
 
 Expected<DetectResult> DetectAndClassify(const od::RangeImage& image,

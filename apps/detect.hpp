@@ -56,6 +56,10 @@ double MillisecondsSince(DetectClock::time_point start);
 /// Prints "cairn detect: error: <message>" on stderr and returns kExitFailure.
 int DetectFail(const std::string& message);
 
+/// A settings file's detection sections (detect_config.hpp); the Mapper's sections of the
+/// same file are left to its loader.
+Expected<od::io::DetectSettings> LoadDetectSettingsFile(const std::string& path);
+
 /// The settings file of --config, or the built-in defaults.
 Expected<od::io::DetectSettings> LoadDetectSettingsOrDefaults(const DetectOptions& options);
 

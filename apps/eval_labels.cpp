@@ -89,7 +89,7 @@ int RunLabelEval(const EvalOptions& o) {
   od::io::DetectSettings settings;
   std::string config_text;
   if (!o.config.empty()) {
-    Expected<od::io::DetectSettings> loaded = od::io::LoadDetectSettings(o.config);
+    Expected<od::io::DetectSettings> loaded = LoadDetectSettingsFile(o.config);
     if (!loaded) return Fail(loaded.error().message);
     settings = *loaded;
     Expected<std::string> text = ReadText(o.config, "--config");

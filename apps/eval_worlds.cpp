@@ -24,6 +24,7 @@
 #include "cairn/eval/truth.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/sim/world.hpp"
+#include "detect.hpp"
 
 namespace cairn::apps::eval {
 namespace {
@@ -145,7 +146,7 @@ int RunWorldEval(const EvalOptions& o) {
 
   od::io::DetectSettings settings;
   if (!o.config.empty()) {
-    Expected<od::io::DetectSettings> loaded = od::io::LoadDetectSettings(o.config);
+    Expected<od::io::DetectSettings> loaded = LoadDetectSettingsFile(o.config);
     if (!loaded) return Fail(loaded.error().message);
     settings = *loaded;
   }

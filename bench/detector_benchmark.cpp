@@ -63,7 +63,9 @@ struct Frame {
 };
 
 Expected<od::io::DetectSettings> Settings(const std::string& config) {
-  return od::io::LoadDetectSettings(kSource + "/config/" + config);
+  // The presets may configure the Mapper too (config/default.yaml); its sections are the
+  // Mapper's to read.
+  return od::io::LoadDetectSettings(kSource + "/config/" + config, {"map", "tilt", "frames"});
 }
 
 Expected<Frame> LidarFrame(const std::string& name, const std::string& path,

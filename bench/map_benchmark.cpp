@@ -24,16 +24,17 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <random>
 #include <filesystem>
 #include <functional>
 #include <map>
 #include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
 #include "cairn/map/map_files.hpp"
 #include "cairn/map/mapper.hpp"
+#include "cairn/map/mapper_config_file.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/sim/drive.hpp"
@@ -61,8 +62,8 @@ struct DriveFrames {
 // config/default.yaml's detector and rules (the struct defaults if it cannot be read).
 const od::io::DetectSettings& Settings() {
   static const od::io::DetectSettings settings = [] {
-    const Expected<od::io::DetectSettings> loaded =
-        od::io::LoadDetectSettings(std::string(CAIRN_SOURCE_DIR) + "/config/default.yaml");
+    const Expected<od::io::DetectSettings> loaded = od::io::LoadDetectSettings(
+        std::string(CAIRN_SOURCE_DIR) + "/config/default.yaml", map::MapperSettingsSections());
     return loaded ? *loaded : od::io::DetectSettings{};
   }();
   return settings;

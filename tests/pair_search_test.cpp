@@ -270,7 +270,8 @@ TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
   const io::CameraIntrinsics camera = *io::LoadIntrinsics(dir + "intrinsics.yaml");
   const io::Grid<float> depth = *io::ReadDepthImage(dir + "depth.png", camera);
   const RangeImage image = *RangeImage::FromDepth(depth.data, camera.model, camera.up);
-  DetectorConfig config = io::LoadDetectSettings(kSource + "/config/default.yaml")->detector;
+  DetectorConfig config =
+      io::LoadDetectSettings(kSource + "/config/default.yaml", {"map", "tilt", "frames"})->detector;
   config.threads = 2;
   const Detection scan = *DetectRegionScan(image, config);
   EXPECT_GT(scan.segments.size(), 5u);

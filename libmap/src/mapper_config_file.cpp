@@ -79,6 +79,11 @@ Status ParseFrames(const yaml::FieldReader& reader, const YAML::Node& root,
 
 }  // namespace
 
+const std::vector<std::string>& MapperSettingsSections() {
+  static const std::vector<std::string> sections = {"map", "tilt", "frames"};
+  return sections;
+}
+
 Expected<MapperSettings> ParseMapperSettings(const std::string& yaml_text,
                                              const std::string& source) {
   MapperSettings settings;
@@ -88,7 +93,7 @@ Expected<MapperSettings> ParseMapperSettings(const std::string& yaml_text,
   if (root->IsNull()) return settings;  // an empty file sets nothing
   const yaml::FieldReader reader(source);
   Expected<od::io::DetectSettings> detect =
-      od::io::ReadDetectSettings(*root, reader, {"map", "tilt", "frames"});  // ours
+      od::io::ReadDetectSettings(*root, reader, MapperSettingsSections());
   if (!detect) return detect.error();
   settings.mapper.detector = detect->detector;
   settings.mapper.rules = detect->rules;

@@ -6,6 +6,7 @@
 #include <string>
 #include <utility>
 
+#include "cairn/map/mapper_config_file.hpp"
 #include "cairn/od/io/detection_files.hpp"
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/rules.hpp"
@@ -66,7 +67,7 @@ Settings LoadSettings(const std::string& path) {
   Settings s;
   // The detect loader first: its message is the one `cairn detect --config` prints; the
   // map loader reads the same file again for the map, tilt and frames sections.
-  s.detect = Unwrap(od::io::LoadDetectSettings(path));
+  s.detect = Unwrap(od::io::LoadDetectSettings(path, map::MapperSettingsSections()));
   s.map = Unwrap(map::LoadMapperSettings(path));
   s.path = path;
   return s;
@@ -75,7 +76,7 @@ Settings LoadSettings(const std::string& path) {
 Settings ParseSettings(const std::string& text, const std::string& source) {
   py::gil_scoped_release release;
   Settings s;
-  s.detect = Unwrap(od::io::ParseDetectSettings(text, source));
+  s.detect = Unwrap(od::io::ParseDetectSettings(text, source, map::MapperSettingsSections()));
   s.map = Unwrap(map::ParseMapperSettings(text, source));
   return s;
 }

@@ -273,7 +273,8 @@ TEST(DepthImage, TheTumOfficeIsFurnitureStandingOnAFloorOfFeet) {
   const std::filesystem::path root = CAIRN_SOURCE_DIR;
   Expected<CameraIntrinsics> camera = LoadIntrinsics(root / "datasets" / "real" / "tum-kinect.yaml");
   ASSERT_TRUE(camera.ok()) << camera.error().message;
-  Expected<DetectSettings> settings = LoadDetectSettings(root / "config" / "default.yaml");
+  Expected<DetectSettings> settings =
+      LoadDetectSettings(root / "config" / "default.yaml", {"map", "tilt", "frames"});
   ASSERT_TRUE(settings.ok()) << settings.error().message;
   Expected<Grid<float>> depth = ReadDepthImage(data / "TUM_depth.png", *camera);
   ASSERT_TRUE(depth.ok()) << depth.error().message;

@@ -151,10 +151,25 @@ TEST(DetectSettings, LoadNamesTheFile) {
 namespace cairn::od::io {
 namespace {
 
+// The detection loader knows no other stage's sections: the caller names them.
+TEST(DetectSettings, OtherStagesSectionsAreTheCallersToName) {
+  const std::string text = "detector:\n  min_height: 0.25\nmap:\n  cell_size: 0.2\n";
+  Expected<DetectSettings> alone = ParseDetectSettings(text, "cfg.yaml");
+  ASSERT_FALSE(alone.ok());
+  EXPECT_NE(alone.error().message.find("cfg.yaml"), std::string::npos) << alone.error().message;
+  EXPECT_NE(alone.error().message.find("map"), std::string::npos) << alone.error().message;
+  Expected<DetectSettings> named = ParseDetectSettings(text, "cfg.yaml", {"map"});
+  ASSERT_TRUE(named.ok()) << named.error().message;
+  EXPECT_DOUBLE_EQ(named->detector.min_height_m, 0.25);
+  EXPECT_EQ(DetectSettingsSections(),
+            (std::vector<std::string>{"detector", "rules", "column", "stereo"}));
+}
+
 // The preset the demo uses parses and says what its comments say.
 TEST(DetectSettings, DefaultPresetParses) {
   Expected<DetectSettings> s =
-      LoadDetectSettings(std::filesystem::path(CAIRN_SOURCE_DIR) / "config" / "default.yaml");
+      LoadDetectSettings(std::filesystem::path(CAIRN_SOURCE_DIR) / "config" / "default.yaml",
+                         {"map", "tilt", "frames"});  // the Mapper's sections
   ASSERT_TRUE(s.ok()) << s.error().message;
   EXPECT_DOUBLE_EQ(s->detector.min_height_m, 0.3);
   EXPECT_DOUBLE_EQ(s->detector.max_height_m, 1.0);
@@ -169,7 +184,8 @@ TEST(DetectSettings, DefaultPresetStatesTheBuiltInDefaults) {
   // config/default.yaml documents the defaults: loading it changes nothing, so a run without
   // --config behaves as one with it.
   Expected<DetectSettings> s =
-      LoadDetectSettings(std::filesystem::path(CAIRN_SOURCE_DIR) / "config" / "default.yaml");
+      LoadDetectSettings(std::filesystem::path(CAIRN_SOURCE_DIR) / "config" / "default.yaml",
+                         {"map", "tilt", "frames"});  // the Mapper's sections
   ASSERT_TRUE(s.ok()) << s.error().message;
   const RuleConfig r;
   EXPECT_EQ(s->rules.min_points, r.min_points);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "cairn/map/map_config_file.hpp"
+#include "cairn/map/mapper_config_file.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/units.hpp"
 
@@ -136,7 +137,7 @@ TEST(MapConfigFile, DefaultYamlHasAMapSectionThatBothLoadersAccept) {
   EXPECT_DOUBLE_EQ(map->cost_scaling_factor, defaults.cost_scaling_factor);
   EXPECT_DOUBLE_EQ(map->obstacle_min_height_m, defaults.obstacle_min_height_m);
   EXPECT_NEAR(map->ground_max_slope_rad, defaults.ground_max_slope_rad, 1e-12);
-  EXPECT_TRUE(od::io::LoadDetectSettings(file).ok());
+  EXPECT_TRUE(od::io::LoadDetectSettings(file, MapperSettingsSections()).ok());
   const Expected<MapConfig> missing = LoadMapConfig("/nonexistent/cairn.yaml");
   ASSERT_FALSE(missing.ok());
   EXPECT_NE(missing.error().message.find("/nonexistent/cairn.yaml"), std::string::npos);

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "cairn/map/imu.hpp"
+#include "cairn/map/mapper_config_file.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/io/detect_config.hpp"
@@ -47,8 +48,8 @@ inline std::vector<map::ImuSample> BodyImuUpTo(const sim::Drive& drive, double u
 
 /// config/default.yaml's detector and rules (one worker thread: tests run side by side).
 inline Expected<od::io::DetectSettings> DefaultDetectSettings() {
-  Expected<od::io::DetectSettings> settings =
-      od::io::LoadDetectSettings(SourceDir() / "config" / "default.yaml");
+  Expected<od::io::DetectSettings> settings = od::io::LoadDetectSettings(
+      SourceDir() / "config" / "default.yaml", map::MapperSettingsSections());
   if (settings) settings->detector.threads = 1;
   return settings;
 }

@@ -60,7 +60,8 @@ constexpr std::size_t kRotatingSegments = 87;
 constexpr int kRotatingKept = 33;
 
 od::io::DetectSettings DefaultSettings() {
-  Expected<od::io::DetectSettings> settings = od::io::LoadDetectSettings(kDefaultConfig);
+  Expected<od::io::DetectSettings> settings =
+      od::io::LoadDetectSettings(kDefaultConfig, {"map", "tilt", "frames"});
   EXPECT_TRUE(settings.ok()) << settings.error().message;
   return settings.ok() ? *settings : od::io::DetectSettings{};
 }

@@ -200,7 +200,7 @@ Expected<DetectSettings> ReadDetectSettings(const YAML::Node& root,
                                             const std::vector<std::string>& other_sections) {
   // One settings file configures every stage; the other stages' sections are read, as
   // strictly, by their own loaders.
-  std::vector<std::string> sections = {"detector", "rules", "column", "stereo"};
+  std::vector<std::string> sections = DetectSettingsSections();
   sections.insert(sections.end(), other_sections.begin(), other_sections.end());
   if (Status s = reader.CheckMapping(root, "", sections); !s) return s.error();
 
@@ -245,10 +245,16 @@ Expected<DetectSettings> ReadDetectSettings(const YAML::Node& root,
   return settings;
 }
 
-Expected<DetectSettings> LoadDetectSettings(const std::filesystem::path& path) {
+const std::vector<std::string>& DetectSettingsSections() {
+  static const std::vector<std::string> sections = {"detector", "rules", "column", "stereo"};
+  return sections;
+}
+
+Expected<DetectSettings> LoadDetectSettings(const std::filesystem::path& path,
+                                            const std::vector<std::string>& other_sections) {
   Expected<std::string> text = util::ReadTextFile(path);
   if (!text) return text.error();
-  return ParseDetectSettings(*text, path.string());
+  return ParseDetectSettings(*text, path.string(), other_sections);
 }
 
 }  // namespace cairn::od::io

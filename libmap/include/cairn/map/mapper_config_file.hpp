@@ -26,6 +26,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "cairn/map/mapper.hpp"
 #include "cairn/od/expected.hpp"
@@ -39,6 +40,10 @@ struct MapperSettings {
 };
 
 Expected<MapperSettings> LoadMapperSettings(const std::filesystem::path& path);
+
+/// The top-level sections the Mapper's loaders read besides detection's (map, tilt, frames):
+/// what a detection-only reader of the same file passes as od::io's `other_sections`.
+const std::vector<std::string>& MapperSettingsSections();
 
 /// The same from YAML text; `source` names it in error messages.
 Expected<MapperSettings> ParseMapperSettings(const std::string& yaml_text,

@@ -26,8 +26,10 @@
 //     uniqueness [%]  speckle_window [px]  speckle_range [px]  disp12_max_diff [px]
 //     pre_filter_cap  mode (sgbm | sgbm_3way | hh | hh4)  min_texture [grey levels / px]
 //     disparity_sigma [px]
-// The `map:` section (and, for `cairn map`, `tilt:` and `frames:`) belongs to the mapping
-// stage and is read by its own loader (cairn/map/mapper_config_file.hpp).
+// One file may also configure later stages, each reading its own sections with its own
+// loader (the Mapper's: cairn/map/mapper_config_file.hpp). This library knows none of their
+// keys: whoever reads such a file names the other sections (`other_sections`), e.g.
+// map::MapperSettingsSections().
 #pragma once
 
 #include <filesystem>
@@ -50,15 +52,18 @@ struct DetectSettings {
   StereoConfig stereo;      ///< semi-global matching of stereo pairs
 };
 
-/// Reads and validates a settings file (see above).
-Expected<DetectSettings> LoadDetectSettings(const std::filesystem::path& path);
+/// The top-level sections this loader reads: detector, rules, column, stereo.
+const std::vector<std::string>& DetectSettingsSections();
 
-/// The same from YAML text; `source` names it in error messages. `other_sections`: the
-/// top-level sections other loaders read (by default the mapping stage's: map, tilt,
-/// frames); any other is an error.
-Expected<DetectSettings> ParseDetectSettings(
-    const std::string& yaml_text, const std::string& source,
-    const std::vector<std::string>& other_sections = {"map", "tilt", "frames"});
+/// Reads and validates a settings file (see above). `other_sections`: the top-level
+/// sections other loaders read from the same file; any section not in either is an error.
+Expected<DetectSettings> LoadDetectSettings(const std::filesystem::path& path,
+                                            const std::vector<std::string>& other_sections = {});
+
+/// The same from YAML text; `source` names it in error messages.
+Expected<DetectSettings> ParseDetectSettings(const std::string& yaml_text,
+                                             const std::string& source,
+                                             const std::vector<std::string>& other_sections = {});
 
 /// The same from a settings file already parsed (`root`, its top level), for a loader that
 /// parses the file once and hands each library its sections; `reader` names the file.
