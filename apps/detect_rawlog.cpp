@@ -82,34 +82,19 @@ struct Prepared {
 Expected<Prepared> Prepare(const sources::Frame& frame, const io::DetectSettings& settings) {
   const Eigen::Vector3d up = sources::UpInSensor(frame);
   Prepared out;
+  // Stereo frames: the time is the matching's (the range image from its depth adds little).
+  const DetectClock::time_point start = DetectClock::now();
+  Expected<sources::FrameImage> image = sources::ToRangeImage(frame, up, settings.stereo);
+  if (!image) return image.error();
+  out.image = std::move(image->image);
   if (const sources::DepthImage* depth = frame.depth()) {
-    Expected<od::RangeImage> image = od::RangeImage::FromDepth(depth->depth_m, depth->model, up);
-    if (!image) return image.error();
-    out.image = std::move(*image);
     out.render = io::Grid<float>{depth->model.width, depth->model.height, depth->depth_m};
-  } else if (const sources::PointScan* scan = frame.points()) {
-    Expected<od::RangeImage> image = od::RangeImage::FromPoints(
-        scan->points, scan->model, up, scan->rows, scan->cols);
-    if (!image) return image.error();
-    out.image = std::move(*image);
-    out.render = io::RangeGrid(out.image);
-  } else {
-    const sources::StereoPair& pair = *frame.stereo();
-    io::StereoPair stereo;
-    stereo.left = pair.left;
-    stereo.right = pair.right;
-    stereo.calibration.model = pair.left_model;
-    stereo.calibration.baseline_m = pair.baseline_m;
-    const DetectClock::time_point start = DetectClock::now();
-    Expected<io::StereoDepth> matched = io::ComputeStereoDepth(stereo, settings.stereo);
-    if (!matched) return matched.error();
+  } else if (image->stereo) {
     out.stereo_ms = MillisecondsSince(start);
-    Expected<od::RangeImage> image =
-        od::RangeImage::FromDepth(matched->depth_m.data, pair.left_model, up);
-    if (!image) return image.error();
-    out.image = std::move(*image);
-    out.render = matched->depth_m;
-    out.stereo = std::move(*matched);
+    out.render = image->stereo->depth_m;
+    out.stereo = std::move(image->stereo);
+  } else {
+    out.render = io::RangeGrid(out.image);
   }
   return out;
 }

@@ -32,4 +32,29 @@ Eigen::Vector3d UpInSensor(const Frame& frame) {
   return (frame.T_body_sensor.linear().transpose() * up_body).normalized();
 }
 
+Expected<FrameImage> ToRangeImage(const Frame& frame, const Eigen::Vector3d& up_sensor,
+                                  const od::io::StereoConfig& stereo) {
+  FrameImage out;
+  Expected<od::RangeImage> image = Error{"no range data"};
+  if (const DepthImage* depth = frame.depth()) {
+    image = od::RangeImage::FromDepth(depth->depth_m, depth->model, up_sensor);
+  } else if (const PointScan* scan = frame.points()) {
+    image =
+        od::RangeImage::FromPoints(scan->points, scan->model, up_sensor, scan->rows, scan->cols);
+  } else if (const StereoPair* pair = frame.stereo()) {
+    od::io::StereoPair rectified;
+    rectified.left = pair->left;
+    rectified.right = pair->right;
+    rectified.calibration.model = pair->left_model;
+    rectified.calibration.baseline_m = pair->baseline_m;
+    Expected<od::io::StereoDepth> matched = od::io::ComputeStereoDepth(rectified, stereo);
+    if (!matched) return Error{"stereo: " + matched.error().message};
+    image = od::RangeImage::FromDepth(matched->depth_m.data, pair->left_model, up_sensor);
+    out.stereo = std::move(*matched);
+  }
+  if (!image) return image.error();
+  out.image = std::move(*image);
+  return out;
+}
+
 }  // namespace cairn::sources

@@ -56,23 +56,9 @@ class RawlogFrames final : public FrameSource {
     out.T_world_sensor = body->T_world_body * f.T_body_sensor;
     out.tilt_from_imu = body->tilt_from_imu;
     const Eigen::Vector3d up = UpIn(out.T_world_sensor);
-    Expected<od::RangeImage> image = Error{"no range data"};
-    if (const DepthImage* depth = f.depth()) {
-      image = od::RangeImage::FromDepth(depth->depth_m, depth->model, up);
-    } else if (const PointScan* scan = f.points()) {
-      image = od::RangeImage::FromPoints(scan->points, scan->model, up, scan->rows, scan->cols);
-    } else if (const StereoPair* pair = f.stereo()) {
-      od::io::StereoPair rectified;
-      rectified.left = pair->left;
-      rectified.right = pair->right;
-      rectified.calibration.model = pair->left_model;
-      rectified.calibration.baseline_m = pair->baseline_m;
-      Expected<od::io::StereoDepth> matched = od::io::ComputeStereoDepth(rectified, stereo_);
-      if (!matched) return Error{out.name + ": stereo: " + matched.error().message};
-      image = od::RangeImage::FromDepth(matched->depth_m.data, pair->left_model, up);
-    }
+    Expected<FrameImage> image = ToRangeImage(f, up, stereo_);
     if (!image) return Error{out.name + ": " + image.error().message};
-    out.image = std::move(*image);
+    out.image = std::move(image->image);
     return std::optional<SequenceFrame>(std::move(out));
   }
 

@@ -23,7 +23,10 @@
 #include <variant>
 #include <vector>
 
+#include "cairn/od/expected.hpp"
 #include "cairn/od/io/grid.hpp"
+#include "cairn/od/io/stereo.hpp"
+#include "cairn/od/range_image.hpp"
 #include "cairn/od/sensor_model.hpp"
 
 namespace cairn::sources {
@@ -130,5 +133,19 @@ Eigen::Vector3d UpInSensor(const Frame& frame);
 
 /// R_world_body of an attitude (yaw 0 when absent).
 Eigen::Matrix3d RotationFromImu(const ImuAttitude& imu);
+
+/// A frame's range image, levelled with gravity's `up_sensor` (unit, sensor frame).
+struct FrameImage {
+  od::RangeImage image;
+  /// Stereo pairs: the depth matched with the given StereoConfig (od_io's semi-global
+  /// matching), which the image was made from.
+  std::optional<od::io::StereoDepth> stereo;
+};
+
+/// The one way from any Frame to its range image: depth images and point scans as they
+/// are (point scans with their rows and columns when the source found them), stereo pairs
+/// matched first. Errors say what failed ("stereo: ...", or the range image's own).
+Expected<FrameImage> ToRangeImage(const Frame& frame, const Eigen::Vector3d& up_sensor,
+                                  const od::io::StereoConfig& stereo);
 
 }  // namespace cairn::sources
