@@ -133,7 +133,7 @@ Expected<Trajectory> Trajectory::FromOdometry(const std::vector<OdometrySample>&
 
   std::string source = "odometry '" + odometry_source + "'";
   if (!t.imu_.empty()) source += " + IMU '" + t.imu_.front().label + "'";
-  if (Status s = t.Build(source); !s) return s.error();
+  t.source_ = source;
   return t;
 }
 
@@ -152,7 +152,7 @@ Expected<Trajectory> Trajectory::FromPoses(const std::vector<StampedPose>& poses
   Trajectory t;
   t.options_ = options;
   for (const auto& [stamp, T] : by_stamp) t.samples_.push_back({stamp, T});
-  if (Status s = t.Build(source); !s) return s.error();
+  t.source_ = source;
   return t;
 }
 
@@ -170,11 +170,6 @@ Expected<Trajectory> Trajectory::FromKitti(const od::io::KittiSequence& sequence
     poses.push_back({f.stamp_s, *f.T_map_velodyne});
   }
   return FromPoses(poses, source, options);
-}
-
-Status Trajectory::Build(const std::string& source) {
-  source_ = source;
-  return {};
 }
 
 bool Trajectory::ImuTiltAt(double stamp_s, double* roll_rad, double* pitch_rad) const {

@@ -111,7 +111,6 @@ class Trajectory {
 
  private:
   Trajectory() = default;
-  Status Build(const std::string& source);
   /// IMU roll and pitch at `stamp_s` when a sample is near enough.
   bool ImuTiltAt(double stamp_s, double* roll_rad, double* pitch_rad) const;
 
