@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <string>
@@ -116,6 +117,74 @@ TEST(ReadAhead, ReadsTheNextFrameWhileTheCallerWorks) {
   EXPECT_EQ(ahead->total(), 3);  // waits for the read ahead (of the end) before `calls` is read
   EXPECT_EQ(calls, (std::vector<std::string>{"next 0", "next 1", "next 2", "next 3"}));
   EXPECT_FALSE(ahead->Next().value().has_value());
+}
+
+}  // namespace
+}  // namespace cairn::sources
+
+namespace cairn::sources {
+namespace {
+
+// Same size, returns and points (invalid cells hold NaN, so they are compared by the mask).
+bool SameImage(const od::RangeImage& a, const od::RangeImage& b) {
+  if (a.width() != b.width() || a.height() != b.height() || a.valid_mask() != b.valid_mask() ||
+      a.up() != b.up() || a.valid_count() == 0) {
+    return false;
+  }
+  for (int i = 0; i < a.width() * a.height(); ++i) {
+    if (a.valid(i) && a.point(i) != b.point(i)) return false;
+  }
+  return true;
+}
+
+// The one way from a frame to its range image gives what the RangeImage factories give for
+// each kind, and names the stereo matching when it is what failed.
+TEST(ToRangeImage, EachKindAsItsRangeImageFactoryMakesIt) {
+  const Eigen::Vector3d up = Eigen::Vector3d(0.1, -1.0, 0.2).normalized();
+  const od::io::StereoConfig stereo;
+
+  Frame depth_frame;
+  DepthImage depth;
+  depth.model = od::PinholeModel{8, 6, 5.0, 5.0, 3.5, 2.5};
+  for (int i = 0; i < 48; ++i) depth.depth_m.push_back(i % 5 == 0 ? 0.0f : 1.0f + 0.1f * i);
+  depth_frame.data = depth;
+  Expected<FrameImage> from_depth = ToRangeImage(depth_frame, up, stereo);
+  ASSERT_TRUE(from_depth) << from_depth.error().message;
+  EXPECT_FALSE(from_depth->stereo);
+  EXPECT_TRUE(
+      SameImage(from_depth->image, *od::RangeImage::FromDepth(depth.depth_m, depth.model, up)));
+
+  Frame scan_frame;
+  PointScan scan;
+  scan.model.width = 16;
+  scan.model.ring_elevation_rad = {0.1, 0.05, 0.0, -0.05};
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 16; c += 2) {
+      const double e = scan.model.ring_elevation_rad[r], a = scan.model.ColumnAzimuth(c);
+      scan.points.emplace_back(5 * std::cos(e) * std::cos(a), 5 * std::cos(e) * std::sin(a),
+                               5 * std::sin(e));
+      scan.rows.push_back(r);
+      scan.cols.push_back(c + 1);  // rows and columns of the source are kept as given
+    }
+  }
+  scan_frame.data = scan;
+  Expected<FrameImage> from_scan = ToRangeImage(scan_frame, up, stereo);
+  ASSERT_TRUE(from_scan) << from_scan.error().message;
+  EXPECT_TRUE(SameImage(from_scan->image, *od::RangeImage::FromPoints(scan.points, scan.model, up,
+                                                                      scan.rows, scan.cols)));
+  EXPECT_FALSE(SameImage(from_scan->image,
+                         *od::RangeImage::FromPoints(scan.points, scan.model, up, {}, {})));
+
+  Frame stereo_frame;
+  StereoPair pair;
+  pair.left = od::io::Grid<std::uint8_t>{8, 6, std::vector<std::uint8_t>(48, 100)};
+  pair.right = od::io::Grid<std::uint8_t>{4, 6, std::vector<std::uint8_t>(24, 100)};
+  pair.left_model = depth.model;
+  pair.baseline_m = 0.1;
+  stereo_frame.data = pair;
+  Expected<FrameImage> from_stereo = ToRangeImage(stereo_frame, up, stereo);
+  ASSERT_FALSE(from_stereo);
+  EXPECT_EQ(from_stereo.error().message.rfind("stereo: ", 0), 0u) << from_stereo.error().message;
 }
 
 }  // namespace
