@@ -16,6 +16,10 @@
 // figures/range_image.png, figures/birds_eye.png:
 //   cairn eval --points S.bin --labels S.label --classes C.yaml --sensor PRESET --report DIR
 //       [--config FILE] [--methods LIST] [--notes NOTES.md]
+//
+// Maps: TerrainMap on gallery worlds from drifting odometry, biased IMUs and each tilt mode,
+// against the worlds' truth (datasets/maps/REPORT.md, from the source tree):
+//   cairn eval --maps --report datasets/maps [--root DIR] [--threads N] [--config FILE]
 #include <CLI/CLI.hpp>
 #include <memory>
 #include <string>
@@ -30,6 +34,14 @@ using eval::EvalOptions;
 using eval::Fail;
 
 int RunEval(const EvalOptions& o) {
+  if (o.maps) {
+    if (!o.points.empty() || !o.worlds.empty() || !o.worlds_dir.empty() || !o.depth.empty()) {
+      return Fail(
+          "--maps runs the map study on its own worlds: give no --world, --worlds, "
+          "--depth or --points with it");
+    }
+    return eval::RunMapStudy(o);
+  }
   if (!o.points.empty()) {
     if (!o.worlds.empty() || !o.worlds_dir.empty() || !o.depth.empty()) {
       return Fail("give worlds, one depth frame or one scan with --points, not several");
@@ -90,6 +102,19 @@ Subcommand AddEvalCommand(CLI::App& parent) {
   app->add_option("--notes", options->notes,
                   "real labels: Markdown included in REPORT.md under Notes (a person's reading)")
       ->type_name("FILE.md");
+  app->add_flag("--maps", options->maps,
+                "the map study instead: TerrainMap on gallery worlds under odometry drift, IMU "
+                "errors and each tilt mode, scored against the worlds' truth (REPORT.md, "
+                "runs.csv, obstacles.csv, tilt.csv, figures/)");
+  app->add_option("--root", options->root,
+                  "maps: the source tree holding the study's worlds (datasets/)")
+      ->capture_default_str()
+      ->check(CLI::ExistingDirectory)
+      ->type_name("DIR");
+  app->add_option("--threads", options->threads,
+                  "maps: drives mapped side by side (0: one per core)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app->add_option("--config", options->config,
                   "settings YAML (detector, rules, column sections); defaults when absent")
       ->type_name("FILE.yaml");

@@ -3,9 +3,11 @@
 //   eval_worlds.cpp  synthetic worlds or one depth frame with truth images: the methods
 //                    side by side, REPORT.md, results.csv, figures, the sweep
 //   eval_labels.cpp  one LiDAR scan with real per-point labels and a class mapping
+//   eval_maps.cpp    the map study (--maps): maps of drives against their world's truth
 #pragma once
 
 #include <chrono>
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
@@ -35,6 +37,10 @@ struct EvalOptions {
   double found_fraction = 0.5;
   int min_object_pixels = 20;
   int cell_width = 320;
+  // The map study.
+  bool maps = false;
+  std::filesystem::path root = ".";  ///< the source tree, where the study's worlds are
+  int threads = 0;                   ///< drives mapped side by side (0: one per core)
 };
 
 inline int Fail(const std::string& message) { return CommandFailure("eval", message); }
@@ -45,5 +51,7 @@ using util::Fixed;
 int RunWorldEval(const EvalOptions& o);
 /// One scan with real labels (--points, --labels, --classes, --sensor).
 int RunLabelEval(const EvalOptions& o);
+/// The map study (--maps).
+int RunMapStudy(const EvalOptions& o);
 
 }  // namespace cairn::apps::eval

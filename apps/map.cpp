@@ -238,8 +238,7 @@ int RunMap(const MapOptions& options) {
   if (Status s = map::WriteMapFiles(mapper.map(), staging); !s) return MapFail(s.message());
   std::optional<TruthScore> truth;
   if (!options.truth.empty()) {
-    Expected<TruthScore> score =
-        ScoreAgainstWorld(options.truth, mapper.map(), 0.5 + mapper.map().grid().cell_size());
+    Expected<TruthScore> score = ScoreAgainstWorld(options.truth, mapper.map());
     if (!score) return MapFail(score.error().message);
     truth = std::move(*score);
   }

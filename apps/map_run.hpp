@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/map_score.hpp"
 #include "cairn/map/mapper.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/od/expected.hpp"
@@ -137,31 +138,16 @@ FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecor
 
 // --- scoring against a synthetic world (--truth) ---
 
-struct TruthObject {
-  int id = 0;
-  std::string name;
-  bool is_obstacle = false;
-  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
-  std::vector<Eigen::Vector2f> footprint;  ///< convex polygon of its footprint, world xy [m]
-  bool found = false;
-  double distance_m = -1.0;  ///< footprint to the nearest lethal cell's centre; -1: none near
-  int obstacle_id = 0;       ///< the map obstacle owning that cell
-};
-
+/// The map against a synthetic world's truth (--truth).
 struct TruthScore {
-  std::string world;
-  std::vector<TruthObject> objects;
-  int obstacles = 0, found = 0, marked_non_obstacles = 0, false_obstacles = 0;
-  std::vector<int> false_obstacle_ids;
-  double iou = 0.0;  ///< lethal cells against the cells inside true obstacles' footprints
-  double elevation_rms_m = 0.0, elevation_max_m = 0.0;
-  int elevation_cells = 0;
+  std::string world;  ///< the world file
+  eval::MapScore score;
 };
 
-/// Found: a lethal cell's centre within `tolerance_m` of the object's footprint. Fails when
-/// cairn was built without libsim.
+/// eval::ScoreMap against the world file; an obstacle is found with a lethal cell within
+/// 0.5 m and a cell of it (some drift). Fails naming the world file.
 Expected<TruthScore> ScoreAgainstWorld(const std::string& world_path,
-                                       const map::TerrainMap& terrain, double tolerance_m);
+                                       const map::TerrainMap& terrain);
 
 /// The overlay: cost.png enlarged, the live obstacles outlined with their ids, the path
 /// driven, and the true objects when scored.

@@ -1,6 +1,7 @@
 // `cairn map`: the run's own files besides the map's (map_run.hpp): poses.tum (each fused
 // frame's T_world_sensor), frames.csv (per-frame figures), summary.json and summary.txt.
 #include <algorithm>
+#include <cmath>
 #include <iomanip>
 #include <map>
 #include <sstream>
@@ -27,44 +28,60 @@ json ObstacleBrief(const map::Obstacle& o) {
           {"frames", o.frames.size()}};
 }
 
+/// A distance that may be infinite (no lethal cell in the map) as JSON: -1 then.
+double DistanceOrMinusOne(double d) { return std::isfinite(d) ? d : -1.0; }
+
 json TruthJson(const TruthScore& truth) {
+  const eval::MapScore& score = truth.score;
   json objects = json::array();
-  for (const TruthObject& t : truth.objects) {
+  for (const eval::MapObjectScore& t : score.objects) {
     objects.push_back({{"id", t.id},
                        {"name", t.name},
                        {"is_obstacle", t.is_obstacle},
                        {"x", t.centre.x()},
                        {"y", t.centre.y()},
+                       {"cells", t.cells.size()},
+                       {"obstacle_cells", t.obstacle_cells.size()},
                        {"found", t.found},
-                       {"distance_to_lethal_m", t.distance_m},
-                       {"map_obstacle", t.obstacle_id}});
+                       {"distance_to_lethal_m", DistanceOrMinusOne(t.nearest_lethal_m)},
+                       {"map_obstacle", t.map_obstacle_id}});
   }
   return {{"world", truth.world},
-          {"obstacles", truth.obstacles},
-          {"found", truth.found},
-          {"non_obstacles_marked", truth.marked_non_obstacles},
-          {"false_obstacles", truth.false_obstacles},
-          {"false_obstacle_ids", truth.false_obstacle_ids},
-          {"lethal_iou", truth.iou},
-          {"elevation_rms_m", truth.elevation_rms_m},
-          {"elevation_max_error_m", truth.elevation_max_m},
-          {"elevation_cells", truth.elevation_cells},
+          {"obstacles", score.obstacles},
+          {"found", score.found},
+          {"non_obstacles_marked", score.marked_non_obstacles},
+          {"false_obstacles", score.false_obstacle_ids.size()},
+          {"false_obstacle_ids", score.false_obstacle_ids},
+          {"lethal_iou", score.iou},
+          {"lethal_cells", score.lethal_cells.size()},
+          {"true_obstacle_cells", score.obstacle_cells.size()},
+          {"false_lethal_cells", score.false_lethal},
+          {"elevation_rms_m", score.elevation_rms_m},
+          {"elevation_max_error_m", score.elevation_max_m},
+          {"elevation_cells", score.elevation_cells},
           {"objects", objects}};
 }
 
 void TruthText(const TruthScore& truth, std::ostringstream& text) {
-  text << "  truth (" << truth.world << "): " << truth.found << "/" << truth.obstacles
-       << " obstacles found, " << truth.marked_non_obstacles << " non-obstacles marked, "
-       << truth.false_obstacles << " false obstacles; IoU of lethal cells and obstacle "
-       << "footprints " << util::Fixed(truth.iou, 2) << "; elevation RMS error "
-       << util::Fixed(truth.elevation_rms_m, 3) << " m over " << truth.elevation_cells
-       << " cells\n";
-  for (const TruthObject& t : truth.objects) {
+  const eval::MapScore& score = truth.score;
+  text << "  truth (" << truth.world << "): " << score.found << "/" << score.obstacles
+       << " obstacles found, " << score.marked_non_obstacles << " non-obstacles marked, "
+       << score.false_obstacle_ids.size() << " false obstacles; IoU of lethal and true obstacle "
+       << "cells " << util::Fixed(score.iou, 2) << ", " << score.false_lethal
+       << " lethal cells away from every obstacle; elevation RMS error "
+       << util::Fixed(score.elevation_rms_m, 3) << " m over " << score.elevation_cells
+       << " cells away from the objects\n";
+  for (const eval::MapObjectScore& t : score.objects) {
     text << "    " << std::left << std::setw(12) << t.name << std::right
          << (t.is_obstacle ? " obstacle     " : " not obstacle ") << "at ("
-         << util::Fixed(t.centre.x(), 1) << ", " << util::Fixed(t.centre.y(), 1)
-         << "): " << (t.found ? "found" : (t.is_obstacle ? "MISSED" : "clear"));
-    if (t.distance_m >= 0) text << ", nearest lethal cell " << util::Fixed(t.distance_m, 2) << " m";
+         << util::Fixed(t.centre.x(), 1) << ", " << util::Fixed(t.centre.y(), 1) << "): "
+         << (t.found ? "found"
+                     : (t.scored()      ? "MISSED"
+                        : t.is_obstacle ? "too low"
+                                        : "clear"));
+    if (std::isfinite(t.nearest_lethal_m)) {
+      text << ", nearest lethal cell " << util::Fixed(t.nearest_lethal_m, 2) << " m";
+    }
     text << "\n";
   }
 }

@@ -1,4 +1,5 @@
-// `cairn map`: the map against a synthetic world's truth (--truth), and the overlay figure
+// `cairn map`: the map against a synthetic world's truth (--truth, cairn::eval_map's one
+// scorer), the fused poses against true poses (--truth-poses), and the overlay figure
 // (map_run.hpp).
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -10,168 +11,59 @@
 #include <sstream>
 #include <string_view>
 
+#include "cairn/eval/map_score.hpp"
 #include "cairn/map/map_files.hpp"
+#include "cairn/sim/world.hpp"
 #include "cairn/sources/trajectory.hpp"
+#include "cairn/util/format.hpp"
 #include "cairn/util/image_file.hpp"
 #include "map_run.hpp"
-#ifdef CAIRN_HAVE_SYNTH
-#include "cairn/sim/shapes.hpp"
-#include "cairn/sim/world.hpp"
-#include "cairn/util/format.hpp"
-#endif
 
 namespace cairn::apps {
 namespace {
 
 namespace fs = std::filesystem;
 
-#ifdef CAIRN_HAVE_SYNTH
-/// Distance from `xy` to a footprint polygon: 0 inside [m].
-double DistanceToFootprint(const std::vector<cv::Point2f>& polygon, const Eigen::Vector2d& xy) {
-  const double signed_distance = cv::pointPolygonTest(
-      polygon, cv::Point2f(static_cast<float>(xy.x()), static_cast<float>(xy.y())), true);
-  return std::max(0.0, -signed_distance);
-}
-
-/// A rotated ellipse or rectangle as a polygon.
-void AddEllipse(std::vector<cv::Point2f>& out, const Eigen::Vector2d& c, double a, double b,
-                double yaw) {
-  for (int k = 0; k < 32; ++k) {
-    const double t = 2 * M_PI * k / 32;
-    const Eigen::Vector2d local(a * std::cos(t), b * std::sin(t));
-    const Eigen::Vector2d p = c + Eigen::Rotation2Dd(yaw) * local;
-    out.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+/// The outline of a set of map cells, as polygons in world xy [m].
+std::vector<std::vector<Eigen::Vector2d>> Outline(const std::vector<eval::MapCell>& cells,
+                                                  double cell_size) {
+  std::vector<std::vector<Eigen::Vector2d>> out;
+  if (cells.empty()) return out;
+  int x0 = cells[0].first, y0 = cells[0].second, x1 = x0, y1 = y0;
+  for (const eval::MapCell& c : cells) {
+    x0 = std::min(x0, c.first), x1 = std::max(x1, c.first);
+    y0 = std::min(y0, c.second), y1 = std::max(y1, c.second);
   }
-}
-void AddRectangle(std::vector<cv::Point2f>& out, const Eigen::Vector2d& c, double x_lo, double x_hi,
-                  double y_lo, double y_hi, double yaw) {
-  for (const Eigen::Vector2d& local : {Eigen::Vector2d(x_lo, y_lo), Eigen::Vector2d(x_hi, y_lo),
-                                       Eigen::Vector2d(x_hi, y_hi), Eigen::Vector2d(x_lo, y_hi)}) {
-    const Eigen::Vector2d p = c + Eigen::Rotation2Dd(yaw) * local;
-    out.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
-  }
-}
-
-/// The horizontal footprint of a solid as a convex polygon (terrain features have none).
-std::vector<cv::Point2f> Footprint(const sim::Shape& shape) {
-  std::vector<cv::Point2f> points;
-  if (sim::IsTerrainFeature(shape)) return points;
-  if (const auto* c = std::get_if<sim::Cylinder>(&shape)) {
-    AddEllipse(points, c->base_centre.head<2>(), c->radius_m, c->radius_m, 0.0);
-  } else if (const auto* e = std::get_if<sim::Ellipsoid>(&shape)) {
-    AddEllipse(points, e->centre.head<2>(), e->radii.x(), e->radii.y(), e->yaw_rad);
-  } else if (const auto* b = std::get_if<sim::Box>(&shape)) {
-    AddRectangle(points, b->centre.head<2>(), -b->size.x() / 2, b->size.x() / 2, -b->size.y() / 2,
-                 b->size.y() / 2, b->yaw_rad);
-  } else if (const auto* r = std::get_if<sim::Ridge>(&shape)) {
-    const double half_length = r->top_length_m / 2 + r->height_m / std::tan(r->end_slope_rad);
-    AddRectangle(points, r->base_centre.head<2>(), -half_length, half_length,
-                 -r->top_width_m / 2 - r->height_m / std::tan(r->right_slope_rad),
-                 r->top_width_m / 2 + r->height_m / std::tan(r->left_slope_rad), r->yaw_rad);
-  } else if (const auto* rod = std::get_if<sim::Rod>(&shape)) {
-    AddEllipse(points, rod->start.head<2>(), rod->radius_m, rod->radius_m, 0.0);
-    AddEllipse(points, rod->end.head<2>(), rod->radius_m, rod->radius_m, 0.0);
-  } else if (const auto* k = std::get_if<sim::Cluster>(&shape)) {
-    for (const sim::Ellipsoid& part : k->parts) {
-      AddEllipse(points, part.centre.head<2>(), part.radii.x(), part.radii.y(), part.yaw_rad);
+  // One pixel per cell with a border, y up as rows go down.
+  cv::Mat mask = cv::Mat::zeros(y1 - y0 + 3, x1 - x0 + 3, CV_8U);
+  for (const eval::MapCell& c : cells)
+    mask.at<std::uint8_t>(y1 - c.second + 1, c.first - x0 + 1) = 255;
+  cv::Mat large;  // 2 px per cell, so that the contour runs along the cells' edges
+  cv::resize(mask, large, cv::Size(), 2, 2, cv::INTER_NEAREST);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(large, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  for (const std::vector<cv::Point>& contour : contours) {
+    std::vector<Eigen::Vector2d> polygon;
+    for (const cv::Point& p : contour) {
+      polygon.emplace_back((x0 - 1 + (p.x + 0.5) / 2.0) * cell_size,
+                           (y1 + 2 - (p.y + 0.5) / 2.0) * cell_size);
     }
+    out.push_back(std::move(polygon));
   }
-  std::vector<cv::Point2f> hull;
-  cv::convexHull(points, hull);
-  return hull;
+  return out;
 }
-#endif
 
 }  // namespace
 
 Expected<TruthScore> ScoreAgainstWorld(const std::string& world_path,
-                                       const map::TerrainMap& terrain, double tolerance_m) {
-#ifndef CAIRN_HAVE_SYNTH
-  (void)world_path;
-  (void)terrain;
-  (void)tolerance_m;
-  return Error{"--truth needs cairn built with libsim (cairn synth)"};
-#else
+                                       const map::TerrainMap& terrain) {
   Expected<sim::World> world = sim::LoadWorld(world_path);
   if (!world) return Error{"--truth: " + world.error().message};
-  TruthScore score;
-  score.world = world_path;
-  std::vector<std::vector<cv::Point2f>> polygons;
-  for (const sim::Object& o : world->scene.objects()) {
-    std::vector<cv::Point2f> polygon = Footprint(o.shape);
-    if (polygon.empty()) continue;
-    TruthObject t;
-    t.id = o.id;
-    t.name = o.name;
-    t.is_obstacle = o.is_obstacle;
-    for (const cv::Point2f& p : polygon) {
-      t.centre += Eigen::Vector2d(p.x, p.y);
-      t.footprint.emplace_back(p.x, p.y);
-    }
-    t.centre /= static_cast<double>(polygon.size());
-    score.objects.push_back(std::move(t));
-    polygons.push_back(std::move(polygon));
-  }
-  const map::TerrainGrid& grid = terrain.grid();
-  int both = 0, either = 0;
-  for (int j = 0; j < grid.extent().y(); ++j) {
-    for (int i = 0; i < grid.extent().x(); ++i) {
-      const map::CellIndex index = grid.min_index() + map::CellIndex(i, j);
-      const map::Cell& cell = grid.At(index);
-      const Eigen::Vector2d xy = grid.CentreOf(index);
-      bool truly = false;
-      for (std::size_t k = 0; k < score.objects.size(); ++k) {
-        TruthObject& t = score.objects[k];
-        const double d = DistanceToFootprint(polygons[k], xy);
-        if (t.is_obstacle && d == 0.0) truly = true;
-        if (cell.lethal && (t.distance_m < 0 || d < t.distance_m)) {
-          t.distance_m = d;
-          t.obstacle_id = cell.obstacle_id;
-        }
-      }
-      both += truly && cell.lethal ? 1 : 0;
-      either += truly || cell.lethal ? 1 : 0;
-    }
-  }
-  score.iou = either > 0 ? static_cast<double>(both) / either : 0.0;
-  for (TruthObject& t : score.objects) {
-    t.found = t.distance_m >= 0.0 && t.distance_m <= tolerance_m;
-    if (t.is_obstacle) {
-      ++score.obstacles;
-      score.found += t.found ? 1 : 0;
-    } else if (t.found) {
-      ++score.marked_non_obstacles;
-    }
-  }
-  for (const map::Obstacle& o : terrain.obstacles()) {
-    bool matched = false;
-    for (const map::CellIndex& c : o.cells) {
-      for (const std::vector<cv::Point2f>& polygon : polygons) {
-        if (DistanceToFootprint(polygon, grid.CentreOf(c)) <= tolerance_m) matched = true;
-      }
-    }
-    if (!matched) {
-      ++score.false_obstacles;
-      score.false_obstacle_ids.push_back(o.id);
-    }
-  }
-  // Elevation against the true terrain, over every cell with ground points.
-  double sum2 = 0.0;
-  for (int j = 0; j < grid.extent().y(); ++j) {
-    for (int i = 0; i < grid.extent().x(); ++i) {
-      const map::CellIndex index = grid.min_index() + map::CellIndex(i, j);
-      const map::Cell& cell = grid.At(index);
-      if (!cell.has_elevation()) continue;
-      const double error =
-          cell.elevation_mean_m - world->scene.terrain().Height(grid.CentreOf(index));
-      sum2 += error * error;
-      score.elevation_max_m = std::max(score.elevation_max_m, std::abs(error));
-      ++score.elevation_cells;
-    }
-  }
-  if (score.elevation_cells > 0) score.elevation_rms_m = std::sqrt(sum2 / score.elevation_cells);
-  return score;
-#endif
+  eval::MapScoreOptions options;
+  options.found_within_m = 0.5 + terrain.grid().cell_size();  // drift of a cell or so
+  Expected<eval::MapScore> score = eval::ScoreMap(world->scene, terrain, options);
+  if (!score) return Error{"--truth: " + world_path + ": " + score.error().message};
+  return TruthScore{world_path, std::move(*score)};
 }
 
 Status WriteOverlay(const fs::path& cost_png, const fs::path& path, const map::TerrainMap& terrain,
@@ -190,12 +82,15 @@ Status WriteOverlay(const fs::path& cost_png, const fs::path& path, const map::T
     const double row = (box->max.y() + 1 - xy.y() / s) * scale;
     return cv::Point(static_cast<int>(std::lround(col)), static_cast<int>(std::lround(row)));
   };
-  if (truth != nullptr) {
-    for (const TruthObject& t : truth->objects) {
-      std::vector<cv::Point> polygon;
-      for (const Eigen::Vector2f& p : t.footprint) polygon.push_back(pixel(p.cast<double>()));
+  if (truth != nullptr) {  // the cells where an obstacle rises enough, or any object lies
+    for (const eval::MapObjectScore& t : truth->score.objects) {
       const cv::Scalar colour = t.is_obstacle ? cv::Scalar(0, 150, 0) : cv::Scalar(220, 170, 0);
-      cv::polylines(image, polygon, true, colour, 2, cv::LINE_AA);
+      for (const std::vector<Eigen::Vector2d>& outline :
+           Outline(t.is_obstacle ? t.obstacle_cells : t.cells, s)) {
+        std::vector<cv::Point> polygon;
+        for (const Eigen::Vector2d& p : outline) polygon.push_back(pixel(p));
+        cv::polylines(image, polygon, true, colour, 2, cv::LINE_AA);
+      }
     }
   }
   std::vector<cv::Point> path_px;

@@ -32,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/drift_run.hpp"  // the drive's IMU as the Mapper takes it
 #include "cairn/map/map_files.hpp"
 #include "cairn/map/mapper.hpp"
 #include "cairn/map/mapper_config_file.hpp"
@@ -41,7 +42,6 @@
 #include "cairn/sim/world.hpp"
 #include "key_bricks.hpp"  // libmap/src: the free-space key set
 #include "ray_keys.hpp"    // libmap/src: the ray walk
-#include "sim_frames.hpp"  // tests/map: the drive's IMU as the Mapper takes it
 
 namespace {
 
@@ -96,7 +96,7 @@ DriveFrames MakeDrive(const std::string& world_name, bool lidar, int count) {
     Frame f;
     f.T_world_sensor = s.T_world_sensor;
     f.stamp_s = s.stamp_s;
-    f.imu = test::BodyImuUpTo(*drive, s.stamp_s, &next_imu);
+    f.imu = eval::BodyImuUpTo(*drive, s.stamp_s, &next_imu);
     if (lidar) {
       Expected<sim::LidarScan> scan =
           sim::RenderLidar(world->scene, *world->lidar, s.T_world_sensor, s.index + 1);

@@ -760,6 +760,26 @@ TEST(EvalLabelsCli, MissingOptionsAndBadMappingAreClearErrors) {
   EXPECT_NE(output.find("--labels needs --points"), std::string::npos) << output;
 }
 
+// The map study runs on its own worlds (`cairn eval --maps`): frames or scans with it are an
+// error, and so is a source tree without its worlds (checked before any drive is mapped).
+TEST(EvalMapsCli, TheMapStudyTakesNoFramesAndNeedsItsWorlds) {
+  test::TempDir dir;
+  std::string output;
+  EXPECT_EQ(
+      RunCairn({"eval", "--maps", "--world", "w.yaml", "--report", dir.path().string()}, &output),
+      1);
+  EXPECT_NE(output.find("--maps runs the map study on its own worlds"), std::string::npos)
+      << output;
+  output.clear();
+  EXPECT_EQ(RunCairn({"eval", "--maps", "--root", dir.path().string(), "--report",
+                      (dir.path() / "out").string()},
+                     &output),
+            1);
+  EXPECT_NE(output.find((dir.path() / "config" / "default.yaml").string()), std::string::npos)
+      << output;
+  EXPECT_FALSE(fs::exists(dir.path() / "out" / "REPORT.md"));
+}
+
 #endif  // CAIRN_EXE
 
 }  // namespace

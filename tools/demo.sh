@@ -32,7 +32,7 @@ done
 echo
 echo "demo: the map is in $out_map/"
 echo "  overlay.png      the cost grid enlarged: path (blue), map obstacles (boxes, ids),"
-echo "                   true footprints (green: obstacles, cyan: not obstacles)"
+echo "                   true object cells (green: where an obstacle rises 0.15 m, cyan: not obstacles)"
 echo "  cost.png         the cost grid: white free .. orange 252 (slope, roughness), purple"
 echo "                   253 inscribed, red 254 lethal, grey 255 unknown"
 echo "  cost.yaml + cost.pgm   the same for nav2's map_server; elevation.tiff (+ .yaml)"

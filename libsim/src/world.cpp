@@ -54,6 +54,18 @@ RangeCameraSpec RangeCameraSpec::Default() {
   return spec;
 }
 
+RangeCameraSpec RangeCameraSpec::Scaled(int width) const {
+  RangeCameraSpec out = *this;
+  const double scale = static_cast<double>(width) / model.width;
+  out.model.width = width;
+  out.model.height = static_cast<int>(std::lround(model.height * scale));
+  out.model.fx *= scale;
+  out.model.fy *= scale;
+  out.model.cx = (out.model.width - 1) / 2.0;
+  out.model.cy = (out.model.height - 1) / 2.0;
+  return out;
+}
+
 Status DriveSpec::Validate() const {
   if (waypoints.size() < 2) return WorldError("waypoints", "needs at least two points");
   bool moves = false;

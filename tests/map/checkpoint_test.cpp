@@ -43,7 +43,7 @@ std::vector<test::SimFrame> DriveFrames() {
   EXPECT_TRUE(settings.ok()) << (settings ? "" : settings.error().message);
   std::vector<test::SimFrame> frames;
   if (!settings) return frames;
-  const sim::RangeCameraSpec spec = test::SmallCamera(sim::RangeCameraSpec::Default(), 120);
+  const sim::RangeCameraSpec spec = sim::RangeCameraSpec::Default().Scaled(120);
   for (int k = 0; k < 14; ++k) {
     const Eigen::Vector3d position(0.5 * k, 0.1 * k, 1.5);
     const Eigen::Isometry3d T =

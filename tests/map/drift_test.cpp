@@ -6,30 +6,47 @@
 #include <cstdio>
 #include <vector>
 
-#include "drift_run.hpp"
+#include "cairn/eval/drift_run.hpp"
+#include "cairn/od/units.hpp"
+#include "sim_frames.hpp"
 
 namespace cairn::test {
 namespace {
 
+using eval::DriftRunResult;
+using eval::DriftRunSpec;
+using eval::PoseError;
+
+// A drive through a world of datasets/worlds with the detector and rules of
+// config/default.yaml.
+DriftRunSpec Spec(const std::string& world) {
+  DriftRunSpec spec;
+  spec.world = (SourceDir() / "datasets" / "worlds" / (world + ".yaml")).string();
+  Expected<od::io::DetectSettings> settings = DefaultDetectSettings();
+  EXPECT_TRUE(settings.ok()) << settings.error().message;
+  if (settings) spec.settings = *settings;
+  return spec;
+}
+
 // Maps one run, prints its figures; the test stops on a run that fails.
 Expected<DriftRunResult> MapRun(const DriftRunSpec& spec, const char* label) {
-  Expected<DriftRunResult> r = RunDrift(spec);
+  Expected<DriftRunResult> r = eval::RunDrift(spec);
   if (!r) return r;
   std::printf(
       "%s: %d frames, %.1f m, IoU %.3f, obstacles %zu, nearest lethal max %.2f mean %.2f m, "
       "false lethal %d, elevation RMS %.3f m, final position error %.2f m, tilt error "
       "%.2f deg, refined %d\n",
-      label, r->frames, r->distance_m, r->iou, r->obstacles.size(), r->max_distance_m,
-      r->mean_distance_m, r->false_lethal, r->elevation_rms_m, r->pose_errors.back().position_m,
-      r->pose_errors.back().tilt_rad / kDriftDeg, r->refined_frames);
+      label, r->frames, r->distance_m, r->score.iou, r->obstacles.size(), r->max_distance_m,
+      r->mean_distance_m, r->score.false_lethal, r->score.elevation_rms_m,
+      r->pose_errors.back().position_m, r->pose_errors.back().tilt_rad / kDegToRad,
+      r->refined_frames);
   return r;
 }
 
 DriftRunSpec PolesAndRocks(double drift) {
-  DriftRunSpec spec;
-  spec.world = "poles_and_rocks";
+  DriftRunSpec spec = Spec("poles_and_rocks");
   spec.waypoints = {{0.0, 0.0}, {16.0, 0.0}};
-  DriftOdometryBy(spec, drift);
+  eval::DriftOdometryBy(spec, drift);
   return spec;
 }
 
@@ -43,9 +60,9 @@ TEST(TerrainMapDrift, OnePercentDriftKeepsEveryObstacleNearALethalCell) {
   ASSERT_GE(r.obstacles.size(), 5u);
   EXPECT_GT(r.pose_errors.back().position_m, 0.02);  // the odometry did drift
   EXPECT_LE(r.max_distance_m, 0.3);
-  EXPECT_LE(r.false_lethal, 5);
-  EXPECT_GE(r.iou, 0.3);
-  EXPECT_LT(r.elevation_rms_m, 0.05);
+  EXPECT_LE(r.score.false_lethal, 5);
+  EXPECT_GE(r.score.iou, 0.3);
+  EXPECT_LT(r.score.elevation_rms_m, 0.05);
 }
 
 // Errors grow with drift: the 3 % map is worse than the true-pose map, by the measures the
@@ -62,10 +79,10 @@ TEST(TerrainMapDrift, ErrorsGrowWithDrift) {
   const DriftRunResult& drifted = *drifted_run;
   ASSERT_GE(exact.obstacles.size(), 5u);
   EXPECT_GT(drifted.pose_errors.back().position_m, 0.1);
-  EXPECT_LT(drifted.iou, exact.iou);
+  EXPECT_LT(drifted.score.iou, exact.score.iou);
   EXPECT_GT(drifted.max_distance_m, exact.max_distance_m);
-  EXPECT_GT(drifted.false_lethal, exact.false_lethal);
-  EXPECT_GT(drifted.elevation_rms_m, exact.elevation_rms_m);
+  EXPECT_GT(drifted.score.false_lethal, exact.score.false_lethal);
+  EXPECT_GT(drifted.score.elevation_rms_m, exact.score.elevation_rms_m);
 }
 
 // A constant 2 deg roll and pitch IMU bias from the first frame, on the 12 deg slope. The
@@ -75,10 +92,9 @@ TEST(TerrainMapDrift, ErrorsGrowWithDrift) {
 // which the first (biased) frame built: it cannot observe a bias present from the start,
 // and it does not make the map worse in obstacles.
 TEST(TerrainMapDrift, ConstantImuBiasOnASlopeKeepsObstaclesButNotElevation) {
-  DriftRunSpec spec;
-  spec.world = "uphill_tilted";
+  DriftRunSpec spec = Spec("uphill_tilted");
   spec.waypoints = {{0.0, 0.0}, {20.0, 1.0}, {30.0, -0.5}};
-  spec.imu_bias_rad = 2.0 * kDriftDeg;
+  spec.imu_bias_rad = 2.0 * kDegToRad;
   const Expected<DriftRunResult> biased_run = MapRun(spec, "uphill_tilted, 2 deg IMU bias");
   ASSERT_TRUE(biased_run.ok()) << biased_run.error().message;
   const DriftRunResult& biased = *biased_run;
@@ -90,17 +106,17 @@ TEST(TerrainMapDrift, ConstantImuBiasOnASlopeKeepsObstaclesButNotElevation) {
   for (const DriftRunResult* r : {&biased, &refined}) {
     EXPECT_GE(r->obstacles.size(), 6u);
     EXPECT_LE(r->max_distance_m, 0.3);
-    EXPECT_EQ(r->false_lethal, 0);
-    EXPECT_GT(r->elevation_rms_m, 0.3);                          // the height drift the bias causes
-    EXPECT_GT(r->pose_errors.back().tilt_rad, 1.5 * kDriftDeg);  // not observable
+    EXPECT_EQ(r->score.false_lethal, 0);
+    EXPECT_GT(r->score.elevation_rms_m, 0.3);                    // the height drift the bias causes
+    EXPECT_GT(r->pose_errors.back().tilt_rad, 1.5 * kDegToRad);  // not observable
   }
   EXPECT_GT(refined.refined_frames, refined.frames / 2);
-  EXPECT_GE(refined.iou, biased.iou - 0.02);
+  EXPECT_GE(refined.score.iou, biased.score.iou - 0.02);
 }
 
 double MedianTiltDeg(const DriftRunResult& r, double quantile = 0.5) {
   std::vector<double> tilt;
-  for (const PoseError& e : r.pose_errors) tilt.push_back(e.tilt_rad / kDriftDeg);
+  for (const PoseError& e : r.pose_errors) tilt.push_back(e.tilt_rad / kDegToRad);
   std::sort(tilt.begin(), tilt.end());
   return tilt[std::min(tilt.size() - 1, static_cast<std::size_t>(quantile * (tilt.size() - 1) + 0.5))];
 }
@@ -109,11 +125,10 @@ double MedianTiltDeg(const DriftRunResult& r, double quantile = 0.5) {
 // poles observe gravity, so the bias present from the first frame is found and the height
 // integrated along the drive follows the true slope.
 TEST(TerrainMapDrift, TheGravityEstimatorFindsAConstantImuBiasOnASlope) {
-  DriftRunSpec spec;
-  spec.world = "uphill_tilted";
+  DriftRunSpec spec = Spec("uphill_tilted");
   spec.waypoints = {{0.0, 0.0}, {20.0, 1.0}, {30.0, -0.5}};
-  spec.imu_bias_rad = 2.0 * kDriftDeg;
-  spec.imu_sigma_rad = 0.3 * kDriftDeg;
+  spec.imu_bias_rad = 2.0 * kDegToRad;
+  spec.imu_sigma_rad = 0.3 * kDegToRad;
   spec.measure_cues = true;
   const Expected<DriftRunResult> prior_run = MapRun(spec, "uphill_tilted, 2 deg IMU bias");
   ASSERT_TRUE(prior_run.ok()) << prior_run.error().message;
@@ -123,28 +138,30 @@ TEST(TerrainMapDrift, TheGravityEstimatorFindsAConstantImuBiasOnASlope) {
   ASSERT_TRUE(gravity_run.ok()) << gravity_run.error().message;
   const DriftRunResult& prior = *prior_run;
   const DriftRunResult& gravity = *gravity_run;
-  std::printf("[ figures  ] tilt error median / 95th: prior %.2f / %.2f deg, gravity %.2f / %.2f "
-              "deg; elevation RMS prior %.3f m, gravity %.3f m\n",
-              MedianTiltDeg(prior), MedianTiltDeg(prior, 0.95), MedianTiltDeg(gravity),
-              MedianTiltDeg(gravity, 0.95), prior.elevation_rms_m, gravity.elevation_rms_m);
+  std::printf(
+      "[ figures  ] tilt error median / 95th: prior %.2f / %.2f deg, gravity %.2f / %.2f "
+      "deg; elevation RMS prior %.3f m, gravity %.3f m\n",
+      MedianTiltDeg(prior), MedianTiltDeg(prior, 0.95), MedianTiltDeg(gravity),
+      MedianTiltDeg(gravity, 0.95), prior.score.elevation_rms_m, gravity.score.elevation_rms_m);
   // The trunks and poles the detector found point up: the cues are measured above their
   // feet, so the slope under them does not tilt them.
   std::vector<double> cues = prior.cue_errors_rad;
   ASSERT_GE(cues.size(), 20u);
   std::sort(cues.begin(), cues.end());
   std::printf("[ figures  ] %zu vertical cues: median %.2f deg, 90th %.2f deg from the vertical\n",
-              cues.size(), cues[cues.size() / 2] / kDriftDeg, cues[cues.size() * 9 / 10] / kDriftDeg);
-  EXPECT_LT(cues[cues.size() / 2], 0.5 * kDriftDeg);
-  EXPECT_LT(cues[cues.size() * 9 / 10], 1.5 * kDriftDeg);
+              cues.size(), cues[cues.size() / 2] / kDegToRad,
+              cues[cues.size() * 9 / 10] / kDegToRad);
+  EXPECT_LT(cues[cues.size() / 2], 0.5 * kDegToRad);
+  EXPECT_LT(cues[cues.size() * 9 / 10], 1.5 * kDegToRad);
   EXPECT_GT(MedianTiltDeg(prior), 1.5);
   EXPECT_LT(MedianTiltDeg(gravity), 0.2);
   EXPECT_LT(MedianTiltDeg(gravity, 0.95), 0.5);
-  EXPECT_LT(gravity.elevation_rms_m, 0.05);  // the goal: 5 cm (true x, y here)
+  EXPECT_LT(gravity.score.elevation_rms_m, 0.05);  // the goal: 5 cm (true x, y here)
   EXPECT_LT(gravity.ground_height_rms_m, 0.05);
-  EXPECT_LT(gravity.elevation_rms_m, prior.elevation_rms_m / 20);
+  EXPECT_LT(gravity.score.elevation_rms_m, prior.score.elevation_rms_m / 20);
   EXPECT_GE(gravity.obstacles.size(), 6u);
   EXPECT_LE(gravity.max_distance_m, 0.3);
-  EXPECT_EQ(gravity.false_lethal, 0);
+  EXPECT_EQ(gravity.score.false_lethal, 0);
 }
 
 // The goal, on the 60 m uphill drive with a 2 deg IMU bias and 1% odometry: the
@@ -153,12 +170,11 @@ TEST(TerrainMapDrift, TheGravityEstimatorFindsAConstantImuBiasOnASlope) {
 // leaves with a perfect tilt (the floor: true roll, pitch and height, odometry x, y and
 // heading), no more.
 TEST(TerrainMapDrift, OnA60mDriveWithOnePercentOdometryTheGravityEstimatorReachesTheFloor) {
-  DriftRunSpec spec;
-  spec.world = "uphill_tilted";
+  DriftRunSpec spec = Spec("uphill_tilted");
   spec.waypoints = {{0.0, 0.0}, {20.0, 1.0}, {40.0, -2.0}, {60.0, 0.0}};
-  spec.imu_bias_rad = 2.0 * kDriftDeg;
-  spec.imu_sigma_rad = 0.3 * kDriftDeg;
-  DriftOdometryBy(spec, 0.01);
+  spec.imu_bias_rad = 2.0 * kDegToRad;
+  spec.imu_sigma_rad = 0.3 * kDegToRad;
+  eval::DriftOdometryBy(spec, 0.01);
   spec.gravity = true;
   const Expected<DriftRunResult> gravity_run = MapRun(spec, "uphill 60 m, 1% odometry, gravity");
   ASSERT_TRUE(gravity_run.ok()) << gravity_run.error().message;
@@ -168,15 +184,16 @@ TEST(TerrainMapDrift, OnA60mDriveWithOnePercentOdometryTheGravityEstimatorReache
   ASSERT_TRUE(floor_run.ok()) << floor_run.error().message;
   const DriftRunResult& gravity = *gravity_run;
   const DriftRunResult& floor = *floor_run;
-  std::printf("[ figures  ] gravity: tilt %.2f / %.2f deg, ground RMS %.3f m, elevation RMS %.3f m; "
-              "floor: elevation RMS %.3f m\n",
-              MedianTiltDeg(gravity), MedianTiltDeg(gravity, 0.95), gravity.ground_height_rms_m,
-              gravity.elevation_rms_m, floor.elevation_rms_m);
+  std::printf(
+      "[ figures  ] gravity: tilt %.2f / %.2f deg, ground RMS %.3f m, elevation RMS %.3f m; "
+      "floor: elevation RMS %.3f m\n",
+      MedianTiltDeg(gravity), MedianTiltDeg(gravity, 0.95), gravity.ground_height_rms_m,
+      gravity.score.elevation_rms_m, floor.score.elevation_rms_m);
   EXPECT_LT(MedianTiltDeg(gravity), 0.2);
   EXPECT_LT(MedianTiltDeg(gravity, 0.95), 0.5);
   EXPECT_LT(gravity.ground_height_rms_m, 0.05);
   EXPECT_LT(floor.ground_height_rms_m, 0.005);  // the floor's poses are true but for x, y, yaw
-  EXPECT_LT(gravity.elevation_rms_m, floor.elevation_rms_m + 0.02);
+  EXPECT_LT(gravity.score.elevation_rms_m, floor.score.elevation_rms_m + 0.02);
 }
 
 }  // namespace

@@ -10,10 +10,17 @@
 
 namespace cairn::test {
 
-inline Expected<map::TerrainMap> SmallMappedScene(const map::MapConfig& config = {}) {
+/// The scene: a 1 x 1 x 0.8 m box centred at (4, 0) and a pole of radius 0.1 m, 1.2 m tall,
+/// at (6, 2), on flat ground.
+inline sim::Scene SmallScene() {
   sim::Scene scene;
   scene.AddBox(4.0, 0.0, {1.0, 1.0, 0.8}, 0.0, true, "box");
   scene.AddPole(6.0, 2.0, 0.1, 1.2, true, "pole");
+  return scene;
+}
+
+inline Expected<map::TerrainMap> SmallMappedScene(const map::MapConfig& config = {}) {
+  const sim::Scene scene = SmallScene();
   Expected<od::io::DetectSettings> settings = DefaultDetectSettings();
   if (!settings) return settings.error();
   Expected<map::TerrainMap> map = map::TerrainMap::Create(config);
@@ -25,8 +32,8 @@ inline Expected<map::TerrainMap> SmallMappedScene(const map::MapConfig& config =
         sim::Camera::FromAttitude(od::PinholeModel{}, positions[k], headings_deg[k] * kDegToRad,
                                   25.0 * kDegToRad, 0.0)
             .T_world_camera;
-    Expected<SimFrame> frame = CameraFrame(scene, SmallCamera(sim::RangeCameraSpec::Default(), 160),
-                                           T, 0.5 * k, k, *settings);
+    Expected<SimFrame> frame =
+        CameraFrame(scene, sim::RangeCameraSpec::Default().Scaled(160), T, 0.5 * k, k, *settings);
     if (!frame) return frame.error();
     if (Expected<map::FrameSummary> s = frame->IntegrateInto(*map); !s) return s.error();
   }

@@ -51,7 +51,7 @@ std::vector<InputFrame> Drive(double bias_rad) {
   scene.AddBox(4.0, 0.5, {1.0, 1.0, 0.8}, 0.3, true, "box");
   scene.AddPole(6.0, 2.0, 0.1, 1.2, true, "pole");
   scene.AddBox(8.5, -1.5, {0.6, 0.8, 0.5}, 0.0, true, "rock");
-  const sim::RangeCameraSpec spec = test::SmallCamera(sim::RangeCameraSpec::Default(), 120);
+  const sim::RangeCameraSpec spec = sim::RangeCameraSpec::Default().Scaled(120);
   std::vector<InputFrame> frames;
   for (int k = 0; k < 12; ++k) {
     const double x = 0.5 * k, y = 0.05 * k;

@@ -12,7 +12,6 @@
 #include <string>
 #include <vector>
 
-#include "cairn/map/imu.hpp"
 #include "cairn/map/mapper_config_file.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/od/detector.hpp"
@@ -27,24 +26,6 @@
 namespace cairn::test {
 
 inline std::filesystem::path SourceDir() { return CAIRN_SOURCE_DIR; }
-
-/// The drive's raw IMU readings from drive.imu[*next] up to the stamp `up_to_s`, rotated into
-/// the body frame as the Mapper takes them; *next moves past them (start it at 0 and call
-/// once per frame for the samples since the previous frame).
-inline std::vector<map::ImuSample> BodyImuUpTo(const sim::Drive& drive, double up_to_s,
-                                               std::size_t* next) {
-  std::vector<map::ImuSample> out;
-  for (; *next < drive.imu.size() && drive.imu[*next].stamp_s <= up_to_s; ++*next) {
-    const sim::ImuReading& reading = drive.imu[*next];
-    map::ImuSample sample;
-    sample.stamp_s = reading.stamp_s;
-    sample.specific_force_mps2 = drive.R_body_imu * reading.specific_force_mps2;
-    sample.angular_rate_radps = drive.R_body_imu * reading.angular_rate_radps;
-    sample.has_raw = true;
-    out.push_back(sample);
-  }
-  return out;
-}
 
 /// config/default.yaml's detector and rules (one worker thread: tests run side by side).
 inline Expected<od::io::DetectSettings> DefaultDetectSettings() {
@@ -126,19 +107,6 @@ inline Expected<SimFrame> LidarFrame(const sim::Scene& scene, const sim::LidarSp
   return Detected(std::move(*image), std::move(ids), T_world_sensor, stamp_s, id, settings);
 }
 
-/// The gallery camera at a smaller size (same field of view), for fast tests.
-inline sim::RangeCameraSpec SmallCamera(const sim::RangeCameraSpec& spec, int width) {
-  sim::RangeCameraSpec out = spec;
-  const double scale = static_cast<double>(width) / spec.model.width;
-  out.model.width = width;
-  out.model.height = static_cast<int>(std::lround(spec.model.height * scale));
-  out.model.fx *= scale;
-  out.model.fy *= scale;
-  out.model.cx = (out.model.width - 1) / 2.0;
-  out.model.cy = (out.model.height - 1) / 2.0;
-  return out;
-}
-
 /// A noiseless drive along `waypoints` over `terrain` (true poses; odometry unused).
 inline Expected<sim::Drive> TrueDrive(const sim::Terrain& terrain,
                                       std::vector<Eigen::Vector2d> waypoints, double speed_mps,
@@ -152,61 +120,6 @@ inline Expected<sim::Drive> TrueDrive(const sim::Terrain& terrain,
   spec.odom_sigma_per_m = spec.odom_yaw_sigma_rad_per_m = 0.0;
   spec.imu_sigma_rad = spec.imu_bias_rad = 0.0;
   return sim::SimulateDrive(terrain, spec, sensor, 1);
-}
-
-/// Map cells as (x, y) cell indices.
-using CellSet = std::set<std::pair<int, int>>;
-
-/// For every object, its cells (among the observed cells of the map) and how high it rises
-/// there above the terrain, seen from above: 4 x 4 vertical rays per observed cell, cast down
-/// through the scene with libsim's ray caster (objects stand less than 6 m tall).
-inline std::map<int, std::map<std::pair<int, int>, double>> ObjectCells(
-    const sim::Scene& scene, const map::TerrainGrid& grid, const map::CellBox& box) {
-  const sim::RayCaster caster(scene);
-  sim::RenderOptions options;
-  options.max_range_m = 12.0;
-  std::map<int, std::map<std::pair<int, int>, double>> cells;
-  const double s = grid.cell_size();
-  for (int j = box.min.y(); j <= box.max.y(); ++j) {
-    for (int i = box.min.x(); i <= box.max.x(); ++i) {
-      if (!grid.At({i, j}).observed) continue;
-      for (int k = 0; k < 16; ++k) {
-        const double x = (i + (k % 4 + 0.5) / 4.0) * s, y = (j + (k / 4 + 0.5) / 4.0) * s;
-        const double ground = scene.terrain().Height(x, y);
-        const sim::Ray ray{{x, y, ground + 6.0}, {0.0, 0.0, -1.0}};
-        const std::optional<sim::RayHit> hit = caster.Cast(ray, options);
-        if (!hit || hit->id <= 0) continue;
-        double& height = cells[hit->id][{i, j}];
-        height = std::max(height, ray.At(hit->t).z() - ground);
-      }
-    }
-  }
-  return cells;
-}
-
-/// The truth a map is scored against: per obstacle its cells where it rises 0.15 m
-/// (obstacle_min_height) or more, all those cells, and the cells within 3 of any object
-/// (left out of the elevation's error).
-struct TrueCells {
-  std::map<int, CellSet> obstacles;
-  CellSet all;
-  CellSet near_object;
-};
-
-inline TrueCells TrueCellsOf(const sim::Scene& scene, const map::TerrainGrid& grid,
-                             const map::CellBox& box) {
-  TrueCells out;
-  for (const auto& [id, cells] : ObjectCells(scene, grid, box)) {
-    for (const auto& [c, height] : cells) {
-      for (int dj = -3; dj <= 3; ++dj) {
-        for (int di = -3; di <= 3; ++di) out.near_object.insert({c.first + di, c.second + dj});
-      }
-      if (height < 0.15 || !scene.Find(id)->is_obstacle) continue;
-      out.obstacles[id].insert(c);
-      out.all.insert(c);
-    }
-  }
-  return out;
 }
 
 }  // namespace cairn::test

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/map_score.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/sim/render.hpp"
@@ -43,7 +44,7 @@ DriveRun Drive(const sim::World& world, const std::vector<std::vector<Eigen::Vec
   const Expected<od::io::DetectSettings> settings = test::DefaultDetectSettings();
   EXPECT_TRUE(settings.ok());
   if (!settings) return run;
-  const sim::RangeCameraSpec camera = test::SmallCamera(world.camera, 160);
+  const sim::RangeCameraSpec camera = world.camera.Scaled(160);
   for (const std::vector<Eigen::Vector2d>& waypoints : passes) {
     const Expected<sim::Drive> drive =
         test::TrueDrive(world.scene.terrain(), waypoints, 2.0, rate_hz, 8.0 * kDegToRad,
@@ -76,9 +77,7 @@ DriveRun Drive(const sim::World& world, const std::vector<std::vector<Eigen::Vec
   return run;
 }
 
-using test::CellSet;
-
-double Distance(const std::pair<int, int>& a, const std::pair<int, int>& b, double s) {
+double Distance(const eval::MapCell& a, const eval::MapCell& b, double s) {
   return std::hypot(a.first - b.first, a.second - b.second) * s;
 }
 
@@ -99,49 +98,32 @@ struct Scores {
 
 Scores Score(const sim::World& world, const DriveRun& run, const std::string& label) {
   const TerrainMap& map = run.map;
-  const TerrainGrid& grid = map.grid();
-  const double s = grid.cell_size();
+  const double s = map.grid().cell_size();
   Scores out;
-  const std::optional<CellBox> box = map.ObservedBounds();
-  EXPECT_TRUE(box.has_value());
-  if (!box) return out;
-  // True obstacle cells: where an obstacle rises 0.15 m (obstacle_min_height) or more.
-  const test::TrueCells true_cells = test::TrueCellsOf(world.scene, grid, *box);
-  const std::map<int, CellSet>& objects = true_cells.obstacles;
-  const CellSet& truth = true_cells.all;  // observed: only observed cells were sampled
-  const CellSet& near_object = true_cells.near_object;
-  CellSet lethal;
-  for (int j = box->min.y(); j <= box->max.y(); ++j) {
-    for (int i = box->min.x(); i <= box->max.x(); ++i) {
-      if (grid.At({i, j}).lethal) lethal.insert({i, j});
-    }
-  }
-  int both = 0;
-  for (const auto& c : lethal) both += truth.count(c);
-  out.lethal = static_cast<int>(lethal.size());
-  out.truth = static_cast<int>(truth.size());
-  out.iou = both / static_cast<double>(lethal.size() + truth.size() - both);
-  for (const auto& c : lethal) {
-    double nearest = 1e9;
-    for (const auto& t : truth) nearest = std::min(nearest, Distance(c, t, s));
-    out.far_lethal += nearest > 0.5;
-  }
-  // Each obstacle seen well (30 pixels in a frame at least): its distance to a lethal cell.
+  // The one scorer: true obstacle cells where an obstacle rises 0.15 m or more.
+  const Expected<eval::MapScore> score = eval::ScoreMap(world.scene, map);
+  EXPECT_TRUE(score.ok()) << score.error().message;
+  if (!score) return out;
+  out.lethal = static_cast<int>(score->lethal_cells.size());
+  out.truth = static_cast<int>(score->obstacle_cells.size());
+  out.iou = score->iou;
+  out.far_lethal = score->false_lethal;
+  out.elevation_rms = score->elevation_rms_m;
+  out.elevation_cells = score->elevation_cells;
+  // Each obstacle seen well (30 pixels in a frame at least): its distance to a lethal cell,
+  // and the persistent obstacles on it.
   std::printf("%s: per obstacle (pixels, distance to nearest lethal cell [m]):", label.c_str());
-  for (const auto& [id, cells] : objects) {
-    const sim::Object* object = world.scene.Find(id);
-    const auto seen = run.pixels_seen.find(id);
-    if (!object->is_obstacle || seen == run.pixels_seen.end() || seen->second < 30) continue;
-    double nearest = 1e9;
-    for (const auto& c : cells) {
-      for (const auto& l : lethal) nearest = std::min(nearest, Distance(c, l, s));
-    }
-    std::printf(" %s %d %.2f;", object->name.c_str(), seen->second, nearest);
-    std::vector<int>& ids = out.persistent_of[id];
+  for (const eval::MapObjectScore& object : score->objects) {
+    const auto seen = run.pixels_seen.find(object.id);
+    if (!object.scored() || seen == run.pixels_seen.end() || seen->second < 30) continue;
+    std::printf(" %s %d %.2f;", object.name.c_str(), seen->second, object.nearest_lethal_m);
+    std::vector<int>& ids = out.persistent_of[object.id];
     for (const Obstacle& o : map.obstacles()) {
       bool touches = false;
       for (const CellIndex& oc : o.cells) {
-        for (const auto& c : cells) touches = touches || Distance({oc.x(), oc.y()}, c, s) < 0.3;
+        for (const auto& c : object.obstacle_cells) {
+          touches = touches || Distance({oc.x(), oc.y()}, c, s) < 0.3;
+        }
       }
       if (touches) ids.push_back(o.id);
     }
@@ -149,32 +131,19 @@ Scores Score(const sim::World& world, const DriveRun& run, const std::string& la
     out.most_per_object = out.seen == 0 ? n : std::max(out.most_per_object, n);
     out.least_per_object = out.seen == 0 ? n : std::min(out.least_per_object, n);
     ++out.seen;
-    out.found += nearest <= 0.3;
-    out.worst_distance = std::max(out.worst_distance, nearest);
+    out.found += object.found ? 1 : 0;
+    out.worst_distance = std::max(out.worst_distance, object.nearest_lethal_m);
   }
   std::printf("\n");
   for (const Obstacle& o : map.obstacles()) {
     bool matched = false;
     for (const CellIndex& oc : o.cells) {
-      for (const auto& t : truth)
+      for (const auto& t : score->obstacle_cells) {
         matched = matched || Distance({oc.x(), oc.y()}, t, s) < 0.3;
+      }
     }
     out.unmatched += !matched;
   }
-  // Elevation against the terrain, away from every object (a cell and its neighbours).
-  double sum2 = 0.0;
-  for (int j = box->min.y(); j <= box->max.y(); ++j) {
-    for (int i = box->min.x(); i <= box->max.x(); ++i) {
-      const Cell& cell = grid.At({i, j});
-      if (!cell.has_elevation()) continue;
-      if (near_object.count({i, j}) != 0) continue;
-      const Eigen::Vector2d c = grid.CentreOf({i, j});
-      const double e = cell.elevation_mean_m - world.scene.terrain().Height(c.x(), c.y());
-      sum2 += e * e;
-      ++out.elevation_cells;
-    }
-  }
-  out.elevation_rms = std::sqrt(sum2 / std::max(1, out.elevation_cells));
   std::printf(
       "%s: %d frames, IoU %.3f (lethal %d, true %d), lethal cells > 0.5 m from any obstacle "
       "%d, obstacles found %d/%d, worst distance %.2f m, elevation RMS %.3f m over %d cells, "

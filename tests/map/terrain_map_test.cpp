@@ -34,7 +34,7 @@ Eigen::Isometry3d CameraPose(const Eigen::Vector3d& position, double heading_deg
 }
 
 sim::RangeCameraSpec Camera(int width = 160) {
-  return test::SmallCamera(sim::RangeCameraSpec::Default(), width);
+  return sim::RangeCameraSpec::Default().Scaled(width);
 }
 
 od::io::DetectSettings Settings() {

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <random>
 
+#include "cairn/eval/drift_run.hpp"
 #include "cairn/od/units.hpp"
 
 namespace cairn::map {
@@ -72,13 +73,7 @@ Eigen::Isometry3d Perturbed(const Eigen::Isometry3d& T, double roll_rad, double 
   return P;
 }
 
-/// The angle between the up vectors (gravity) the two attitudes give in the sensor frame: the
-/// tilt error. (Yaw is not observable from heights and is left out.)
-double TiltBetween(const Eigen::Matrix3d& R_world_a, const Eigen::Matrix3d& R_world_b) {
-  const Eigen::Vector3d up_a = R_world_a.transpose() * Eigen::Vector3d::UnitZ();
-  const Eigen::Vector3d up_b = R_world_b.transpose() * Eigen::Vector3d::UnitZ();
-  return std::atan2(up_a.cross(up_b).norm(), up_a.dot(up_b));
-}
+using eval::TiltBetween;  // the tilt error (yaw is not observable from heights)
 
 TEST(TiltRefiner, RecoversTheAttitudeErrorOnSlopedUndulatingGround) {
   const Eigen::Isometry3d truth = TruePose();

@@ -48,6 +48,8 @@ struct RangeCameraSpec {
   Status Validate() const;
   /// The gallery's camera: 320 x 240, fx = fy = 260 px (63 deg across), centred, no noise.
   static RangeCameraSpec Default();
+  /// The same field of view at `width` pixels across (height, fx and fy scaled, centred).
+  RangeCameraSpec Scaled(int width) const;
 };
 
 /// Applies stereo-like noise to a clean rendered frame, in this order: mixed pixels at depth

@@ -1,0 +1,262 @@
+// The tilt study of the map report: each frame fused at the tilt of the odometry prior, the
+// frame-to-map refiner or the gravity estimator, per error source, on three worlds.
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <set>
+
+#include "cairn/od/units.hpp"
+#include "cairn/util/format.hpp"
+#include "map_study_parts.hpp"
+
+namespace cairn::eval::study {
+namespace {
+
+using util::Fixed;
+
+struct TiltSource {
+  std::string label;
+  DriftRunSpec spec;  // errors only
+  int seeds = 1;
+};
+
+std::vector<TiltSource> TiltSources() {
+  std::vector<TiltSource> out;
+  for (const double bias_deg : {0.0, 1.0, 2.0, 3.0}) {
+    TiltSource t{"attitude bias " + Fixed(bias_deg, 0) + " deg", {}, 1};
+    t.spec.imu_bias_rad = bias_deg * kDegToRad;
+    out.push_back(t);
+  }
+  TiltSource accel{"bias 2 deg + accelerometer bias 0.1 m/s^2", {}, 1};
+  accel.spec.imu_bias_rad = 2.0 * kDegToRad;
+  accel.spec.imu.accel_bias_mps2 = Eigen::Vector3d(0.1, -0.1, 0.05);
+  out.push_back(accel);
+  TiltSource gyro{"bias 2 deg + gyro drift 0.2 deg/s", {}, 1};
+  gyro.spec.imu_bias_rad = 2.0 * kDegToRad;
+  gyro.spec.imu.gyro_bias_radps = Eigen::Vector3d(0.2, -0.2, 0.1) * kDegToRad;
+  out.push_back(gyro);
+  // About the camera's x axis (optical frame: x right), i.e. the camera pitched 2.5 deg
+  // more than the mount says.
+  TiltSource mount{"mount misaligned 2.5 deg (pitch)", {}, 1};
+  mount.spec.sensor_misalignment_rad = Eigen::Vector3d(2.5 * kDegToRad, 0.0, 0.0);
+  out.push_back(mount);
+  for (const double drift : {0.01, 0.03}) {
+    TiltSource t{"bias 2 deg + odometry " + Fixed(drift * 100, 0) + "%", {}, 3};
+    t.spec.imu_bias_rad = 2.0 * kDegToRad;
+    DriftOdometryBy(t.spec, drift);
+    out.push_back(t);
+  }
+  for (TiltSource& t : out) t.spec.imu_sigma_rad = 0.3 * kDegToRad;
+  return out;
+}
+
+// "floor" is no mode of the Mapper: the true roll, pitch and height with the odometry's x, y
+// and heading (DriftRunSpec::truth_tilt_height), what every mode would reach with a perfect
+// tilt; it is run where the odometry drifts.
+const char* const kTiltModes[] = {"prior", "refine_to_map", "gravity", "floor"};
+
+// Mean |cost - cost at the true poses| over the cells both maps know, and the cells lethal
+// here but free (below lethal) at the true poses.
+std::pair<double, int> CostError(const DriftRunResult& r, const DriftRunResult& truth) {
+  const std::optional<map::CellBox> box = truth.map().ObservedBounds();
+  if (!box) return {0.0, 0};
+  double sum = 0.0;
+  int n = 0, false_lethal = 0;
+  for (int j = box->min.y(); j <= box->max.y(); ++j) {
+    for (int i = box->min.x(); i <= box->max.x(); ++i) {
+      const map::Cell& t = truth.map().grid().At({i, j});
+      const map::Cell& c = r.map().grid().At({i, j});
+      if (t.cost == map::kUnknownCost || c.cost == map::kUnknownCost) continue;
+      sum += std::abs(static_cast<int>(c.cost) - static_cast<int>(t.cost));
+      ++n;
+      false_lethal += c.lethal && !t.lethal;
+    }
+  }
+  return {n > 0 ? sum / n : 0.0, false_lethal};
+}
+
+struct TiltWorld {
+  std::string label, world;
+  std::vector<Eigen::Vector2d> waypoints;
+};
+
+const std::vector<TiltWorld>& TiltWorlds() {
+  static const std::vector<TiltWorld> worlds = {
+      {"uphill_tilted, 60 m",
+       "uphill_tilted",
+       {{0.0, 0.0}, {20.0, 1.0}, {40.0, -2.0}, {60.0, 0.0}}},
+      {"hill (hill_drive), 36 m",
+       "datasets/sequences/hill_drive/world.yaml",
+       {{0.0, 0.0}, {12.0, 1.0}, {24.0, -1.0}, {36.0, 1.0}}},
+      {"open field (no structure), 60 m",
+       "datasets/maps/worlds/open_field.yaml",
+       {{0.0, 0.0}, {20.0, 1.0}, {40.0, -2.0}, {60.0, 0.0}}},
+  };
+  return worlds;
+}
+
+/// One drive of the study: a world, an error source, a mode and a seed.
+struct TiltDrive {
+  int world = 0, source = 0, mode = 0, seed = 1;
+};
+
+std::vector<TiltDrive> TiltDrivesInOrder() {
+  std::vector<TiltDrive> out;
+  const std::vector<TiltSource> sources = TiltSources();
+  for (int w = 0; w < static_cast<int>(TiltWorlds().size()); ++w) {
+    for (int s = 0; s < static_cast<int>(sources.size()); ++s) {
+      for (int m = 0; m < 4; ++m) {
+        const bool floor = m == 3;
+        if (floor && sources[s].spec.odom_sigma_per_m == 0.0) continue;
+        for (int k = 1; k <= sources[s].seeds; ++k) out.push_back({w, s, m, k});
+      }
+    }
+  }
+  return out;
+}
+
+/// What one drive adds to the report.
+struct TiltOutcome {
+  std::vector<double> tilt_deg;
+  double elevation_rms_m = 0.0, ground_rms_m = 0.0, cost_error = 0.0;
+  int lethal_more = 0, degenerate_frames = 0, frames = 0;
+  std::vector<std::string> last_flags;
+};
+
+}  // namespace
+
+int TiltStudyDrives() { return static_cast<int>(TiltWorlds().size() + TiltDrivesInOrder().size()); }
+
+Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstream& md,
+                 std::ostringstream& csv) {
+  const std::vector<TiltWorld>& worlds = TiltWorlds();
+  const std::vector<TiltSource> sources = TiltSources();
+  // The maps at the true poses, which the cost error is measured against.
+  std::vector<std::optional<DriftRunResult>> truths(worlds.size());
+  Status st = drives.Run(static_cast<int>(worlds.size()), [&](int w) -> Expected<std::string> {
+    DriftRunSpec spec;
+    spec.world = WorldFile(options, worlds[w].world);
+    spec.settings = options.settings;
+    spec.waypoints = worlds[w].waypoints;
+    spec.true_poses = true;
+    Expected<DriftRunResult> r = RunDrift(spec);
+    if (!r) return Error{worlds[w].label + ", true poses: " + r.error().message};
+    truths[w].emplace(std::move(*r));
+    return worlds[w].label + ", true poses";
+  });
+  if (!st) return st;
+  const std::vector<TiltDrive> order = TiltDrivesInOrder();
+  std::vector<TiltOutcome> outcomes(order.size());
+  st = drives.Run(static_cast<int>(order.size()), [&](int k) -> Expected<std::string> {
+    const TiltDrive& d = order[k];
+    const TiltWorld& world = worlds[d.world];
+    const std::string mode = kTiltModes[d.mode];
+    DriftRunSpec spec = sources[d.source].spec;
+    spec.world = WorldFile(options, world.world);
+    spec.settings = options.settings;
+    spec.waypoints = world.waypoints;
+    spec.drive_seed = static_cast<std::uint64_t>(d.seed);
+    spec.refine_tilt = mode == "refine_to_map";
+    spec.gravity = mode == "gravity";
+    spec.truth_tilt_height = mode == "floor";
+    Expected<DriftRunResult> r = RunDrift(spec);
+    if (!r) {
+      return Error{world.label + ", " + sources[d.source].label + ", " + mode + ": " +
+                   r.error().message};
+    }
+    TiltOutcome& o = outcomes[k];
+    for (const PoseError& e : r->pose_errors) o.tilt_deg.push_back(e.tilt_rad / kDegToRad);
+    std::tie(o.cost_error, o.lethal_more) = CostError(*r, *truths[d.world]);
+    o.elevation_rms_m = r->score.elevation_rms_m;
+    o.ground_rms_m = r->ground_height_rms_m;
+    o.degenerate_frames = r->degenerate_frames;
+    o.frames = r->frames;
+    o.last_flags = r->last_degeneracies;
+    return world.label + ", " + sources[d.source].label + ", " + mode + ", seed " +
+           std::to_string(d.seed) + ": tilt " + Fixed(Quantile(o.tilt_deg, 0.5), 2) + " / " +
+           Fixed(Quantile(o.tilt_deg, 0.95), 2) + " deg, elevation RMS " +
+           Fixed(o.elevation_rms_m, 3) + " m, ground RMS " + Fixed(o.ground_rms_m, 3) + " m";
+  });
+  if (!st) return st;
+
+  csv << "world,error_source,mode,seed,frames,tilt_median_deg,tilt_p95_deg,elevation_rms_m,"
+         "ground_height_rms_m,cost_error,false_lethal_vs_truth,degenerate_frames,last_flags\n";
+  md << "## Tilt: the odometry prior, the frame-to-map refiner and the gravity estimator\n\n"
+     << "Each frame is fused at the tilt one of three modes gives (`tilt.mode`, "
+     << "`cairn map --tilt`): `prior` (the odometry pose: roll and pitch from the IMU's "
+     << "attitude output, height dead-reckoned from it), `refine_to_map` (Ceres against the "
+     << "terrain fused so far) and `gravity` (`map::GravityEstimator` over a 12-frame window: "
+     << "the raw accelerometer and gyro at 100 Hz, the odometry, the IMU attitude as a prior, "
+     << "and the trunks, poles and walls the detector found, `map/gravity_cues.hpp`). The "
+     << "error sources are set one at a time on top of the IMU attitude noise (0.3 deg); "
+     << "`tilt` is the angle between the fused and the true up vector of the sensor over "
+     << "every frame of every drive (median and 95th percentile), `cost err` the mean "
+     << "absolute difference of the cost grid from the one fused at the true poses (nav2 "
+     << "values 0-254, cells both know), `lethal+` the cells lethal here but not at the true "
+     << "poses, `flagged` the frames where the estimator said a state was not observable.\n\n"
+     << "Two elevation errors: `elevation RMS` compares the grid with the true terrain at the "
+     << "same x, y, so it also holds the odometry's horizontal drift, which no tilt corrects "
+     << "(x, y and heading come from the odometry in every mode); `ground RMS` is the height "
+     << "at which each frame's terrain returns within the map's range were fused against the "
+     << "true terrain under their true position: the error the fused tilt and height put into "
+     << "the map. Where the odometry drifts, `floor` fuses the true roll, pitch and height with "
+     << "the odometry's x, y and heading: the elevation RMS a perfect tilt would leave.\n\n";
+  std::size_t next = 0;  // outcomes are in the order of these loops
+  for (std::size_t w = 0; w < worlds.size(); ++w) {
+    const TiltWorld& world = worlds[w];
+    md << "### " << world.label << "\n\n"
+       << "| error source | mode | drives | tilt median [deg] | tilt 95th [deg] | elevation RMS "
+          "[m] "
+          "| ground RMS [m] | cost err | lethal+ | flagged |\n"
+       << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
+    std::set<std::string> flags;
+    for (const TiltSource& source : sources) {
+      for (const char* mode : kTiltModes) {
+        if (std::string(mode) == "floor" && source.spec.odom_sigma_per_m == 0.0) continue;
+        std::vector<double> tilt_deg;
+        double rms = 0.0, ground = 0.0, cost = 0.0;
+        int lethal_more = 0, flagged = 0, frames = 0;
+        for (int k = 0; k < source.seeds; ++k) {
+          const TiltOutcome& o = outcomes[next++];
+          tilt_deg.insert(tilt_deg.end(), o.tilt_deg.begin(), o.tilt_deg.end());
+          rms += o.elevation_rms_m;
+          ground += o.ground_rms_m;
+          cost += o.cost_error;
+          lethal_more += o.lethal_more;
+          flagged += o.degenerate_frames;
+          frames += o.frames;
+          for (const std::string& f : o.last_flags) flags.insert(f.substr(0, f.find(':')));
+          std::string last;
+          for (const std::string& f : o.last_flags) last += (last.empty() ? "" : " | ") + f;
+          csv << world.world << "," << source.label << "," << mode << "," << k + 1 << ","
+              << o.frames << "," << Fixed(Quantile(o.tilt_deg, 0.5), 3) << ","
+              << Fixed(Quantile(o.tilt_deg, 0.95), 3) << "," << Fixed(o.elevation_rms_m, 4) << ","
+              << Fixed(o.ground_rms_m, 4) << "," << Fixed(o.cost_error, 2) << "," << o.lethal_more
+              << "," << o.degenerate_frames << ",\"" << last << "\"\n";
+        }
+        const int n = source.seeds;
+        md << "| " << source.label << " | " << mode << " | " << n << " | "
+           << Fixed(Quantile(tilt_deg, 0.5), 2) << " | " << Fixed(Quantile(tilt_deg, 0.95), 2)
+           << " | " << Fixed(rms / n, 3) << " | " << Fixed(ground / n, 3) << " | "
+           << Fixed(cost / n, 1) << " | " << Fixed(static_cast<double>(lethal_more) / n, 1) << " | "
+           << (std::string(mode) == "gravity"
+                   ? std::to_string(flagged) + "/" + std::to_string(frames)
+                   : std::string("-"))
+           << " |\n";
+      }
+    }
+    md << "\n";
+    if (!flags.empty()) {
+      md << "States the estimator flagged at the end of some drive here: ";
+      bool first = true;
+      for (const std::string& f : flags) {
+        md << (first ? "" : "; ") << f;
+        first = false;
+      }
+      md << ".\n\n";
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace cairn::eval::study
