@@ -82,20 +82,20 @@ using Options = DetectOptions;
 Expected<LoadedScan> LoadScan(const DetectOptions& options) {
   Expected<Eigen::Vector3d> up = ParseUpVector(options.up);
   if (!up) return up.error();
-  io::LayoutOptions layout_options;
+  od::LayoutOptions layout_options;
   layout_options.columns = options.columns;
-  layout_options.organised = options.organised == "yes"  ? io::OrganisedMode::kYes
-                             : options.organised == "no" ? io::OrganisedMode::kNo
-                                                         : io::OrganisedMode::kAuto;
+  layout_options.organised = options.organised == "yes"  ? od::OrganisedMode::kYes
+                             : options.organised == "no" ? od::OrganisedMode::kNo
+                                                         : od::OrganisedMode::kAuto;
   if (!options.sensor.empty()) {
     Expected<od::SphericalModel> preset =
         od::SphericalModel::Preset(options.sensor, options.columns);
     if (!preset) return Error{"--sensor: " + preset.error().message};
     layout_options.preset = *preset;
   }
-  Expected<io::PointCloud> cloud = io::ReadPointFile(options.points);
+  Expected<od::PointCloud> cloud = io::ReadPointFile(options.points);
   if (!cloud) return cloud.error();
-  Expected<io::PlacedScan> placed = io::PlaceScan(*cloud, layout_options, *up, options.points);
+  Expected<od::PlacedScan> placed = od::PlaceScan(*cloud, layout_options, *up, options.points);
   if (!placed) return placed.error();
   return LoadedScan{std::move(*cloud), std::move(placed->layout), std::move(placed->image)};
 }
@@ -119,8 +119,8 @@ int RunDetectPoints(const DetectOptions& options) {
   if (!settings) return DetectFail(settings.error().message);
   Expected<LoadedScan> scan = LoadScan(options);
   if (!scan) return DetectFail(scan.error().message);
-  const io::PointCloud* cloud = &scan->cloud;
-  const io::FoundLayout* layout = &scan->layout;
+  const od::PointCloud* cloud = &scan->cloud;
+  const od::FoundLayout* layout = &scan->layout;
   const od::RangeImage* image = &scan->image;
 
   Expected<DetectResult> result = DetectAndClassify(*image, *settings, options);
@@ -128,7 +128,7 @@ int RunDetectPoints(const DetectOptions& options) {
   const od::Detection& d = result->detection;
 
   const std::string rings = std::to_string(image->height()) + " rings (" +
-                            io::RingSourceName(layout->source) + ") x " +
+                            od::RingSourceName(layout->source) + ") x " +
                             std::to_string(image->width()) + " columns";
   io::RunDescription run;
   run.method = options.method;

@@ -79,8 +79,8 @@ Expected<DetectResult> DetectAndClassify(const od::RangeImage& image,
 /// A LiDAR scan read and placed in its range image (--points, --sensor, --organised,
 /// --columns, --up of `options`).
 struct LoadedScan {
-  od::io::PointCloud cloud;
-  od::io::FoundLayout layout;
+  od::PointCloud cloud;
+  od::FoundLayout layout;
   od::RangeImage image;
 };
 Expected<LoadedScan> LoadScan(const DetectOptions& options);

@@ -69,20 +69,20 @@ std::string SummaryCsv(const std::vector<FrameSummary>& rows) {
 
 // The single-scan path on one frame; fills `row`, returns an error message or "".
 std::string DetectFrame(const io::KittiFrame& frame, const io::DetectSettings& settings,
-                        const io::LayoutOptions& layout_options, const Eigen::Vector3d& up,
+                        const od::LayoutOptions& layout_options, const Eigen::Vector3d& up,
                         const DetectOptions& options, FrameSummary& row) {
   const DetectClock::time_point start = DetectClock::now();
-  Expected<io::PointCloud> cloud = io::ReadKittiBin(frame.scan);
+  Expected<od::PointCloud> cloud = io::ReadKittiBin(frame.scan);
   if (!cloud) return cloud.error().message;
   row.points = cloud->points.size();
-  Expected<io::FoundLayout> layout = io::FindLayout(*cloud, layout_options, frame.scan.string());
+  Expected<od::FoundLayout> layout = od::FindLayout(*cloud, layout_options, frame.scan.string());
   if (!layout) return layout.error().message;
   Expected<od::RangeImage> image =
       od::RangeImage::FromPoints(cloud->points, layout->model, up, layout->rows, layout->cols);
   if (!image) return frame.scan.string() + ": " + image.error().message;
   row.rings = image->height();
   row.columns = image->width();
-  row.ring_source = io::RingSourceName(layout->source);
+  row.ring_source = od::RingSourceName(layout->source);
   Expected<DetectResult> result = DetectAndClassify(*image, settings, options);
   if (!result) return result.error().message;
   row.detect_ms = result->detect_ms;
@@ -121,11 +121,11 @@ int RunDetectKitti(const DetectOptions& options) {
   if (!settings) return DetectFail(settings.error().message);
   Expected<Eigen::Vector3d> up = ParseUpVector(options.up);
   if (!up) return DetectFail(up.error().message);
-  io::LayoutOptions layout_options;
+  od::LayoutOptions layout_options;
   layout_options.columns = options.columns;
-  layout_options.organised = options.organised == "yes"  ? io::OrganisedMode::kYes
-                             : options.organised == "no" ? io::OrganisedMode::kNo
-                                                         : io::OrganisedMode::kAuto;
+  layout_options.organised = options.organised == "yes"  ? od::OrganisedMode::kYes
+                             : options.organised == "no" ? od::OrganisedMode::kNo
+                                                         : od::OrganisedMode::kAuto;
   if (!options.sensor.empty()) {
     Expected<od::SphericalModel> preset =
         od::SphericalModel::Preset(options.sensor, options.columns);

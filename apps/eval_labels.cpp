@@ -112,9 +112,9 @@ int RunLabelEval(const EvalOptions& o) {
   const int columns = o.columns > 0 ? o.columns : DefaultColumns(o.sensor);
   Expected<od::SphericalModel> preset = od::SphericalModel::Preset(o.sensor, columns);
   if (!preset) return Fail("--sensor: " + preset.error().message);
-  const od::io::OrganisedMode mode = o.organised == "yes"  ? od::io::OrganisedMode::kYes
-                                     : o.organised == "no" ? od::io::OrganisedMode::kNo
-                                                           : od::io::OrganisedMode::kAuto;
+  const od::OrganisedMode mode = o.organised == "yes"  ? od::OrganisedMode::kYes
+                                 : o.organised == "no" ? od::OrganisedMode::kNo
+                                                       : od::OrganisedMode::kAuto;
   Expected<ev::LabelFrame> frame = ev::LoadLabelFrame(o.points, o.labels, *preset, mode, *up);
   if (!frame) return Fail(frame.error().message);
   const od::RangeImage& image = frame->image;

@@ -70,21 +70,21 @@ Expected<od::io::DetectSettings> Settings(const std::string& config) {
 
 Expected<Frame> LidarFrame(const std::string& name, const std::string& path,
                            const std::string& sensor, const std::string& config) {
-  Expected<od::io::PointCloud> cloud = od::io::ReadPointFile(path);
+  Expected<od::PointCloud> cloud = od::io::ReadPointFile(path);
   if (!cloud) return cloud.error();
-  od::io::LayoutOptions options;
+  od::LayoutOptions options;
   Expected<od::SphericalModel> preset = od::SphericalModel::Preset(sensor);
   if (!preset) return preset.error();
   options.preset = *preset;
-  Expected<od::io::FoundLayout> layout = od::io::FindLayout(*cloud, options, path);
+  Expected<od::FoundLayout> layout = od::FindLayout(*cloud, options, path);
   if (!layout) return layout.error();
   Expected<od::io::DetectSettings> settings = Settings(config);
   if (!settings) return settings.error();
   Frame f;
   f.name = name;
   f.settings = *settings;
-  auto points = std::make_shared<od::io::PointCloud>(std::move(*cloud));
-  auto found = std::make_shared<od::io::FoundLayout>(std::move(*layout));
+  auto points = std::make_shared<od::PointCloud>(std::move(*cloud));
+  auto found = std::make_shared<od::FoundLayout>(std::move(*layout));
   f.make = [points, found] {
     return od::RangeImage::FromPoints(points->points, found->model, Eigen::Vector3d::UnitZ(),
                                       found->rows, found->cols);

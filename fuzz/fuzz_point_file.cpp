@@ -14,9 +14,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     (void)cairn::od::io::ReadLabelFile(path);
     return 0;
   }
-  cairn::Expected<cairn::od::io::PointCloud> cloud = cairn::od::io::ReadPointFile(path);
+  cairn::Expected<cairn::od::PointCloud> cloud = cairn::od::io::ReadPointFile(path);
   if (cloud && cloud->points.size() <= 4096) {
-    (void)cairn::od::io::FindLayout(*cloud, cairn::od::io::LayoutOptions{}, "fuzz");
+    (void)cairn::od::FindLayout(*cloud, cairn::od::LayoutOptions{}, "fuzz");
   }
   return 0;
 }

@@ -314,7 +314,7 @@ TEST(ScoreLabels, UnlistedIdAndSizeMismatchAreErrors) {
 constexpr std::uint32_t kGrass = 3, kTree = 4, kBush = 19, kVoid = 0;
 
 struct Scan {
-  od::io::PointCloud cloud;
+  od::PointCloud cloud;
   std::vector<std::uint32_t> labels;
 };
 
@@ -395,7 +395,7 @@ struct ScanFixture {
 Expected<LabelFrame> LoadScan(const fs::path& bin, const fs::path& label) {
   Expected<od::SphericalModel> preset = od::SphericalModel::Preset("VLP-16", 360);
   EXPECT_TRUE(preset.ok());
-  return LoadLabelFrame(bin, label, *preset, od::io::OrganisedMode::kNo, Eigen::Vector3d::UnitZ());
+  return LoadLabelFrame(bin, label, *preset, od::OrganisedMode::kNo, Eigen::Vector3d::UnitZ());
 }
 
 od::io::DetectSettings ScanSettings() {
@@ -606,7 +606,7 @@ Expected<RellisRun> RunRellis() {
   if (!preset) return preset.error();
   Expected<LabelFrame> frame =
       LoadLabelFrame(kRellis / "os1_bin" / "000104.bin", kRellis / "os1_label" / "000104.label",
-                     *preset, od::io::OrganisedMode::kAuto, Eigen::Vector3d::UnitZ());
+                     *preset, od::OrganisedMode::kAuto, Eigen::Vector3d::UnitZ());
   if (!frame) return frame.error();
   Expected<od::io::DetectSettings> settings =
       od::io::LoadDetectSettings(fs::path(CAIRN_SOURCE_DIR) / "config" / "sensors" / "os1-64.yaml");

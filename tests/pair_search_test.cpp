@@ -227,11 +227,11 @@ const std::string kShared = CAIRN_SHARED_DATASETS;
 const std::string kSource = CAIRN_SOURCE_DIR;
 
 Expected<RangeImage> LoadScan(const std::string& path, const std::string& sensor) {
-  Expected<io::PointCloud> cloud = io::ReadPointFile(path);
+  Expected<od::PointCloud> cloud = io::ReadPointFile(path);
   if (!cloud) return cloud.error();
-  io::LayoutOptions options;
+  od::LayoutOptions options;
   options.preset = *SphericalModel::Preset(sensor);
-  Expected<io::FoundLayout> layout = io::FindLayout(*cloud, options, path);
+  Expected<od::FoundLayout> layout = od::FindLayout(*cloud, options, path);
   if (!layout) return layout.error();
   return RangeImage::FromPoints(cloud->points, layout->model, Eigen::Vector3d::UnitZ(),
                                 layout->rows, layout->cols);

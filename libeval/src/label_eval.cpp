@@ -526,9 +526,9 @@ std::vector<std::uint8_t> LabelFrame::HasReturn() const {
 
 Expected<LabelFrame> LoadLabelFrame(const std::filesystem::path& points_bin,
                                     const std::filesystem::path& labels_file,
-                                    const od::SphericalModel& preset, od::io::OrganisedMode mode,
+                                    const od::SphericalModel& preset, od::OrganisedMode mode,
                                     const Eigen::Vector3d& up_sensor) {
-  Expected<io::PointCloud> cloud = io::ReadKittiBin(points_bin);
+  Expected<od::PointCloud> cloud = io::ReadKittiBin(points_bin);
   if (!cloud) return cloud.error();
   Expected<std::vector<std::uint32_t>> labels = io::ReadLabelFile(labels_file);
   if (!labels) return labels.error();
@@ -537,7 +537,7 @@ Expected<LabelFrame> LoadLabelFrame(const std::filesystem::path& points_bin,
                  std::to_string(cloud->points.size()) + " points of " + points_bin.string() +
                  " (expected one uint32 per point)"};
   }
-  Expected<io::PointLayout> layout = io::ResolveLayout(*cloud, preset, mode, points_bin.string());
+  Expected<od::PointLayout> layout = od::ResolveLayout(*cloud, preset, mode, points_bin.string());
   if (!layout) return layout.error();
   Expected<od::RangeImage> image = od::RangeImage::FromPoints(
       cloud->points, layout->model, up_sensor, layout->rows, layout->cols);

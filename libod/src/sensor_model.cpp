@@ -127,11 +127,11 @@ double WrapPositive(double a) {
   return a < 0.0 ? a + kTurn : a;
 }
 
-namespace {
-
 bool IsReturn(const Eigen::Vector3f& p) {
   return p.allFinite() && (p.x() != 0.f || p.y() != 0.f || p.z() != 0.f);
 }
+
+namespace {
 
 double Elevation(const Eigen::Vector3f& p) {
   return std::atan2(static_cast<double>(p.z()),

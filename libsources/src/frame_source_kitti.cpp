@@ -21,7 +21,7 @@ constexpr std::uintmax_t kKittiPointBytes = 16;  // x, y, z, reflectance as floa
 class KittiFrames final : public FrameSource {
  public:
   KittiFrames(od::io::KittiSequence sequence, std::vector<od::io::KittiFrame> selected,
-              std::set<int> missing, Trajectory trajectory, od::io::LayoutOptions layout,
+              std::set<int> missing, Trajectory trajectory, od::LayoutOptions layout,
               std::string lidar)
       : sequence_(std::move(sequence)),
         selected_(std::move(selected)),
@@ -53,9 +53,9 @@ class KittiFrames final : public FrameSource {
     Expected<BodyPose> pose = trajectory_.PoseAt(k.stamp_s);
     if (!pose) return Error{out.name + ": " + pose.error().message};
     out.T_world_body = out.T_world_sensor = pose->T_world_body;
-    Expected<od::io::PointCloud> cloud = od::io::ReadKittiBin(k.scan);
+    Expected<od::PointCloud> cloud = od::io::ReadKittiBin(k.scan);
     if (!cloud) return cloud.error();
-    Expected<od::io::FoundLayout> layout = od::io::FindLayout(*cloud, layout_, out.name);
+    Expected<od::FoundLayout> layout = od::FindLayout(*cloud, layout_, out.name);
     if (!layout) return layout.error();
     const Eigen::Vector3d up = out.T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
     Expected<od::RangeImage> image =
@@ -88,7 +88,7 @@ class KittiFrames final : public FrameSource {
   std::vector<od::io::KittiFrame> selected_;  // with the missing scans
   std::set<int> missing_;                     // their indices
   Trajectory trajectory_;
-  od::io::LayoutOptions layout_;
+  od::LayoutOptions layout_;
   std::string lidar_;
   std::size_t next_ = 0;
 };
@@ -151,7 +151,7 @@ Expected<std::unique_ptr<FrameSource>> OpenKittiFrames(const std::string& dir,
   }
   Expected<od::SphericalModel> preset = od::SphericalModel::Preset(lidar);
   if (!preset) return Error{"--lidar: " + preset.error().message};
-  od::io::LayoutOptions layout;
+  od::LayoutOptions layout;
   layout.preset = *preset;
   return std::unique_ptr<FrameSource>(
       std::make_unique<KittiFrames>(std::move(*opened), std::move(selected), std::move(missing),

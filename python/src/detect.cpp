@@ -1,6 +1,6 @@
 // cairn.Settings, cairn.load_settings, cairn.Detection, cairn.detect_points,
 // cairn.detect_depth, cairn.detect_frame: one frame through the same library calls as
-// `cairn detect` (od::io::PlaceScan, od::io::DetectAndClassify, od::io::PointLabels,
+// `cairn detect` (od::PlaceScan, od::io::DetectAndClassify, od::io::PointLabels,
 // od::io::SegmentsJsonText).
 #include <chrono>
 #include <string>
@@ -24,10 +24,10 @@ od::io::DetectRunOptions RunOptions(const std::string& method, bool rules, bool 
   return options;
 }
 
-od::io::OrganisedMode ParseOrganised(const std::string& text) {
-  if (text == "auto") return od::io::OrganisedMode::kAuto;
-  if (text == "yes") return od::io::OrganisedMode::kYes;
-  if (text == "no") return od::io::OrganisedMode::kNo;
+od::OrganisedMode ParseOrganised(const std::string& text) {
+  if (text == "auto") return od::OrganisedMode::kAuto;
+  if (text == "yes") return od::OrganisedMode::kYes;
+  if (text == "no") return od::OrganisedMode::kNo;
   throw CairnError("organised: expected auto, yes or no, got '" + text + "'");
 }
 
@@ -88,7 +88,7 @@ std::shared_ptr<DetectionResult> DetectPoints(const InArray<float>& points,
                                               const std::string& organised, int columns,
                                               const std::string& method, bool rules, bool feet,
                                               const std::string& source) {
-  od::io::PointCloud cloud;
+  od::PointCloud cloud;
   {
     PointsIn in = ReadPointsArray(points, source);
     cloud.points = std::move(in.points);
@@ -96,7 +96,7 @@ std::shared_ptr<DetectionResult> DetectPoints(const InArray<float>& points,
   }
   const Eigen::Vector3d up_sensor = ReadVector3(up, "up");
   if (columns < 0) throw CairnError("columns: expected 0 (the sensor's) or a positive count");
-  od::io::LayoutOptions layout;
+  od::LayoutOptions layout;
   layout.columns = columns;
   layout.organised = ParseOrganised(organised);
   const od::io::DetectRunOptions options = RunOptions(method, rules, feet);
@@ -104,13 +104,13 @@ std::shared_ptr<DetectionResult> DetectPoints(const InArray<float>& points,
   py::gil_scoped_release release;
   const Clock::time_point start = Clock::now();
   if (sensor) layout.preset = Unwrap(od::SphericalModel::Preset(*sensor, columns));
-  od::io::PlacedScan placed = Unwrap(od::io::PlaceScan(cloud, layout, up_sensor, source));
+  od::PlacedScan placed = Unwrap(od::PlaceScan(cloud, layout, up_sensor, source));
   od::io::RunDescription run;
   run.depth_file = source;
   // As `cairn detect --points` describes the layout in segments.json.
-  run.intrinsics_file = (sensor ? "sensor " + *sensor : std::string("rings from the data")) +
-                        ", " + std::to_string(placed.image.height()) + " rings (" +
-                        od::io::RingSourceName(placed.layout.source) + ") x " +
+  run.intrinsics_file = (sensor ? "sensor " + *sensor : std::string("rings from the data")) + ", " +
+                        std::to_string(placed.image.height()) + " rings (" +
+                        od::RingSourceName(placed.layout.source) + ") x " +
                         std::to_string(placed.image.width()) + " columns";
   auto result = std::make_shared<DetectionResult>(
       DetectOn(std::move(placed.image), s, options, std::move(run)));

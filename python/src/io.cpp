@@ -19,7 +19,7 @@ namespace cairn::python {
 namespace {
 
 py::array_t<float> ReadPoints(const std::string& path) {
-  od::io::PointCloud cloud;
+  od::PointCloud cloud;
   {
     py::gil_scoped_release release;
     cloud = Unwrap(od::io::ReadPointFile(path));

@@ -92,14 +92,14 @@ std::unique_ptr<PyMapper> MakeMapper(const Settings* settings, std::optional<dou
 py::dict AddPoints(PyMapper& self, const InArray<float>& points, const InArray<double>& pose,
                    double stamp_s, const std::optional<std::string>& sensor,
                    const std::string& organised, int columns, const std::string& source) {
-  od::io::PointCloud cloud;
+  od::PointCloud cloud;
   {
     PointsIn in = ReadPointsArray(points, source);
     cloud.points = std::move(in.points);
     cloud.intensity = std::move(in.intensity);
   }
   const Eigen::Isometry3d T_world_sensor = ReadPose(pose, "T_world_sensor");
-  od::io::LayoutOptions layout;
+  od::LayoutOptions layout;
   if (columns < 0) throw CairnError("columns: expected 0 (the sensor's) or a positive count");
   layout.columns = columns;
   layout.organised = ParseOrganised(organised);
@@ -109,7 +109,7 @@ py::dict AddPoints(PyMapper& self, const InArray<float>& points, const InArray<d
     if (sensor) layout.preset = Unwrap(od::SphericalModel::Preset(*sensor, columns));
     // The rows and columns as the KITTI source of `cairn map` finds them; the Mapper levels
     // the image with its tilt prior.
-    od::io::FoundLayout found = Unwrap(od::io::FindLayout(cloud, layout, source));
+    od::FoundLayout found = Unwrap(od::FindLayout(cloud, layout, source));
     record = Unwrap(self.mapper.Process(cloud.points, found.model, T_world_sensor, stamp_s, {},
                                         found.rows, found.cols));
   }

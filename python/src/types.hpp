@@ -45,7 +45,7 @@ struct DetectionResult {
 od::io::DetectRunOptions RunOptions(const std::string& method, bool rules, bool feet);
 
 /// "auto" | "yes" | "no" (--organised); anything else fails.
-od::io::OrganisedMode ParseOrganised(const std::string& text);
+od::OrganisedMode ParseOrganised(const std::string& text);
 
 /// Detection (and classes, segments.json text and, for scans, point labels) on `image`.
 /// Runs without the GIL; the caller must hold no Python object inside.

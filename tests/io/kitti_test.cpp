@@ -209,7 +209,7 @@ std::filesystem::path FakeSequence(const test::TempDir& dir, const std::string& 
   for (int k = 0; k < scans; ++k) {
     char file[32];
     std::snprintf(file, sizeof(file), "%06d.bin", k);
-    od::io::PointCloud cloud;
+    od::PointCloud cloud;
     cloud.points = {{1.f, 2.f, 3.f}};
     EXPECT_TRUE(od::io::WriteKittiBin(folder / "velodyne" / file, cloud).ok());
   }
@@ -295,10 +295,10 @@ struct KittiScore {
 
 KittiScore DetectKittiScan(const std::filesystem::path& scan) {
   KittiScore score;
-  Expected<od::io::PointCloud> cloud = od::io::ReadKittiBin(scan);
+  Expected<od::PointCloud> cloud = od::io::ReadKittiBin(scan);
   EXPECT_TRUE(cloud.ok()) << cloud.error().message;
   if (!cloud) return score;
-  Expected<od::io::FoundLayout> layout = od::io::FindLayout(*cloud, {}, scan.string());
+  Expected<od::FoundLayout> layout = od::FindLayout(*cloud, {}, scan.string());
   EXPECT_TRUE(layout.ok()) << layout.error().message;
   if (!layout) return score;
   score.rings = layout->model.height();

@@ -40,8 +40,8 @@
 namespace cairn {
 namespace {
 
-using od::io::OrganisedMode;
-using od::io::PointCloud;
+using od::OrganisedMode;
+using od::PointCloud;
 bool Contains(const std::string& haystack, const std::string& needle) {
   return haystack.find(needle) != std::string::npos;
 }
@@ -151,8 +151,8 @@ TEST(KittiBin, NonFiniteValueErrorNamesFileAndPoint) {
 TEST(PointLayout, OrganisedOusterScanIsRecognised) {
   const PointCloud cloud = OrganisedScan(Os1(256), 1);
   // The preset's width is only the default for unorganised scans: columns come from the count.
-  Expected<od::io::PointLayout> layout =
-      od::io::ResolveLayout(cloud, Os1(2048), OrganisedMode::kAuto, "scan");
+  Expected<od::PointLayout> layout =
+      od::ResolveLayout(cloud, Os1(2048), OrganisedMode::kAuto, "scan");
   ASSERT_TRUE(layout.ok()) << layout.error().message;
   EXPECT_TRUE(layout->organised);
   EXPECT_EQ(layout->model.width, 256);
@@ -169,14 +169,14 @@ TEST(PointLayout, ShuffledScanIsNotOrganised) {
   PointCloud cloud = OrganisedScan(Os1(256), 2);
   std::mt19937 rng(3);
   std::shuffle(cloud.points.begin(), cloud.points.end(), rng);  // count still 64 x 256
-  Expected<od::io::PointLayout> layout =
-      od::io::ResolveLayout(cloud, Os1(2048), OrganisedMode::kAuto, "scan");
+  Expected<od::PointLayout> layout =
+      od::ResolveLayout(cloud, Os1(2048), OrganisedMode::kAuto, "scan");
   ASSERT_TRUE(layout.ok()) << layout.error().message;
   EXPECT_FALSE(layout->organised);
   EXPECT_EQ(layout->model.width, 2048);
   EXPECT_TRUE(layout->rows.empty());
   // Forced: the caller knows better.
-  layout = od::io::ResolveLayout(cloud, Os1(2048), OrganisedMode::kYes, "scan");
+  layout = od::ResolveLayout(cloud, Os1(2048), OrganisedMode::kYes, "scan");
   ASSERT_TRUE(layout.ok());
   EXPECT_TRUE(layout->organised);
 }
@@ -184,8 +184,8 @@ TEST(PointLayout, ShuffledScanIsNotOrganised) {
 TEST(PointLayout, ForcedOrganisedNeedsAMultipleOfTheRings) {
   PointCloud cloud = OrganisedScan(Os1(16), 4);
   cloud.points.pop_back();
-  Expected<od::io::PointLayout> layout =
-      od::io::ResolveLayout(cloud, Os1(2048), OrganisedMode::kYes, "scan.bin");
+  Expected<od::PointLayout> layout =
+      od::ResolveLayout(cloud, Os1(2048), OrganisedMode::kYes, "scan.bin");
   ASSERT_FALSE(layout.ok());
   EXPECT_TRUE(Contains(layout.error().message, "scan.bin")) << layout.error().message;
   EXPECT_TRUE(Contains(layout.error().message, "64 rings")) << layout.error().message;
@@ -217,8 +217,8 @@ void ExpectEveryPointBack(const PointCloud& cloud, const od::RangeImage& image,
 
 TEST(PointLayout, OrganisedProjectionGivesBackEveryPointExactly) {
   const PointCloud cloud = OrganisedScan(Os1(512), 5);
-  Expected<od::io::PointLayout> layout =
-      od::io::ResolveLayout(cloud, Os1(2048), OrganisedMode::kAuto, "scan");
+  Expected<od::PointLayout> layout =
+      od::ResolveLayout(cloud, Os1(2048), OrganisedMode::kAuto, "scan");
   ASSERT_TRUE(layout.ok() && layout->organised);
   Expected<od::RangeImage> image = od::RangeImage::FromPoints(
       cloud.points, layout->model, Eigen::Vector3d::UnitZ(), layout->rows, layout->cols);
@@ -240,8 +240,7 @@ TEST(PointLayout, UnorganisedProjectionGivesBackEveryPointExactly) {
     PointCloud cloud = OrganisedScan(*model, 6);
     std::mt19937 rng(7);
     std::shuffle(cloud.points.begin(), cloud.points.end(), rng);
-    Expected<od::io::PointLayout> layout =
-        od::io::ResolveLayout(cloud, *model, OrganisedMode::kNo, "scan");
+    Expected<od::PointLayout> layout = od::ResolveLayout(cloud, *model, OrganisedMode::kNo, "scan");
     ASSERT_TRUE(layout.ok() && !layout->organised);
     Expected<od::RangeImage> image =
         od::RangeImage::FromPoints(cloud.points, layout->model, Eigen::Vector3d::UnitZ());
@@ -594,14 +593,14 @@ TEST(RingFinding, RingAfterRingScanIsCutAtItsSeam) {
   for (const double seam : {0.0, 2.5, -1.0}) {
     std::vector<std::int32_t> truth;
     const PointCloud cloud = RingAfterRingScan(64, 1000, seam, 11, &truth);
-    Expected<od::io::RingBreaks> breaks = od::io::FindRingBreaks(cloud.points);
+    Expected<od::RingBreaks> breaks = od::FindRingBreaks(cloud.points);
     ASSERT_TRUE(breaks.ok()) << breaks.error().message;
     EXPECT_EQ(breaks->rings, 64);
     EXPECT_NEAR(std::remainder(breaks->seam_rad - seam, 2.0 * kPi), 0.0, 0.01);
     EXPECT_EQ(breaks->ring, truth);
-    Expected<od::io::FoundLayout> layout = od::io::FindLayout(cloud, {}, "scan");
+    Expected<od::FoundLayout> layout = od::FindLayout(cloud, {}, "scan");
     ASSERT_TRUE(layout.ok()) << layout.error().message;
-    EXPECT_EQ(layout->source, od::io::RingSource::kRingBreaks);
+    EXPECT_EQ(layout->source, od::RingSource::kRingBreaks);
     ASSERT_EQ(layout->model.height(), 64);
     // The rings, renumbered by their median elevation (the offsets reorder a few).
     EXPECT_EQ(PartitionAgreement(layout->rows, truth, cloud), 1.0);
@@ -614,10 +613,10 @@ TEST(RingFinding, ShuffledScatteredRingsFallBackToUniformBins) {
   PointCloud cloud = RingAfterRingScan(64, 500, 0.3, 12, &truth);
   std::mt19937 rng(13);
   std::shuffle(cloud.points.begin(), cloud.points.end(), rng);
-  EXPECT_FALSE(od::io::FindRingBreaks(cloud.points).ok());
-  Expected<od::io::FoundLayout> layout = od::io::FindLayout(cloud, {}, "scan");
+  EXPECT_FALSE(od::FindRingBreaks(cloud.points).ok());
+  Expected<od::FoundLayout> layout = od::FindLayout(cloud, {}, "scan");
   ASSERT_TRUE(layout.ok()) << layout.error().message;
-  EXPECT_EQ(layout->source, od::io::RingSource::kUniformBins);
+  EXPECT_EQ(layout->source, od::RingSource::kUniformBins);
   EXPECT_TRUE(Contains(layout->note, "do not split into separate rings")) << layout->note;
 }
 
@@ -640,9 +639,9 @@ TEST(RingFinding, OrganisedScanInFiringOrderFindsItsRingCountAndSortsTheRings) {
       truth.push_back(r);
     }
   }
-  Expected<od::io::FoundLayout> layout = od::io::FindLayout(cloud, {}, "scan");
+  Expected<od::FoundLayout> layout = od::FindLayout(cloud, {}, "scan");
   ASSERT_TRUE(layout.ok()) << layout.error().message;
-  EXPECT_EQ(layout->source, od::io::RingSource::kOrganised);
+  EXPECT_EQ(layout->source, od::RingSource::kOrganised);
   ASSERT_EQ(layout->model.height(), 32);
   EXPECT_EQ(layout->model.width, 360);
   EXPECT_EQ(Agreement(layout->rows, truth, cloud), 1.0);
@@ -654,11 +653,11 @@ TEST(RingFinding, OrganisedScanInFiringOrderFindsItsRingCountAndSortsTheRings) {
 TEST(RingFinding, PresetThatDisagreesWithTheDataFallsBackToItsNominalRings) {
   std::vector<std::int32_t> truth;
   const PointCloud cloud = RingAfterRingScan(64, 400, 0.0, 15, &truth);
-  od::io::LayoutOptions options;
+  od::LayoutOptions options;
   options.preset = *od::SphericalModel::Preset("VLP-16");
-  Expected<od::io::FoundLayout> layout = od::io::FindLayout(cloud, options, "scan");
+  Expected<od::FoundLayout> layout = od::FindLayout(cloud, options, "scan");
   ASSERT_TRUE(layout.ok()) << layout.error().message;
-  EXPECT_EQ(layout->source, od::io::RingSource::kNominal);
+  EXPECT_EQ(layout->source, od::RingSource::kNominal);
   EXPECT_EQ(layout->model.height(), 16);
   EXPECT_EQ(layout->model.width, 1800);  // the VLP-16's own
   EXPECT_TRUE(Contains(layout->note, "ring breaks give 64 rings, the preset has 16"))
@@ -668,7 +667,7 @@ TEST(RingFinding, PresetThatDisagreesWithTheDataFallsBackToItsNominalRings) {
 /// Projects `cloud` with `layout` and checks the round trip: every return has the cell of
 /// its row and column; each cell stores, bit for bit, the nearest point mapped to it (the
 /// first of equals); no return has no cell. Returns the share of the returns stored.
-double ExpectExactProjection(const PointCloud& cloud, const od::io::FoundLayout& layout) {
+double ExpectExactProjection(const PointCloud& cloud, const od::FoundLayout& layout) {
   Expected<od::RangeImage> image = od::RangeImage::FromPoints(
       cloud.points, layout.model, Eigen::Vector3d::UnitZ(), layout.rows, layout.cols);
   EXPECT_TRUE(image.ok()) << image.error().message;
@@ -714,35 +713,35 @@ double ExpectExactProjection(const PointCloud& cloud, const od::io::FoundLayout&
 TEST(Projection, SyntheticScansComeBackExactly) {
   std::vector<std::int32_t> truth;
   const PointCloud ring_after_ring = RingAfterRingScan(64, 1000, 1.0, 16, &truth);
-  Expected<od::io::FoundLayout> layout = od::io::FindLayout(ring_after_ring, {}, "scan");
+  Expected<od::FoundLayout> layout = od::FindLayout(ring_after_ring, {}, "scan");
   ASSERT_TRUE(layout.ok());
   EXPECT_GT(ExpectExactProjection(ring_after_ring, *layout), 0.9);
   const PointCloud organised = OrganisedScan(Os1(512), 17);
-  layout = od::io::FindLayout(organised, {}, "scan");
+  layout = od::FindLayout(organised, {}, "scan");
   ASSERT_TRUE(layout.ok());
-  EXPECT_EQ(layout->source, od::io::RingSource::kOrganised);
+  EXPECT_EQ(layout->source, od::RingSource::kOrganised);
   EXPECT_EQ(ExpectExactProjection(organised, *layout), 1.0);  // one point per cell
 }
 
 struct RealScan {
   const char* name;
   std::filesystem::path path;
-  od::io::RingSource source;
+  od::RingSource source;
   int rings;
 };
 
 std::vector<RealScan> RealScans() {
   return {
       {"KITTI HDL-64E 000000", kDatasets / "kitti-seq00-0-10/velodyne/000000.bin",
-       od::io::RingSource::kRingBreaks, 64},
+       od::RingSource::kRingBreaks, 64},
       {"RELLIS OS1-64 .bin", kDatasets / "rellis3d-000104/os1_bin/000104.bin",
-       od::io::RingSource::kOrganised, 64},
+       od::RingSource::kOrganised, 64},
       {"RELLIS OS1-64 .ply", kDatasets / "rellis3d-000104/extras/frame000104-1581624663_170.ply",
-       od::io::RingSource::kRingField, 64},
+       od::RingSource::kRingField, 64},
       {"RELLIS VLP-32C", kDatasets / "rellis3d-000104/extras/vel000104.bin",
-       od::io::RingSource::kElevationClusters, 32},
+       od::RingSource::kElevationClusters, 32},
       {"OctoMap fr079 tilting laser", kDatasets / "octomap-fr079/scan.dat.bz2",
-       od::io::RingSource::kUniformBins, 0}};
+       od::RingSource::kUniformBins, 0}};
 }
 
 TEST(RingFinding, RealScansHaveTheirSensorsRings) {
@@ -750,7 +749,7 @@ TEST(RingFinding, RealScansHaveTheirSensorsRings) {
     if (!std::filesystem::exists(scan.path)) GTEST_SKIP() << scan.path << " not found";
     Expected<PointCloud> cloud = od::io::ReadPointFile(scan.path);
     ASSERT_TRUE(cloud.ok()) << cloud.error().message;
-    Expected<od::io::FoundLayout> layout = od::io::FindLayout(*cloud, {}, scan.path.string());
+    Expected<od::FoundLayout> layout = od::FindLayout(*cloud, {}, scan.path.string());
     ASSERT_TRUE(layout.ok()) << layout.error().message;
     EXPECT_EQ(layout->source, scan.source) << scan.name;
     if (scan.rings > 0) {
@@ -758,7 +757,7 @@ TEST(RingFinding, RealScansHaveTheirSensorsRings) {
     }
     const double stored = ExpectExactProjection(*cloud, *layout);
     std::printf("%s: %d rings (%s) x %d columns, %.1f%% of the returns stored\n", scan.name,
-                layout->model.height(), od::io::RingSourceName(layout->source), layout->model.width,
+                layout->model.height(), od::RingSourceName(layout->source), layout->model.width,
                 100.0 * stored);
     EXPECT_GT(stored, scan.rings > 0 ? 0.9 : 0.2) << scan.name;
   }
@@ -772,13 +771,13 @@ TEST(RingFinding, KittiSequenceHas64RingsInEveryScan) {
     Expected<PointCloud> cloud =
         od::io::ReadKittiBin(kDatasets / "kitti-seq00-0-10/velodyne" / name);
     ASSERT_TRUE(cloud.ok()) << cloud.error().message;
-    Expected<od::io::RingBreaks> breaks = od::io::FindRingBreaks(cloud->points);
+    Expected<od::RingBreaks> breaks = od::FindRingBreaks(cloud->points);
     ASSERT_TRUE(breaks.ok()) << breaks.error().message;
     EXPECT_EQ(breaks->rings, 64) << name;
     // KITTI starts every ring straight ahead (+x).
     EXPECT_NEAR(breaks->seam_rad, 0.0, 0.01) << name;
     // Stored top first: the rows are the rings in storage order.
-    Expected<od::io::FoundLayout> layout = od::io::FindLayout(*cloud, {}, name);
+    Expected<od::FoundLayout> layout = od::FindLayout(*cloud, {}, name);
     ASSERT_TRUE(layout.ok());
     EXPECT_EQ(Agreement(layout->rows, breaks->ring, *cloud), 1.0) << name;
     // Measured from the origin, the beams' vertical offsets shift the elevations by up to a
@@ -799,16 +798,16 @@ TEST(RingFinding, RellisOs1RingsAgreeWithTheRecordedRingField) {
     ASSERT_EQ(ply->points[i], bin->points[i]) << i;  // the same scan
   }
   // Organised order, without a preset.
-  Expected<od::io::FoundLayout> organised = od::io::FindLayout(*bin, {}, "os1");
+  Expected<od::FoundLayout> organised = od::FindLayout(*bin, {}, "os1");
   ASSERT_TRUE(organised.ok());
-  ASSERT_EQ(organised->source, od::io::RingSource::kOrganised);
+  ASSERT_EQ(organised->source, od::RingSource::kOrganised);
   const double organised_agreement = Agreement(organised->rows, ply->ring, *bin);
   // Elevations alone: the order ignored.
-  od::io::LayoutOptions no_order;
-  no_order.organised = od::io::OrganisedMode::kNo;
-  Expected<od::io::FoundLayout> clusters = od::io::FindLayout(*bin, no_order, "os1");
+  od::LayoutOptions no_order;
+  no_order.organised = od::OrganisedMode::kNo;
+  Expected<od::FoundLayout> clusters = od::FindLayout(*bin, no_order, "os1");
   ASSERT_TRUE(clusters.ok());
-  ASSERT_EQ(clusters->source, od::io::RingSource::kElevationClusters);
+  ASSERT_EQ(clusters->source, od::RingSource::kElevationClusters);
   ASSERT_EQ(clusters->model.height(), 64);
   const double cluster_agreement = Agreement(clusters->rows, ply->ring, *bin);
   std::printf(
@@ -832,9 +831,9 @@ TEST(RingFinding, RellisVlp32cRingsAreItsDataSheetElevations) {
   Expected<PointCloud> cloud =
       od::io::ReadKittiBin(kDatasets / "rellis3d-000104/extras/vel000104.bin");
   ASSERT_TRUE(cloud.ok());
-  Expected<od::io::FoundLayout> layout = od::io::FindLayout(*cloud, {}, "vlp");
+  Expected<od::FoundLayout> layout = od::FindLayout(*cloud, {}, "vlp");
   ASSERT_TRUE(layout.ok());
-  ASSERT_EQ(layout->source, od::io::RingSource::kElevationClusters);
+  ASSERT_EQ(layout->source, od::RingSource::kElevationClusters);
   ASSERT_EQ(layout->model.height(), 32);
   EXPECT_EQ(layout->model.width, 1800);  // 0.2 deg between firings, measured
   const od::SphericalModel sheet = *od::SphericalModel::Preset("VLP-32C");
@@ -958,7 +957,7 @@ TEST(DetectVlp32c, ConeDetectorBeatsTheColumnBaselineOnTheOustersLabels) {
       std::count_if(truth.begin(), truth.end(), [](std::uint32_t l) { return l != 0xFFFFu; }));
   EXPECT_EQ(labelled, 21545u);
 
-  Expected<od::io::FoundLayout> layout = od::io::FindLayout(*vlp, {}, "vel000104.bin");
+  Expected<od::FoundLayout> layout = od::FindLayout(*vlp, {}, "vel000104.bin");
   ASSERT_TRUE(layout.ok());
   Expected<od::RangeImage> image = od::RangeImage::FromPoints(
       vlp->points, layout->model, Eigen::Vector3d::UnitZ(), layout->rows, layout->cols);

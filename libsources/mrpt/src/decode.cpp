@@ -504,18 +504,17 @@ Expected<Frame> DecodePointCloud(const CObservationPointCloud& cloud,
     out.intensity.reserve(xs.size());
     for (std::size_t i = 0; i < xs.size(); ++i) out.intensity.push_back(xyzi->getPointIntensity_fast(i));
   }
-  // The one ring finder (od::io::FindLayout): ring after ring, organised orders, elevation
+  // The one ring finder (od::FindLayout): ring after ring, organised orders, elevation
   // clusters, else even elevation bins.
-  od::io::PointCloud cloud_points;
+  od::PointCloud cloud_points;
   cloud_points.points = out.points;
-  Expected<od::io::FoundLayout> layout = od::io::FindLayout(cloud_points, options.layout, who);
+  Expected<od::FoundLayout> layout = od::FindLayout(cloud_points, options.layout, who);
   if (!layout) return layout.error();
   out.model = std::move(layout->model);
   out.rows = std::move(layout->rows);
   out.cols = std::move(layout->cols);
-  out.layout = std::to_string(out.model.height()) + " rows (" +
-               od::io::RingSourceName(layout->source) + "), " + std::to_string(out.model.width) +
-               " columns";
+  out.layout = std::to_string(out.model.height()) + " rows (" + od::RingSourceName(layout->source) +
+               "), " + std::to_string(out.model.width) + " columns";
   if (!layout->note.empty()) out.layout += "; " + layout->note;
   Frame frame = NewFrame(cloud);
   frame.T_body_sensor = FromCPose3D(cloud.sensorPose);

@@ -136,7 +136,7 @@ struct LabelFrame {
 /// files, when either cannot be read or their point counts differ.
 Expected<LabelFrame> LoadLabelFrame(const std::filesystem::path& points_bin,
                                     const std::filesystem::path& labels_file,
-                                    const od::SphericalModel& preset, od::io::OrganisedMode mode,
+                                    const od::SphericalModel& preset, od::OrganisedMode mode,
                                     const Eigen::Vector3d& up_sensor);
 
 /// One method on a labelled scan.

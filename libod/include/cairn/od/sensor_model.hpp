@@ -90,6 +90,10 @@ using SensorModel = std::variant<PinholeModel, SphericalModel>;
 /// An angle wrapped into [0, 2 pi) [rad].
 double WrapPositive(double a);
 
+/// A stored point is a return when it is finite and not (0, 0, 0), which KITTI, Ouster and
+/// PCL write for a ray without one.
+bool IsReturn(const Eigen::Vector3f& p);
+
 /// Every point's azimuth atan2(y, x) and elevation atan2(z, hypot(x, y)) [rad], NaN for a
 /// point that is no return: computed once for the layout finders below, which take them
 /// besides the points.

@@ -28,7 +28,7 @@
 //     scans, as the packets count them.
 //   CObservationPointCloud -> PointScan. Any CPointsMap, points in input order (intensity
 //     from a CPointsMapXYZI). Rows and columns found from the data by
-//     od::io::FindLayout (point_cloud.hpp), as for point files: organised or ring-after-ring
+//     od::FindLayout (point_cloud.hpp), as for point files: organised or ring-after-ring
 //     storage, elevation clusters, else even elevation bins.
 //   CObservationStereoImages -> StereoPair. Grey left and right images; when the left
 //     camera has distortion (MRPT's mark of raw images) the pair is rectified with MRPT's
@@ -61,7 +61,7 @@ struct DecodeOptions {
   /// Velodyne returns nearer than this are dropped [m] (MRPT's generatePointCloud default).
   double velodyne_min_range_m = 1.0;
   /// How rows and columns are found in point clouds that carry no laser ids.
-  od::io::LayoutOptions layout;
+  od::LayoutOptions layout;
 };
 
 /// True for the classes that decode into frames (the five above).
