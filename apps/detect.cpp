@@ -103,7 +103,7 @@ Expected<LoadedScan> LoadScan(const DetectOptions& options) {
 Expected<LoadedDepth> LoadDepth(const DetectOptions& options) {
   Expected<io::CameraIntrinsics> intrinsics = io::LoadIntrinsics(options.intrinsics);
   if (!intrinsics) return intrinsics.error();
-  Expected<io::Grid<float>> depth = io::ReadDepthImage(options.depth, *intrinsics);
+  Expected<od::Grid<float>> depth = io::ReadDepthImage(options.depth, *intrinsics);
   if (!depth) return depth.error();
   Expected<od::RangeImage> image =
       od::RangeImage::FromDepth(depth->data, intrinsics->model, intrinsics->up);
@@ -194,7 +194,7 @@ int RunDetect(const DetectOptions& options) {
   const io::DetectSettings settings = *loaded_settings;
   Expected<LoadedDepth> loaded = LoadDepth(options);
   if (!loaded) return DetectFail(loaded.error().message);
-  const io::Grid<float>* depth = &loaded->depth_m;
+  const od::Grid<float>* depth = &loaded->depth_m;
   const od::RangeImage* image = &loaded->image;
 
   Expected<DetectResult> result = DetectAndClassify(*image, settings, options);

@@ -88,7 +88,7 @@ Expected<LoadedScan> LoadScan(const DetectOptions& options);
 /// A depth image and its range image (--depth, --intrinsics of `options`).
 struct LoadedDepth {
   od::io::CameraIntrinsics intrinsics;
-  od::io::Grid<float> depth_m;
+  od::Grid<float> depth_m;
   od::RangeImage image;
 };
 Expected<LoadedDepth> LoadDepth(const DetectOptions& options);

@@ -15,6 +15,8 @@
 // level, unless an IMU observation read before the frame gives roll and pitch, which then
 // tilt the body (sources::UpInSensor). Odometry does not tilt it: a planar odometry knows no
 // tilt, and a 6-D one drifts.
+#include <mrpt/obs/CSensoryFrame.h>
+
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
@@ -29,17 +31,15 @@
 #include <string>
 #include <vector>
 
-#include "cairn/util/atomic_file.hpp"
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/detection_files.hpp"
 #include "cairn/od/io/point_cloud.hpp"
-#include "cairn/od/io/stereo.hpp"
 #include "cairn/od/range_image.hpp"
-#include <mrpt/obs/CSensoryFrame.h>
-
+#include "cairn/od/stereo.hpp"
 #include "cairn/sources/annotate.hpp"
 #include "cairn/sources/rawlog_file.hpp"
 #include "cairn/sources/rawlog_source.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "detect.hpp"
 #include "subcommands.hpp"
 
@@ -74,8 +74,8 @@ struct FrameResult {
 // The range image of a frame and what to render it with; stereo frames are matched first.
 struct Prepared {
   od::RangeImage image;
-  io::Grid<float> render;  ///< depth (cameras) or range (LiDAR) for the images [m]
-  std::optional<io::StereoDepth> stereo;
+  od::Grid<float> render;  ///< depth (cameras) or range (LiDAR) for the images [m]
+  std::optional<od::StereoDepth> stereo;
   double stereo_ms = 0.0;
 };
 
@@ -88,7 +88,7 @@ Expected<Prepared> Prepare(const sources::Frame& frame, const io::DetectSettings
   if (!image) return image.error();
   out.image = std::move(image->image);
   if (const sources::DepthImage* depth = frame.depth()) {
-    out.render = io::Grid<float>{depth->model.width, depth->model.height, depth->depth_m};
+    out.render = od::Grid<float>{depth->model.width, depth->model.height, depth->depth_m};
   } else if (image->stereo) {
     out.stereo_ms = MillisecondsSince(start);
     out.render = image->stereo->depth_m;

@@ -14,7 +14,7 @@
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/detection_files.hpp"
 #include "cairn/od/io/intrinsics.hpp"
-#include "cairn/od/io/stereo.hpp"
+#include "cairn/od/io/stereo_files.hpp"
 #include "cairn/od/range_image.hpp"
 #include "detect.hpp"
 #include "subcommands.hpp"
@@ -31,7 +31,7 @@ struct DepthSummary {
   double min_m = 0.0, median_m = 0.0, max_m = 0.0;
 };
 
-DepthSummary Summarise(const io::Grid<float>& depth_m) {
+DepthSummary Summarise(const od::Grid<float>& depth_m) {
   std::vector<float> valid;
   for (float z : depth_m.data) {
     if (z > 0.0f) valid.push_back(z);
@@ -58,20 +58,20 @@ int RunDetectStereo(const DetectOptions& options) {
   const DetectClock::time_point start = DetectClock::now();
   Expected<io::DetectSettings> settings = LoadDetectSettingsOrDefaults(options);
   if (!settings) return DetectFail(settings.error().message);
-  Expected<io::StereoCalibration> calibration = io::LoadStereoCalibration(options.stereo_calib);
+  Expected<od::StereoCalibration> calibration = io::LoadStereoCalibration(options.stereo_calib);
   if (!calibration) return DetectFail(calibration.error().message);
-  Expected<io::GreyImage> left = io::ReadGreyImage(options.left);
+  Expected<od::GreyImage> left = io::ReadGreyImage(options.left);
   if (!left) return DetectFail(left.error().message);
-  Expected<io::GreyImage> right = io::ReadGreyImage(options.right);
+  Expected<od::GreyImage> right = io::ReadGreyImage(options.right);
   if (!right) return DetectFail(right.error().message);
   const bool rectified_here = calibration->rectification.has_value();
-  Expected<io::StereoPair> pair = io::PrepareStereoPair(std::move(*left), std::move(*right),
+  Expected<od::StereoPair> pair = od::PrepareStereoPair(std::move(*left), std::move(*right),
                                                         *calibration, options.left, options.right);
   if (!pair) return DetectFail(pair.error().message);
   const od::PinholeModel& model = pair->calibration.model;
 
   const DetectClock::time_point stereo_start = DetectClock::now();
-  Expected<io::StereoDepth> stereo = io::ComputeStereoDepth(*pair, settings->stereo);
+  Expected<od::StereoDepth> stereo = od::ComputeStereoDepth(*pair, settings->stereo);
   if (!stereo) {
     return DetectFail(options.stereo_calib + " / " +
                       (options.config.empty() ? "built-in stereo settings" : options.config) +
@@ -111,7 +111,7 @@ int RunDetectStereo(const DetectOptions& options) {
     return DetectFail(s.message());
   if (Status s = io::WriteDepthTiff(sigma_path, stereo->sigma_m); !s)
     return DetectFail(s.message());
-  const io::Grid<float>& disparity = stereo->disparity.disparity_px;
+  const od::Grid<float>& disparity = stereo->disparity.disparity_px;
   if (Status s = io::WriteDisparityPng(disparity_path, disparity); !s) {
     return DetectFail(s.message());
   }
@@ -156,14 +156,14 @@ int RunDetectStereo(const DetectOptions& options) {
   }
 
   const std::size_t n = stereo->depth_m.data.size();
-  const io::StereoHoleCounts& holes = stereo->disparity.holes;
+  const od::StereoHoleCounts& holes = stereo->disparity.holes;
   const DepthSummary depth = Summarise(stereo->depth_m);
-  const io::StereoConfig& sc = settings->stereo;
+  const od::StereoConfig& sc = settings->stereo;
   std::cout << std::fixed << std::setprecision(1) << "cairn detect: stereo " << options.left
             << " + " << options.right << " (" << model.width << "x" << model.height << " px, fx "
             << model.fx << " px, baseline " << std::setprecision(4) << pair->calibration.baseline_m
             << " m" << (rectified_here ? ", rectified here" : "") << ")\n"
-            << std::setprecision(1) << "  stereo: " << io::StereoModeName(sc.mode) << ", block "
+            << std::setprecision(1) << "  stereo: " << od::StereoModeName(sc.mode) << ", block "
             << sc.block_size << " px, disparities 0.." << stereo->disparity.num_disparities - 1
             << " px (depth from " << std::setprecision(2)
             << pair->calibration.fx_baseline() / stereo->disparity.num_disparities << " m)\n"

@@ -16,7 +16,7 @@
 #include "cairn/map/mapper.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/od/expected.hpp"
-#include "cairn/od/io/stereo.hpp"
+#include "cairn/od/stereo.hpp"
 #include "cairn/sources/frame_source.hpp"
 #include "cairn/util/format.hpp"
 
@@ -130,7 +130,7 @@ class LookaheadFeed {
 /// The frames of the input `o` names (--rawlog, --kitti or --frames), stereo pairs matched
 /// with `stereo`, each read while the one before is mapped (sources::ReadAhead).
 Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(const MapOptions& o,
-                                                                const od::io::StereoConfig& stereo);
+                                                                const od::StereoConfig& stereo);
 
 /// The record of a fused frame.
 FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecord& r,

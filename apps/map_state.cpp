@@ -51,8 +51,8 @@ Expected<std::optional<sources::SequenceFrame>> LookaheadFeed::Next(bool last) {
   return next;
 }
 
-Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(
-    const MapOptions& o, const od::io::StereoConfig& stereo) {
+Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(const MapOptions& o,
+                                                                const od::StereoConfig& stereo) {
   Expected<std::unique_ptr<sources::FrameSource>> opened =
       !o.rawlog.empty()  ? sources::OpenRawlogFrames(o.rawlog, o.label, stereo)
       : !o.kitti.empty() ? sources::OpenKittiFrames(o.kitti, o.sequence, o.range, o.lidar)

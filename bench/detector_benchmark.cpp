@@ -132,7 +132,7 @@ Expected<Frame> DepthFrame(const std::string& name, const std::string& depth,
                            const std::string& intrinsics) {
   Expected<od::io::CameraIntrinsics> camera = od::io::LoadIntrinsics(intrinsics);
   if (!camera) return camera.error();
-  Expected<od::io::Grid<float>> grid = od::io::ReadDepthImage(depth, *camera);
+  Expected<od::Grid<float>> grid = od::io::ReadDepthImage(depth, *camera);
   if (!grid) return grid.error();
   Expected<od::io::DetectSettings> settings = Settings("default.yaml");
   if (!settings) return settings.error();

@@ -268,7 +268,7 @@ TEST(PairSearch, EqualsTheRegionScanOnTheKittiScan) {
 TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
   const std::string dir = kSource + "/datasets/frames/demo/";
   const io::CameraIntrinsics camera = *io::LoadIntrinsics(dir + "intrinsics.yaml");
-  const io::Grid<float> depth = *io::ReadDepthImage(dir + "depth.png", camera);
+  const od::Grid<float> depth = *io::ReadDepthImage(dir + "depth.png", camera);
   const RangeImage image = *RangeImage::FromDepth(depth.data, camera.model, camera.up);
   DetectorConfig config =
       io::LoadDetectSettings(kSource + "/config/default.yaml", {"map", "tilt", "frames"})->detector;

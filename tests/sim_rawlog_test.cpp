@@ -333,12 +333,12 @@ TEST(SimRawlog, ReadsMrptsRgbdDataset) {
 
 TEST(SimTruthFiles, ObjectIdImagesRoundTrip) {
   test::TempDir dir;
-  od::io::Grid<std::int32_t> ids;
+  od::Grid<std::int32_t> ids;
   ids.width = 5;
   ids.height = 3;
   ids.data = {0, 1, 2, -1, 254, 0, 0, 7, 7, -1, 3, 3, 3, 0, 0};
   ASSERT_TRUE(WriteObjectIdPng(dir / "small.png", ids).ok());
-  Expected<od::io::Grid<std::int32_t>> back = ReadObjectIdPng(dir / "small.png");
+  Expected<od::Grid<std::int32_t>> back = ReadObjectIdPng(dir / "small.png");
   ASSERT_TRUE(back.ok()) << back.error().message;
   EXPECT_EQ(back->data, ids.data);
   EXPECT_EQ(TruthNoHitLabel(ids.data), 255);
@@ -396,12 +396,12 @@ TEST(SimTruthFiles, CameraFrameIsWhatDetectReads) {
   EXPECT_NEAR(intrinsics->model.fx, frame->model.fx, 1e-6);
   EXPECT_NEAR(intrinsics->model.cx, frame->model.cx, 1e-9);
   EXPECT_NEAR((intrinsics->up - frame->up_optical).norm(), 0.0, 1e-9);
-  Expected<od::io::Grid<float>> depth = od::io::ReadDepthPng(files->depth_png, *intrinsics);
+  Expected<od::Grid<float>> depth = od::io::ReadDepthPng(files->depth_png, *intrinsics);
   ASSERT_TRUE(depth.ok()) << depth.error().message;
   for (std::size_t i = 0; i < depth->data.size(); ++i) {
     ASSERT_NEAR(depth->data[i], frame->depth_m[i], 0.5 * files->depth_scale_m + 1e-6);
   }
-  Expected<od::io::Grid<std::int32_t>> ids = ReadObjectIdPng(files->truth_png);
+  Expected<od::Grid<std::int32_t>> ids = ReadObjectIdPng(files->truth_png);
   ASSERT_TRUE(ids.ok());
   EXPECT_EQ(ids->data, frame->object_id);
   std::ifstream yaml(files->truth_yaml);
@@ -494,7 +494,7 @@ TEST(SimSequence, DriveSequenceReadsBackLikeRealData) {
     }
     char name[32];
     std::snprintf(name, sizeof(name), "truth/%06d.png", k);
-    const Expected<od::io::Grid<std::int32_t>> ids = ReadObjectIdPng(dir / name);
+    const Expected<od::Grid<std::int32_t>> ids = ReadObjectIdPng(dir / name);
     ASSERT_TRUE(ids.ok()) << ids.error().message;
     EXPECT_EQ(ids->data, frame->object_id) << name;
   }

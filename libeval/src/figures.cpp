@@ -77,8 +77,8 @@ Rgb Blend(const Rgb& under, const Rgb& colour, int parts_colour = 3, int parts_u
   return out;
 }
 
-RgbImage Grey(const od::io::Grid<float>& depth) {
-  const od::io::Grid<std::uint8_t> grey = od::io::RenderDepthGrey(depth);
+RgbImage Grey(const od::Grid<float>& depth) {
+  const od::Grid<std::uint8_t> grey = od::io::RenderDepthGrey(depth);
   RgbImage out{grey.width, grey.height, {}};
   out.data.reserve(grey.data.size());
   for (const std::uint8_t g : grey.data) out.data.push_back({g, g, g});

@@ -233,7 +233,7 @@ Expected<EvalFrame> LoadFrame(const std::filesystem::path& depth_png,
                               const std::filesystem::path& truth_yaml, std::string name) {
   Expected<od::io::CameraIntrinsics> intrinsics = od::io::LoadIntrinsics(intrinsics_yaml);
   if (!intrinsics) return intrinsics.error();
-  Expected<od::io::Grid<float>> depth = od::io::ReadDepthPng(depth_png, *intrinsics);
+  Expected<od::Grid<float>> depth = od::io::ReadDepthPng(depth_png, *intrinsics);
   if (!depth) return depth.error();
   Expected<FrameTruth> truth = LoadTruth(truth_png, truth_yaml);
   if (!truth) return truth.error();

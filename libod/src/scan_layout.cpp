@@ -13,12 +13,12 @@ namespace {
 
 constexpr double kOrganisedAgreement = 0.9;  // share of neighbour pairs that must agree
 
-double WrapPi(double a) {
+// An angle into [-pi, pi] (search_region.cpp's WrapPi gives (-pi, pi]; the layout keeps the
+// value it was written with).
+double WrapAngle(double a) {
   if (a >= -kPi && a <= kPi) return a;  // what remainder gives, without its cost
   return std::remainder(a, 2.0 * kPi);
 }
-
-double Azimuth(const Eigen::Vector3f& p) { return std::atan2(double(p.y()), double(p.x())); }
 
 }  // namespace
 
@@ -63,7 +63,7 @@ Expected<PointLayout> ResolveLayout(const PointCloud& cloud, const SphericalMode
         const Eigen::Vector3f& next = cloud.points[(c + 1) * rings + r];
         if (IsReturn(next)) {
           ++col_pairs;
-          const double d = WrapPi(azimuth(p) - azimuth(next));  // one step when organised
+          const double d = WrapAngle(azimuth(p) - azimuth(next));  // one step when organised
           if (d > -2.0 * step && d < 4.0 * step) ++col_agree;
         }
       }
@@ -126,7 +126,7 @@ Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points,
   }
   // The sweep's direction: the median step between neighbours in storage order.
   std::vector<double> steps(m - 1);
-  for (std::size_t k = 1; k < m; ++k) steps[k - 1] = WrapPi(azimuth[k] - azimuth[k - 1]);
+  for (std::size_t k = 1; k < m; ++k) steps[k - 1] = WrapAngle(azimuth[k] - azimuth[k - 1]);
   std::vector<double> sorted_steps = steps;
   std::nth_element(sorted_steps.begin(), sorted_steps.begin() + sorted_steps.size() / 2,
                    sorted_steps.end());
@@ -212,14 +212,14 @@ Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points,
     if (to < from - kPi) to += 2.0 * kPi;
     const double target = seam_phase < from ? seam_phase + 2.0 * kPi : seam_phase;
     if (to > from && from <= target && target <= to) {
-      straddle.push_back(WrapPi(0.5 * (from + to) - seam_phase));
+      straddle.push_back(WrapAngle(0.5 * (from + to) - seam_phase));
     }
   }
   if (!straddle.empty()) {
     std::nth_element(straddle.begin(), straddle.begin() + straddle.size() / 2, straddle.end());
     seam_phase += straddle[straddle.size() / 2];
   }
-  result.seam_rad = WrapPi(first_seam + sweep * seam_phase);
+  result.seam_rad = WrapAngle(first_seam + sweep * seam_phase);
   cut(result.seam_rad);
 
   if (result.rings < 3) {
@@ -232,7 +232,7 @@ Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points,
   std::size_t far_back = 0;
   for (std::size_t k = 1; k < m; ++k) {
     far_back += result.ring[index[k]] == result.ring[index[k - 1]] &&
-                sweep * WrapPi(azimuth[k] - azimuth[k - 1]) < -kFarBack;
+                sweep * WrapAngle(azimuth[k] - azimuth[k - 1]) < -kFarBack;
   }
   if (far_back * 10 > static_cast<std::size_t>(result.rings)) {
     return Error{"ring breaks: the azimuth jumps back by more than 10 deg " +
@@ -281,7 +281,7 @@ OrganisedFit CheckOrganised(const std::vector<Eigen::Vector3f>& points,
     const std::size_t next = i + rings;
     if (!IsReturn(points[i]) || !IsReturn(points[next])) continue;
     ++pairs;
-    const double d = WrapPi(azimuth[i] - azimuth[next]);
+    const double d = WrapAngle(azimuth[i] - azimuth[next]);
     decreasing += d > -2.0 * step && d < 4.0 * step;
     increasing += -d > -2.0 * step && -d < 4.0 * step;
   }
@@ -333,7 +333,9 @@ void OrganisedColumns(const PointCloud& cloud, std::size_t rings, bool azimuth_d
     const std::size_t col = azimuth_decreasing ? c : columns - 1 - c;
     if (!IsReturn(cloud.points[i])) continue;
     cols[i] = static_cast<std::int32_t>(col);
-    start_sum += std::polar(1.0, Azimuth(cloud.points[i]) + static_cast<double>(col) * step);
+    start_sum +=
+        std::polar(1.0, std::atan2(double(cloud.points[i].y()), double(cloud.points[i].x())) +
+                            static_cast<double>(col) * step);
   }
   model.azimuth_start_rad = std::abs(start_sum) > 0.0 ? std::arg(start_sum) : 0.0;
 }
@@ -406,7 +408,7 @@ Expected<FoundLayout> FinishLayout(const LayoutScan& scan, std::string note, Rin
     // Column centres on the returns' azimuths; forward (+x) in the middle column, so
     // that range images read like the scene seen from the sensor.
     layout.model.azimuth_start_rad =
-        WrapPi(FitAzimuthStart(scan.angles, width) + (width / 2) * (2.0 * kPi / width));
+        WrapAngle(FitAzimuthStart(scan.angles, width) + (width / 2) * (2.0 * kPi / width));
     cols.assign(n, -1);
     for (std::size_t i = 0; i < n; ++i) {
       if (layout.rows[i] >= 0) cols[i] = layout.model.ColumnAt(scan.angles.azimuth[i]);

@@ -33,7 +33,7 @@ Eigen::Vector3d UpInSensor(const Frame& frame) {
 }
 
 Expected<FrameImage> ToRangeImage(const Frame& frame, const Eigen::Vector3d& up_sensor,
-                                  const od::io::StereoConfig& stereo) {
+                                  const od::StereoConfig& stereo) {
   FrameImage out;
   Expected<od::RangeImage> image = Error{"no range data"};
   if (const DepthImage* depth = frame.depth()) {
@@ -42,12 +42,12 @@ Expected<FrameImage> ToRangeImage(const Frame& frame, const Eigen::Vector3d& up_
     image =
         od::RangeImage::FromPoints(scan->points, scan->model, up_sensor, scan->rows, scan->cols);
   } else if (const StereoPair* pair = frame.stereo()) {
-    od::io::StereoPair rectified;
+    od::StereoPair rectified;
     rectified.left = pair->left;
     rectified.right = pair->right;
     rectified.calibration.model = pair->left_model;
     rectified.calibration.baseline_m = pair->baseline_m;
-    Expected<od::io::StereoDepth> matched = od::io::ComputeStereoDepth(rectified, stereo);
+    Expected<od::StereoDepth> matched = od::ComputeStereoDepth(rectified, stereo);
     if (!matched) return Error{"stereo: " + matched.error().message};
     image = od::RangeImage::FromDepth(matched->depth_m.data, pair->left_model, up_sensor);
     out.stereo = std::move(*matched);

@@ -35,7 +35,7 @@ class DepthFolderFrames final : public FrameSource {
     Expected<BodyPose> pose = trajectory_.PoseAt(out.stamp_s);
     if (!pose) return Error{out.name + ": " + pose.error().message};
     out.T_world_body = out.T_world_sensor = pose->T_world_body;
-    Expected<od::io::Grid<float>> depth = od::io::ReadDepthPng(out.name, camera_);
+    Expected<od::Grid<float>> depth = od::io::ReadDepthPng(out.name, camera_);
     if (!depth) return depth.error();
     const Eigen::Vector3d up = out.T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
     Expected<od::RangeImage> image = od::RangeImage::FromDepth(depth->data, camera_.model, up);

@@ -52,7 +52,7 @@ void WriteLabels(const std::string& path, const InArray<std::uint32_t>& labels) 
 }
 
 template <typename T>
-py::array_t<T> GridArray(od::io::Grid<T>&& grid) {
+py::array_t<T> GridArray(od::Grid<T>&& grid) {
   const int h = grid.height, w = grid.width;
   return Take(std::move(grid.data), {h, w});
 }
@@ -142,7 +142,7 @@ void RegisterIo(py::module_& m) {
   m.def(
       "read_depth",
       [](const std::string& path, const od::io::CameraIntrinsics& intrinsics) {
-        od::io::Grid<float> depth;
+        od::Grid<float> depth;
         {
           py::gil_scoped_release release;
           depth = Unwrap(od::io::ReadDepthImage(path, intrinsics));
@@ -155,7 +155,7 @@ void RegisterIo(py::module_& m) {
   m.def(
       "read_segments_png",
       [](const std::string& path) {
-        od::io::Grid<std::int32_t> g;
+        od::Grid<std::int32_t> g;
         {
           py::gil_scoped_release release;
           g = Unwrap(od::io::ReadSegmentsPng(path));
@@ -166,7 +166,7 @@ void RegisterIo(py::module_& m) {
   m.def(
       "read_classes_png",
       [](const std::string& path) {
-        od::io::Grid<std::uint8_t> g;
+        od::Grid<std::uint8_t> g;
         {
           py::gil_scoped_release release;
           g = Unwrap(od::io::ReadClassesPng(path));

@@ -38,7 +38,7 @@ constexpr double kBoxNear = 5.0, kBoxFar = 5.5, kBoxHalfWidth = 0.5, kBoxTall = 
 enum class Hit { kNone, kGround, kBox };
 
 struct Scene {
-  od::io::Grid<float> depth{kWidth, kHeight, {}};
+  od::Grid<float> depth{kWidth, kHeight, {}};
   std::vector<Hit> hit;
   std::vector<Eigen::Vector3d> level_point;  ///< where each pixel's ray hits [m]
 };
@@ -154,7 +154,7 @@ TEST_F(DetectCli, FindsTheBoxAndNotTheGround) {
     EXPECT_TRUE(std::filesystem::is_regular_file(out / name)) << name;
   }
 
-  Expected<od::io::Grid<std::uint8_t>> classes = od::io::ReadClassesPng(out / "classes.png");
+  Expected<od::Grid<std::uint8_t>> classes = od::io::ReadClassesPng(out / "classes.png");
   ASSERT_TRUE(classes.ok()) << classes.error().message;
   ASSERT_EQ(classes->width, kWidth);
   ASSERT_EQ(classes->height, kHeight);
@@ -205,10 +205,9 @@ TEST_F(DetectCli, WithoutRulesEveryObstaclePointIsKept) {
   args.push_back("--no-rules");
   const RunResult run = RunCairn(args);
   ASSERT_EQ(run.exit_code, 0) << run.output;
-  Expected<od::io::Grid<std::int32_t>> segments =
+  Expected<od::Grid<std::int32_t>> segments =
       od::io::ReadSegmentsPng(dir_ / "out" / "segments.png");
-  Expected<od::io::Grid<std::uint8_t>> classes =
-      od::io::ReadClassesPng(dir_ / "out" / "classes.png");
+  Expected<od::Grid<std::uint8_t>> classes = od::io::ReadClassesPng(dir_ / "out" / "classes.png");
   ASSERT_TRUE(segments.ok() && classes.ok());
   int obstacle_points = 0;
   for (std::size_t i = 0; i < classes->data.size(); ++i) {
@@ -223,8 +222,7 @@ TEST_F(DetectCli, ColumnMethodFindsTheBoxFace) {
   args.insert(args.end(), {"--method", "column"});
   const RunResult run = RunCairn(args);
   ASSERT_EQ(run.exit_code, 0) << run.output;
-  Expected<od::io::Grid<std::uint8_t>> classes =
-      od::io::ReadClassesPng(dir_ / "out" / "classes.png");
+  Expected<od::Grid<std::uint8_t>> classes = od::io::ReadClassesPng(dir_ / "out" / "classes.png");
   ASSERT_TRUE(classes.ok());
   int box = 0, box_kept = 0;
   for (std::size_t i = 0; i < classes->data.size(); ++i) {
@@ -241,7 +239,7 @@ TEST_F(DetectCli, MissingDepthFile) {
 }
 
 TEST_F(DetectCli, DepthOfTheWrongSize) {
-  const od::io::Grid<float> small{80, 60, std::vector<float>(80 * 60, 2.0f)};
+  const od::Grid<float> small{80, 60, std::vector<float>(80 * 60, 2.0f)};
   ASSERT_TRUE(od::io::WriteDepthPng(dir_ / "small.png", small, kDepthScale).ok());
   ExpectFailure(Args(dir_ / "small.png", intrinsics_, config_), "width 160");
 }

@@ -1,7 +1,7 @@
 // Stereo pairs: calibration files (three formats, clear errors), rectification, semi-global
 // matching and depth with its uncertainty, against rendered ground truth (libsim) and real
 // pairs (Middlebury Aloe with true disparity, the FoundationStereo desk with its K.txt).
-#include "cairn/od/io/stereo.hpp"
+#include "cairn/sim/stereo.hpp"
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -18,12 +18,12 @@
 
 #include "cairn/od/detector.hpp"
 #include "cairn/od/io/detect_config.hpp"
+#include "cairn/od/io/stereo_files.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/sim/camera.hpp"
 #include "cairn/sim/scene.hpp"
-#include "cairn/sim/stereo.hpp"
 #include "cairn/sim/world.hpp"
 #include "cairn_command.hpp"
 #include "plane_fit.hpp"

@@ -263,7 +263,7 @@ void WriteDepthFrames(const fs::path& rawlog, const fs::path& frames) {
     if (!*frame) break;
     const sources::DepthImage* depth = (*frame)->depth();
     ASSERT_NE(depth, nullptr);
-    od::io::Grid<float> grid;
+    od::Grid<float> grid;
     grid.width = depth->model.width;
     grid.height = depth->model.height;
     grid.data = depth->depth_m;
@@ -604,7 +604,7 @@ TEST_F(MapCli, FramesThatCannotBeUsedAreNamedAndCountedAndStrictRefusesThem) {
   ASSERT_EQ(pngs.size(), 11u);
   Expected<od::io::CameraIntrinsics> camera = od::io::LoadIntrinsics(frames / "intrinsics.yaml");
   ASSERT_TRUE(camera) << camera.error().message;
-  od::io::Grid<float> empty;
+  od::Grid<float> empty;
   empty.width = camera->model.width;
   empty.height = camera->model.height;
   empty.data.assign(static_cast<std::size_t>(empty.width) * empty.height, 0.0f);

@@ -18,7 +18,7 @@
 #include "../io/plane_fit.hpp"
 #include "cairn/map/gravity_estimator.hpp"
 #include "cairn/od/expected.hpp"
-#include "cairn/od/io/stereo.hpp"
+#include "cairn/od/io/stereo_files.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/sources/asl_dataset.hpp"
 
@@ -187,7 +187,7 @@ inline bool FloorNormal(const std::vector<Eigen::Vector3d>& points, Eigen::Vecto
 
 /// The EuRoC pairs at rest: rectified with the data set's calibration (an OpenCV stereo
 /// calibration built from cam0/cam1's intrinsics, distortion and extrinsics), matched with
-/// od::io::ComputeStereoDepth, the floor's normal and the accelerometer's mean direction
+/// od::ComputeStereoDepth, the floor's normal and the accelerometer's mean direction
 /// (+-25 ms around each pair) against the true up (OpenVINS' attitude).
 inline Expected<EurocStereoUpResult> RunEurocStereoUp(const std::filesystem::path& root) {
   Expected<sources::AslDataset> data = sources::ReadAslDataset(root / "mav0");
@@ -220,25 +220,25 @@ inline Expected<EurocStereoUpResult> RunEurocStereoUp(const std::filesystem::pat
   list({R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)});
   yaml << "T: ";
   list({T_c1_c0.translation().x(), T_c1_c0.translation().y(), T_c1_c0.translation().z()});
-  Expected<od::io::StereoCalibration> calibration =
+  Expected<od::StereoCalibration> calibration =
       od::io::ParseOpenCvStereoCalibration(yaml.str(), "EuRoC cam0/cam1");
   if (!calibration) return calibration.error();
   const Eigen::Matrix3d R_rect_body =
       calibration->rectification->R1 * c0.T_body_camera.linear().transpose();
-  od::io::StereoConfig config;
+  od::StereoConfig config;
   config.min_depth_m = 0.5;
   config.max_depth_m = 6.0;
   EurocStereoUpResult result;
   std::vector<double> floor_err, accel_err, floor_accel;
   for (std::size_t k = 0; k < c0.images.size() && k < c1.images.size(); ++k) {
     if (!c0.images[k].exists || !c1.images[k].exists) continue;
-    Expected<od::io::GreyImage> left = od::io::ReadGreyImage(c0.images[k].path);
+    Expected<od::GreyImage> left = od::io::ReadGreyImage(c0.images[k].path);
     if (!left) return left.error();
-    Expected<od::io::GreyImage> right = od::io::ReadGreyImage(c1.images[k].path);
+    Expected<od::GreyImage> right = od::io::ReadGreyImage(c1.images[k].path);
     if (!right) return right.error();
-    Expected<od::io::StereoPair> pair = od::io::PrepareStereoPair(*left, *right, *calibration);
+    Expected<od::StereoPair> pair = od::PrepareStereoPair(*left, *right, *calibration);
     if (!pair) return pair.error();
-    Expected<od::io::StereoDepth> depth = od::io::ComputeStereoDepth(*pair, config);
+    Expected<od::StereoDepth> depth = od::ComputeStereoDepth(*pair, config);
     if (!depth) return depth.error();
     const od::PinholeModel& m = pair->calibration.model;
     std::vector<Eigen::Vector3d> points;

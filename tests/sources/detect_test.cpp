@@ -359,8 +359,8 @@ TEST(DetectRawlogCommand, RangeScanLabelsReadBackThroughMrpt) {
   EXPECT_EQ(summary["frames"][0]["undistorted"], true);
   EXPECT_EQ(summary["frames"][0]["odometry"]["source"], "ODOM");
   EXPECT_EQ(summary["segments_kept"], 1);  // the box (with the ground at its foot)
-  Expected<od::io::Grid<std::uint8_t>> classes = od::io::ReadClassesPng(folder / "classes.png");
-  Expected<od::io::Grid<std::int32_t>> segments = od::io::ReadSegmentsPng(folder / "segments.png");
+  Expected<od::Grid<std::uint8_t>> classes = od::io::ReadClassesPng(folder / "classes.png");
+  Expected<od::Grid<std::int32_t>> segments = od::io::ReadSegmentsPng(folder / "segments.png");
   ASSERT_TRUE(classes.ok() && segments.ok());
 
   Expected<std::vector<::mrpt::obs::CObservation::Ptr>> read =
@@ -478,8 +478,8 @@ TEST(DetectRawlogCommand, StereoPairsAreMatchedThenDetected) {
   EXPECT_EQ(frame["baseline_m"], 0.12);
   EXPECT_EQ(frame["rectified_here"], false);
   EXPECT_EQ(frame["stereo_range_too_short"], false);  // 4 px, well inside the range
-  Expected<od::io::Grid<float>> depth = od::io::ReadDepthTiff(
-      dir / "out" / "000000_BUMBLEBEE" / "depth.tiff", kWidth, kHeight, 1.0);
+  Expected<od::Grid<float>> depth =
+      od::io::ReadDepthTiff(dir / "out" / "000000_BUMBLEBEE" / "depth.tiff", kWidth, kHeight, 1.0);
   ASSERT_TRUE(depth.ok()) << depth.error().message;
   int near_1_5 = 0, valid = 0;
   for (float z : depth->data) {

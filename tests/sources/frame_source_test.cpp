@@ -141,7 +141,7 @@ bool SameImage(const od::RangeImage& a, const od::RangeImage& b) {
 // each kind, and names the stereo matching when it is what failed.
 TEST(ToRangeImage, EachKindAsItsRangeImageFactoryMakesIt) {
   const Eigen::Vector3d up = Eigen::Vector3d(0.1, -1.0, 0.2).normalized();
-  const od::io::StereoConfig stereo;
+  const od::StereoConfig stereo;
 
   Frame depth_frame;
   DepthImage depth;
@@ -177,8 +177,8 @@ TEST(ToRangeImage, EachKindAsItsRangeImageFactoryMakesIt) {
 
   Frame stereo_frame;
   StereoPair pair;
-  pair.left = od::io::Grid<std::uint8_t>{8, 6, std::vector<std::uint8_t>(48, 100)};
-  pair.right = od::io::Grid<std::uint8_t>{4, 6, std::vector<std::uint8_t>(24, 100)};
+  pair.left = od::Grid<std::uint8_t>{8, 6, std::vector<std::uint8_t>(48, 100)};
+  pair.right = od::Grid<std::uint8_t>{4, 6, std::vector<std::uint8_t>(24, 100)};
   pair.left_model = depth.model;
   pair.baseline_m = 0.1;
   stereo_frame.data = pair;

@@ -1,12 +1,28 @@
 #include "cairn/util/image_file.hpp"
 
 #include <cctype>
+#include <cstring>
 #include <opencv2/imgcodecs.hpp>
 #include <string_view>
 
 #include "cairn/util/atomic_file.hpp"
 
 namespace cairn::util {
+
+cv::Mat GreyMatView(const od::Grid<std::uint8_t>& image) {
+  return cv::Mat(image.height, image.width, CV_8UC1, const_cast<std::uint8_t*>(image.data.data()));
+}
+
+od::Grid<std::uint8_t> GreyGridOf(const cv::Mat& m) {
+  od::Grid<std::uint8_t> image;
+  image.width = m.cols;
+  image.height = m.rows;
+  image.data.resize(static_cast<std::size_t>(m.cols) * m.rows);
+  for (int r = 0; r < m.rows; ++r) {
+    std::memcpy(&image.data[static_cast<std::size_t>(r) * m.cols], m.ptr<std::uint8_t>(r), m.cols);
+  }
+  return image;
+}
 
 std::string DescribeImageType(int type) {
   std::string depth;

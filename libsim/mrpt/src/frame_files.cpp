@@ -53,7 +53,7 @@ int TruthNoHitLabel(const std::vector<std::int32_t>& object_ids) {
   return max_id <= 254 ? 255 : 65535;
 }
 
-Status WriteObjectIdPng(const fs::path& path, const od::io::Grid<std::int32_t>& ids) {
+Status WriteObjectIdPng(const fs::path& path, const od::Grid<std::int32_t>& ids) {
   if (ids.width <= 0 || ids.height <= 0 ||
       ids.data.size() != static_cast<std::size_t>(ids.width) * ids.height) {
     return Error{path.string() + ": " + std::to_string(ids.data.size()) + " ids for a " +
@@ -81,7 +81,7 @@ Status WriteObjectIdPng(const fs::path& path, const od::io::Grid<std::int32_t>& 
   return WritePng(path, image);
 }
 
-Expected<od::io::Grid<std::int32_t>> ReadObjectIdPng(const fs::path& path) {
+Expected<od::Grid<std::int32_t>> ReadObjectIdPng(const fs::path& path) {
   const cv::Mat image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
   if (image.empty()) return Error{path.string() + ": cannot read the image"};
   if (image.channels() != 1 || (image.depth() != CV_8U && image.depth() != CV_16U)) {
@@ -89,7 +89,7 @@ Expected<od::io::Grid<std::int32_t>> ReadObjectIdPng(const fs::path& path) {
   }
   const bool wide = image.depth() == CV_16U;
   const int no_hit = wide ? 65535 : 255;
-  od::io::Grid<std::int32_t> ids;
+  od::Grid<std::int32_t> ids;
   ids.width = image.cols;
   ids.height = image.rows;
   ids.data.resize(static_cast<std::size_t>(ids.width) * ids.height);
@@ -139,7 +139,7 @@ Expected<CameraFrameFiles> WriteCameraFrame(const fs::path& dir, const DepthFram
   files.truth_png = dir / "truth.png";
   files.truth_yaml = dir / "truth.yaml";
 
-  od::io::Grid<float> depth;
+  od::Grid<float> depth;
   depth.width = frame.width();
   depth.height = frame.height();
   depth.data = frame.depth_m;
@@ -148,7 +148,7 @@ Expected<CameraFrameFiles> WriteCameraFrame(const fs::path& dir, const DepthFram
     if (std::isfinite(d)) max_depth = std::max(max_depth, d);
   }
   files.depth_scale_m = DepthScaleFor(max_depth);
-  od::io::Grid<std::int32_t> ids;
+  od::Grid<std::int32_t> ids;
   ids.width = frame.width();
   ids.height = frame.height();
   ids.data = frame.object_id;

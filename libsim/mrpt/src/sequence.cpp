@@ -202,7 +202,7 @@ Expected<SequenceSummary> WriteDriveSequence(const World& world, const fs::path&
         return Error{who + ": frame " + std::to_string(k) + ": " + rendered.depth.error().message};
       }
       const DepthFrame& frame = *rendered.depth;
-      od::io::Grid<std::int32_t> ids;
+      od::Grid<std::int32_t> ids;
       ids.width = frame.width();
       ids.height = frame.height();
       ids.data = frame.object_id;

@@ -139,14 +139,14 @@ class VelodyneCollector : public CObservationVelodyneScan::PointCloudStorageWrap
 #pragma GCC diagnostic pop
 
 // Grey 8-bit copy of an MRPT image.
-Expected<od::io::Grid<std::uint8_t>> GreyGrid(const ::mrpt::img::CImage& image,
-                                              const std::string& who, const char* which) {
+Expected<od::Grid<std::uint8_t>> GreyGrid(const ::mrpt::img::CImage& image, const std::string& who,
+                                          const char* which) {
   if (image.isEmpty()) return Error{who + ": empty " + which + " image"};
   const ::mrpt::img::CImage grey(image, ::mrpt::img::FAST_REF_OR_CONVERT_TO_GRAY);
   if (grey.getPixelDepth() != ::mrpt::img::PixelDepth::D8U) {
     return Error{who + ": " + which + " image is not 8-bit"};
   }
-  od::io::Grid<std::uint8_t> grid;
+  od::Grid<std::uint8_t> grid;
   grid.width = static_cast<int>(grey.getWidth());
   grid.height = static_cast<int>(grey.getHeight());
   grid.data.resize(static_cast<std::size_t>(grid.width) * grid.height);
@@ -557,9 +557,9 @@ Expected<Frame> DecodeStereoImages(const CObservationStereoImages& stereo) {
     }
     out.rectified_here = true;
   }
-  Expected<od::io::Grid<std::uint8_t>> left = GreyGrid(pair.imageLeft, who, "left");
+  Expected<od::Grid<std::uint8_t>> left = GreyGrid(pair.imageLeft, who, "left");
   if (!left) return left.error();
-  Expected<od::io::Grid<std::uint8_t>> right = GreyGrid(pair.imageRight, who, "right");
+  Expected<od::Grid<std::uint8_t>> right = GreyGrid(pair.imageRight, who, "right");
   if (!right) return right.error();
   out.left = std::move(*left);
   out.right = std::move(*right);

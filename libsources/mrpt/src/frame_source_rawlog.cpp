@@ -22,7 +22,7 @@ Eigen::Vector3d UpIn(const Eigen::Isometry3d& T_world_sensor) {
 
 class RawlogFrames final : public FrameSource {
  public:
-  RawlogFrames(std::string path, std::string label, const od::io::StereoConfig& stereo,
+  RawlogFrames(std::string path, std::string label, const od::StereoConfig& stereo,
                Trajectory trajectory, std::vector<ImuAttitude> imu, std::vector<ImuSample> imu_raw,
                int total, RawlogSource source)
       : path_(std::move(path)),
@@ -91,7 +91,7 @@ class RawlogFrames final : public FrameSource {
 
  private:
   std::string path_, label_;
-  od::io::StereoConfig stereo_;
+  od::StereoConfig stereo_;
   Trajectory trajectory_;
   std::vector<ImuAttitude> imu_;  // in file order
   std::size_t next_imu_ = 0;
@@ -105,7 +105,7 @@ class RawlogFrames final : public FrameSource {
 
 Expected<std::unique_ptr<FrameSource>> OpenRawlogFrames(const std::string& path,
                                                         const std::string& label,
-                                                        const od::io::StereoConfig& stereo) {
+                                                        const od::StereoConfig& stereo) {
   SourceOptions scan;
   scan.label = label;
   scan.decode_frames = false;

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "cairn/od/expected.hpp"
-#include "cairn/od/io/grid.hpp"
+#include "cairn/od/grid.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
@@ -47,7 +47,7 @@ struct FrameTruth {
 /// figures is made from depth_m); truth is aligned with them.
 struct EvalFrame {
   std::string name;  ///< e.g. "forest/view0"
-  od::io::Grid<float> depth_m;
+  od::Grid<float> depth_m;
   od::RangeImage image;
   FrameTruth truth;
 };

@@ -30,13 +30,13 @@
 
 #include "cairn/map/mapper.hpp"
 #include "cairn/od/expected.hpp"
-#include "cairn/od/io/stereo.hpp"
+#include "cairn/od/stereo.hpp"
 
 namespace cairn::map {
 
 struct MapperSettings {
   MapperConfig mapper;
-  od::io::StereoConfig stereo;  ///< for stereo frames (the `stereo:` section)
+  od::StereoConfig stereo;  ///< for stereo frames (the `stereo:` section)
 };
 
 Expected<MapperSettings> LoadMapperSettings(const std::filesystem::path& path);

@@ -24,10 +24,10 @@
 #include <vector>
 
 #include "cairn/od/expected.hpp"
-#include "cairn/od/io/grid.hpp"
-#include "cairn/od/io/stereo.hpp"
+#include "cairn/od/grid.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/sensor_model.hpp"
+#include "cairn/od/stereo.hpp"
 
 namespace cairn::sources {
 
@@ -64,7 +64,7 @@ struct PointScan {
 
 /// A stereo pair, rectified (by the decoder when the file held raw images).
 struct StereoPair {
-  od::io::Grid<std::uint8_t> left, right;  ///< grey, same size
+  od::Grid<std::uint8_t> left, right;      ///< grey, same size
   od::PinholeModel left_model;             ///< rectified left camera
   double baseline_m = 0.0;                 ///< right camera's offset along the left's x [m]
   bool rectified_here = false;             ///< the file's images were raw
@@ -139,13 +139,13 @@ struct FrameImage {
   od::RangeImage image;
   /// Stereo pairs: the depth matched with the given StereoConfig (od_io's semi-global
   /// matching), which the image was made from.
-  std::optional<od::io::StereoDepth> stereo;
+  std::optional<od::StereoDepth> stereo;
 };
 
 /// The one way from any Frame to its range image: depth images and point scans as they
 /// are (point scans with their rows and columns when the source found them), stereo pairs
 /// matched first. Errors say what failed ("stereo: ...", or the range image's own).
 Expected<FrameImage> ToRangeImage(const Frame& frame, const Eigen::Vector3d& up_sensor,
-                                  const od::io::StereoConfig& stereo);
+                                  const od::StereoConfig& stereo);
 
 }  // namespace cairn::sources

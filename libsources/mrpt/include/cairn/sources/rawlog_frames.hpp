@@ -7,7 +7,7 @@
 #include <string>
 
 #include "cairn/od/expected.hpp"
-#include "cairn/od/io/stereo.hpp"
+#include "cairn/od/stereo.hpp"
 #include "cairn/sources/frame_source.hpp"
 
 namespace cairn::sources {
@@ -17,6 +17,6 @@ namespace cairn::sources {
 /// labels it holds are named) or no odometry.
 Expected<std::unique_ptr<FrameSource>> OpenRawlogFrames(const std::string& path,
                                                         const std::string& label,
-                                                        const od::io::StereoConfig& stereo);
+                                                        const od::StereoConfig& stereo);
 
 }  // namespace cairn::sources

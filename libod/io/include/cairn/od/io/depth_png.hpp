@@ -7,7 +7,7 @@
 #include <filesystem>
 
 #include "cairn/od/expected.hpp"
-#include "cairn/od/io/grid.hpp"
+#include "cairn/od/grid.hpp"
 #include "cairn/od/io/intrinsics.hpp"
 
 namespace cairn::od::io {

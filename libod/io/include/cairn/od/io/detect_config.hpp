@@ -38,8 +38,8 @@
 
 #include "cairn/od/detector.hpp"
 #include "cairn/od/expected.hpp"
-#include "cairn/od/io/stereo.hpp"
 #include "cairn/od/rules.hpp"
+#include "cairn/od/stereo.hpp"
 #include "cairn/util/yaml.hpp"
 
 namespace cairn::od::io {

@@ -17,8 +17,8 @@
 
 #include "cairn/od/detector.hpp"
 #include "cairn/od/expected.hpp"
+#include "cairn/od/grid.hpp"
 #include "cairn/od/io/detect_config.hpp"
-#include "cairn/od/io/grid.hpp"
 #include "cairn/od/rules.hpp"
 
 namespace cairn::od::io {

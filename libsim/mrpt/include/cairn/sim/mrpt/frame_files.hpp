@@ -28,7 +28,7 @@
 #include <vector>
 
 #include "cairn/od/expected.hpp"
-#include "cairn/od/io/grid.hpp"
+#include "cairn/od/grid.hpp"
 #include "cairn/od/sensor_model.hpp"
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/scene.hpp"
@@ -41,10 +41,10 @@ int TruthNoHitLabel(const std::vector<std::int32_t>& object_ids);
 
 /// Writes object ids (kTerrainId, object ids, kNoHitId) as truth.png (see above). Fails on
 /// an id below -1 or above 65534, or a size mismatch.
-Status WriteObjectIdPng(const std::filesystem::path& path, const od::io::Grid<std::int32_t>& ids);
+Status WriteObjectIdPng(const std::filesystem::path& path, const od::Grid<std::int32_t>& ids);
 
 /// Reads a truth image (8- or 16-bit) back into ids, no return as kNoHitId.
-Expected<od::io::Grid<std::int32_t>> ReadObjectIdPng(const std::filesystem::path& path);
+Expected<od::Grid<std::int32_t>> ReadObjectIdPng(const std::filesystem::path& path);
 
 /// truth.yaml for every object of the scene.
 Status WriteTruthYaml(const std::filesystem::path& path, const Scene& scene);

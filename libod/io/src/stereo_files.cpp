@@ -1,4 +1,4 @@
-#include "cairn/od/io/stereo.hpp"
+#include "cairn/od/io/stereo_files.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -14,21 +14,15 @@
 #include "cairn/od/io/limits.hpp"
 #include "cairn/od/leveling.hpp"
 #include "cairn/od/units.hpp"
-#include "cairn/util/yaml.hpp"
+#include "cairn/util/format.hpp"
 #include "cairn/util/image_file.hpp"
+#include "cairn/util/yaml.hpp"
 #include "png.hpp"
 
 namespace cairn::od::io {
 namespace {
 
 constexpr double kMaxBaselineM = 10.0;
-
-std::string Num(double v) {
-  std::ostringstream s;
-  s.precision(9);
-  s << v;
-  return s.str();
-}
 
 // ---------------------------------------------------------------------------------------
 // cairn's stereo YAML
@@ -46,8 +40,7 @@ Expected<int> RequiredSize(const util::FieldReader& reader, const YAML::Node& no
   if (!v) return v.error();
   if (*v <= 0 || *v > kMaxImageSide) {
     return reader.Fail(field, "expected a positive integer [px] up to " +
-                                  std::to_string(kMaxImageSide) + ", got " +
-                                  util::Describe(node));
+                                  std::to_string(kMaxImageSide) + ", got " + util::Describe(node));
   }
   return static_cast<int>(*v);
 }
@@ -98,11 +91,11 @@ Expected<std::optional<Eigen::Vector3d>> ReadUp(const util::FieldReader& reader,
 Status CheckBaseline(const std::string& source, const std::string& field, double baseline_m) {
   if (!std::isfinite(baseline_m) || baseline_m <= 0.0) {
     return Error{source + ": " + field + ": expected a positive baseline [m], got " +
-                 Num(baseline_m)};
+                 util::Number(baseline_m)};
   }
   if (baseline_m > kMaxBaselineM) {
-    return Error{source + ": " + field + ": baseline " + Num(baseline_m) +
-                 " is implausible in metres (more than " + Num(kMaxBaselineM) +
+    return Error{source + ": " + field + ": baseline " + util::Number(baseline_m) +
+                 " is implausible in metres (more than " + util::Number(kMaxBaselineM) +
                  " m); give it in metres (a calibration board measured in millimetres gives "
                  "millimetres: divide by 1000)"};
   }
@@ -176,7 +169,8 @@ Expected<int> ReadPositiveInt(const cv::FileNode& node, const std::string& sourc
   }
   const double v = static_cast<double>(node);
   if (!(v >= 1.0) || v != std::floor(v) || v > kMaxImageSide) {
-    return Error{source + ": " + field + ": expected a positive integer [px], got " + Num(v)};
+    return Error{source + ": " + field + ": expected a positive integer [px], got " +
+                 util::Number(v)};
   }
   return static_cast<int>(v);
 }
@@ -237,56 +231,6 @@ Eigen::Matrix3d ToEigen3(const cv::Mat& m) {
   return e;
 }
 
-cv::Mat ToCv(const Eigen::Matrix3d& e) {
-  cv::Mat m(3, 3, CV_64F);
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) m.at<double>(r, c) = e(r, c);
-  }
-  return m;
-}
-
-// ---------------------------------------------------------------------------------------
-// Images
-
-cv::Mat AsMat(const GreyImage& image) {
-  // OpenCV only reads through this header: the const_cast never leads to a write.
-  return cv::Mat(image.height, image.width, CV_8UC1, const_cast<std::uint8_t*>(image.data.data()));
-}
-
-GreyImage FromMat(const cv::Mat& m) {
-  GreyImage image;
-  image.width = m.cols;
-  image.height = m.rows;
-  image.data.resize(static_cast<std::size_t>(m.cols) * m.rows);
-  for (int r = 0; r < m.rows; ++r) {
-    std::memcpy(&image.data[static_cast<std::size_t>(r) * m.cols], m.ptr<std::uint8_t>(r), m.cols);
-  }
-  return image;
-}
-
-bool WellFormed(const GreyImage& image) {
-  return image.width > 0 && image.height > 0 &&
-         image.data.size() == static_cast<std::size_t>(image.width) * image.height;
-}
-
-std::string SizeText(int width, int height) {
-  return std::to_string(width) + "x" + std::to_string(height);
-}
-
-int OpenCvMode(StereoMode mode) {
-  switch (mode) {
-    case StereoMode::kSgbm:
-      return cv::StereoSGBM::MODE_SGBM;
-    case StereoMode::kSgbm3Way:
-      return cv::StereoSGBM::MODE_SGBM_3WAY;
-    case StereoMode::kHh:
-      return cv::StereoSGBM::MODE_HH;
-    case StereoMode::kHh4:
-      return cv::StereoSGBM::MODE_HH4;
-  }
-  return cv::StereoSGBM::MODE_SGBM;
-}
-
 }  // namespace
 
 // -----------------------------------------------------------------------------------------
@@ -328,18 +272,18 @@ Expected<StereoCalibration> ParseStereoCalibrationYaml(const std::string& yaml_t
   m.cx = *cx;
   m.cy = *cy;
   if (!(m.fx > 0.0 && m.fx <= 1e6)) {
-    return reader.Fail("fx", "expected a focal length in (0, 1e6] px, got " + Num(m.fx));
+    return reader.Fail("fx", "expected a focal length in (0, 1e6] px, got " + util::Number(m.fx));
   }
   if (!(m.fy > 0.0 && m.fy <= 1e6)) {
-    return reader.Fail("fy", "expected a focal length in (0, 1e6] px, got " + Num(m.fy));
+    return reader.Fail("fy", "expected a focal length in (0, 1e6] px, got " + util::Number(m.fy));
   }
   if (!(m.cx >= -m.width && m.cx <= 2.0 * m.width)) {
     return reader.Fail("cx", "expected a principal point column in [-width, 2 width] px, got " +
-                                 Num(m.cx));
+                                 util::Number(m.cx));
   }
   if (!(m.cy >= -m.height && m.cy <= 2.0 * m.height)) {
     return reader.Fail("cy", "expected a principal point row in [-height, 2 height] px, got " +
-                                 Num(m.cy));
+                                 util::Number(m.cy));
   }
   Expected<double> baseline =
       RequiredNumber(reader, node["baseline"], "baseline", "the distance between the cameras [m]");
@@ -420,8 +364,8 @@ Expected<StereoCalibration> ParseOpenCvStereoCalibration(const std::string& text
   } catch (const std::exception& e) {
     // OpenCV 4.6's YAML parser lets std::length_error and the like escape on some malformed
     // text (found by fuzz_stereo_calib).
-    return Error{source + ": not a readable OpenCV calibration file (cv::FileStorage: " +
-                 e.what() + ")"};
+    return Error{source + ": not a readable OpenCV calibration file (cv::FileStorage: " + e.what() +
+                 ")"};
   }
   if (!fs.isOpened()) return Error{source + ": not a readable OpenCV calibration file"};
 
@@ -491,8 +435,8 @@ Expected<StereoCalibration> ParseOpenCvStereoCalibration(const std::string& text
   }
   const double baseline = -tx / P2.at<double>(0, 0);
   if (!(baseline > 0.0)) {
-    return Error{source +
-                 ": T: camera 2 is left of camera 1 (T.x = " + Num(translation.at<double>(0)) +
+    return Error{source + ": T: camera 2 is left of camera 1 (T.x = " +
+                 util::Number(translation.at<double>(0)) +
                  " > 0); give the left camera as camera 1 (M1, D1) and T with a negative x"};
   }
   if (Status s = CheckBaseline(source, "T", baseline); !s) return s.error();
@@ -557,293 +501,20 @@ Expected<GreyImage> ReadGreyImage(const std::filesystem::path& path) {
   if (image.empty()) {
     return Error{path.string() + ": unreadable image (not a format OpenCV decodes, or corrupt)"};
   }
-  return FromMat(image);
+  return util::GreyGridOf(image);
 }
 
 Status WriteGreyPng(const std::filesystem::path& path, const GreyImage& image) {
-  if (!WellFormed(image)) {
+  if (!image.well_formed()) {
     return Error{path.string() + ": grey image of " + std::to_string(image.data.size()) +
-                 " values does not match its size " + SizeText(image.width, image.height)};
+                 " values does not match its size " + std::to_string(image.width) + "x" +
+                 std::to_string(image.height)};
   }
-  return util::WriteImageAtomic(path, AsMat(image));
-}
-
-Expected<StereoPair> PrepareStereoPair(GreyImage left, GreyImage right,
-                                       const StereoCalibration& calibration,
-                                       const std::string& left_name,
-                                       const std::string& right_name) {
-  if (!WellFormed(left)) return Error{left_name + ": malformed image"};
-  if (!WellFormed(right)) return Error{right_name + ": malformed image"};
-  if (left.width != right.width || left.height != right.height) {
-    return Error{right_name + ": is " + SizeText(right.width, right.height) +
-                 " px, the left image " + left_name + " is " + SizeText(left.width, left.height)};
-  }
-  if (!(calibration.baseline_m > 0.0) || !std::isfinite(calibration.baseline_m)) {
-    return Error{"stereo calibration: baseline must be positive [m], got " +
-                 Num(calibration.baseline_m)};
-  }
-  StereoPair pair;
-  pair.calibration = calibration;
-  if (!calibration.rectification) {
-    PinholeModel& m = pair.calibration.model;
-    if (m.width == 0 && m.height == 0) {  // the calibration leaves the size to the images
-      m.width = left.width;
-      m.height = left.height;
-    } else if (m.width != left.width || m.height != left.height) {
-      return Error{left_name + ": is " + SizeText(left.width, left.height) +
-                   " px, the stereo calibration says " + SizeText(m.width, m.height)};
-    }
-    if (Status s = m.Validate(); !s) return Error{"stereo calibration: " + s.message()};
-    pair.left = std::move(left);
-    pair.right = std::move(right);
-    return pair;
-  }
-  const StereoRectification& rect = *calibration.rectification;
-  if (rect.raw_width != left.width || rect.raw_height != left.height) {
-    return Error{left_name + ": is " + SizeText(left.width, left.height) +
-                 " px, the stereo calibration's raw images are " +
-                 SizeText(rect.raw_width, rect.raw_height)};
-  }
-  const cv::Size size(rect.raw_width, rect.raw_height);
-  cv::Mat rectified[2];
-  try {
-    const GreyImage* raw[2] = {&left, &right};
-    const Eigen::Matrix3d* K[2] = {&rect.K1, &rect.K2};
-    const std::vector<double>* D[2] = {&rect.D1, &rect.D2};
-    const Eigen::Matrix3d* R[2] = {&rect.R1, &rect.R2};
-    const Eigen::Matrix3d* P[2] = {&rect.P1, &rect.P2};
-    for (int i = 0; i < 2; ++i) {
-      cv::Mat map_x, map_y;
-      cv::initUndistortRectifyMap(ToCv(*K[i]), cv::Mat(*D[i]), ToCv(*R[i]), ToCv(*P[i]), size,
-                                  CV_32FC1, map_x, map_y);
-      cv::remap(AsMat(*raw[i]), rectified[i], map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT,
-                cv::Scalar(0));
-    }
-  } catch (const cv::Exception& e) {
-    return Error{"stereo rectification failed: " + e.err};
-  }
-  pair.left = FromMat(rectified[0]);
-  pair.right = FromMat(rectified[1]);
-  pair.calibration.rectification.reset();
-  return pair;
-}
-
-// -----------------------------------------------------------------------------------------
-// Matching
-
-const char* StereoModeName(StereoMode mode) {
-  switch (mode) {
-    case StereoMode::kSgbm:
-      return "sgbm";
-    case StereoMode::kSgbm3Way:
-      return "sgbm_3way";
-    case StereoMode::kHh:
-      return "hh";
-    case StereoMode::kHh4:
-      return "hh4";
-  }
-  return "unknown";
-}
-
-Status StereoConfig::Validate() const {
-  auto bad = [](const char* field, const std::string& expected) {
-    return Error{std::string("stereo config: ") + field + " must be " + expected};
-  };
-  if (!std::isfinite(min_depth_m) || min_depth_m <= 0.0) {
-    return bad("min_depth_m", "a positive depth [m]");
-  }
-  if (num_disparities < 0 || num_disparities % 16 != 0) {
-    return bad("num_disparities", "0 (from min_depth) or a positive multiple of 16 [px]");
-  }
-  if (!std::isfinite(max_depth_m) || max_depth_m < 0.0) {
-    return bad("max_depth_m", "0 (no limit) or a positive depth [m]");
-  }
-  if (max_depth_m > 0.0 && max_depth_m <= min_depth_m) {
-    return bad("max_depth_m", "0 or more than min_depth_m");
-  }
-  if (block_size < 1 || block_size > 31 || block_size % 2 == 0) {
-    return bad("block_size", "odd, 1..31 [px]");
-  }
-  if (p1 < 0) return bad("p1", "0 (8 * block_size^2) or positive");
-  if (p2 < 0) return bad("p2", "0 (32 * block_size^2) or positive");
-  const int eff_p1 = p1 > 0 ? p1 : 8 * block_size * block_size;
-  const int eff_p2 = p2 > 0 ? p2 : 32 * block_size * block_size;
-  if (eff_p2 <= eff_p1) {
-    return bad("p2",
-               "greater than p1 (" + std::to_string(eff_p1) + "), got " + std::to_string(eff_p2));
-  }
-  if (uniqueness < 0 || uniqueness > 100) return bad("uniqueness", "0..100 [%]");
-  if (speckle_window < 0) return bad("speckle_window", "0 (off) or a positive pixel count");
-  if (speckle_range < 0) return bad("speckle_range", ">= 0 [px]");
-  if (pre_filter_cap < 1 || pre_filter_cap > 63) return bad("pre_filter_cap", "1..63");
-  if (!std::isfinite(min_texture) || min_texture < 0.0) {
-    return bad("min_texture", ">= 0 [grey levels per px]");
-  }
-  if (!std::isfinite(disparity_sigma_px) || disparity_sigma_px <= 0.0) {
-    return bad("disparity_sigma_px", "a positive disparity noise [px]");
-  }
-  return Status::Ok();
-}
-
-Expected<int> StereoConfig::NumDisparities(double fx_baseline, int width) const {
-  if (Status s = Validate(); !s) return s.error();
-  int n = num_disparities;
-  if (n == 0) {
-    if (!(fx_baseline > 0.0) || !std::isfinite(fx_baseline)) {
-      return Error{"stereo config: fx * baseline must be positive to derive num_disparities"};
-    }
-    const double d_max = fx_baseline / min_depth_m;
-    n = 16 * static_cast<int>(std::ceil(std::min(d_max, 1e6) / 16.0));
-    n = std::max(n, 16);
-    if (n >= width) {
-      return Error{"stereo config: min_depth_m " + Num(min_depth_m) +
-                   " m needs disparities up to " + Num(d_max) + " px, more than the image's " +
-                   std::to_string(width) +
-                   " columns allow; raise min_depth (stereo.min_depth in the settings)"};
-    }
-  } else if (n >= width) {
-    return Error{"stereo config: num_disparities " + std::to_string(n) + " must be less than the " +
-                 "image width " + std::to_string(width)};
-  }
-  return n;
-}
-
-namespace {
-
-/// StereoDisparity::range_end_fraction of the pixels that are no hole.
-double RangeEndFraction(const StereoDisparity& d) {
-  const float range_end = 0.875f * static_cast<float>(d.num_disparities);
-  std::size_t matched = 0, at_end = 0;
-  for (std::size_t i = 0; i < d.disparity_px.data.size(); ++i) {
-    if (d.hole.data[i] != static_cast<std::uint8_t>(StereoHole::kNone)) continue;
-    ++matched;
-    at_end += d.disparity_px.data[i] >= range_end ? 1 : 0;
-  }
-  return matched > 0 ? static_cast<double>(at_end) / matched : 0.0;
-}
-
-}  // namespace
-
-Expected<StereoDisparity> ComputeDisparity(const GreyImage& left, const GreyImage& right,
-                                           const StereoConfig& config, int num_disparities) {
-  if (Status s = config.Validate(); !s) return s.error();
-  if (!WellFormed(left) || !WellFormed(right)) return Error{"stereo: malformed image"};
-  if (left.width != right.width || left.height != right.height) {
-    return Error{"stereo: the images differ in size: " + SizeText(left.width, left.height) +
-                 " and " + SizeText(right.width, right.height)};
-  }
-  if (num_disparities < 16 || num_disparities % 16 != 0 || num_disparities >= left.width) {
-    return Error{"stereo: num_disparities must be a positive multiple of 16 below the width " +
-                 std::to_string(left.width) + ", got " + std::to_string(num_disparities)};
-  }
-  const int b = config.block_size;
-  const int p1 = config.p1 > 0 ? config.p1 : 8 * b * b;
-  const int p2 = config.p2 > 0 ? config.p2 : 32 * b * b;
-  cv::Mat disparity_fixed;  // CV_16S, 1/16 px; invalid = -16 (minDisparity - 1, times 16)
-  try {
-    cv::Ptr<cv::StereoSGBM> matcher = cv::StereoSGBM::create(
-        0, num_disparities, b, p1, p2, config.disp12_max_diff, config.pre_filter_cap,
-        config.uniqueness, config.speckle_window, config.speckle_range, OpenCvMode(config.mode));
-    matcher->compute(AsMat(left), AsMat(right), disparity_fixed);
-  } catch (const cv::Exception& e) {
-    return Error{std::string("stereo: semi-global matching failed: ") + e.err};
-  }
-
-  // Texture along x in each matching window: the mean |dI/dx| (central difference).
-  cv::Mat texture;
-  if (config.min_texture > 0.0) {
-    cv::Mat gradient;
-    cv::Sobel(AsMat(left), gradient, CV_32F, 1, 0, 1, 0.5, 0.0, cv::BORDER_REPLICATE);
-    gradient = cv::abs(gradient);
-    cv::boxFilter(gradient, texture, CV_32F, cv::Size(b, b), cv::Point(-1, -1), true,
-                  cv::BORDER_REPLICATE);
-  }
-
-  StereoDisparity out;
-  out.num_disparities = num_disparities;
-  out.disparity_px = Grid<float>{left.width, left.height, {}};
-  out.disparity_px.data.assign(left.data.size(), 0.0f);
-  out.hole = Grid<std::uint8_t>{left.width, left.height, {}};
-  out.hole.data.assign(left.data.size(), static_cast<std::uint8_t>(StereoHole::kNone));
-  for (int r = 0; r < left.height; ++r) {
-    const std::int16_t* d_row = disparity_fixed.ptr<std::int16_t>(r);
-    const float* t_row = texture.empty() ? nullptr : texture.ptr<float>(r);
-    for (int c = 0; c < left.width; ++c) {
-      StereoHole reason = StereoHole::kNone;
-      if (d_row[c] < 0) {
-        reason = StereoHole::kNoMatch;
-      } else if (t_row != nullptr && t_row[c] < config.min_texture) {
-        reason = StereoHole::kLowTexture;
-      } else if (d_row[c] == 0) {
-        reason = StereoHole::kOutOfRange;
-      }
-      switch (reason) {
-        case StereoHole::kNone:
-          out.disparity_px.at(r, c) = static_cast<float>(d_row[c]) / 16.0f;
-          continue;
-        case StereoHole::kNoMatch:
-          ++out.holes.no_match;
-          break;
-        case StereoHole::kLowTexture:
-          ++out.holes.low_texture;
-          break;
-        case StereoHole::kOutOfRange:
-          ++out.holes.out_of_range;
-          break;
-      }
-      out.hole.at(r, c) = static_cast<std::uint8_t>(reason);
-    }
-  }
-  out.range_end_fraction = RangeEndFraction(out);
-  return out;
-}
-
-Expected<StereoDepth> ComputeStereoDepth(const StereoPair& pair, const StereoConfig& config) {
-  const StereoCalibration& calib = pair.calibration;
-  if (Status s = calib.model.Validate(); !s) return Error{"stereo calibration: " + s.message()};
-  if (!(calib.baseline_m > 0.0) || !std::isfinite(calib.baseline_m)) {
-    return Error{"stereo calibration: baseline must be positive [m], got " + Num(calib.baseline_m)};
-  }
-  if (calib.rectification) {
-    return Error{"stereo: the pair is not rectified yet (PrepareStereoPair rectifies it)"};
-  }
-  if (pair.left.width != calib.model.width || pair.left.height != calib.model.height) {
-    return Error{"stereo: images are " + SizeText(pair.left.width, pair.left.height) +
-                 " px, the calibration says " + SizeText(calib.model.width, calib.model.height)};
-  }
-  const double fb = calib.fx_baseline();
-  Expected<int> n = config.NumDisparities(fb, pair.left.width);
-  if (!n) return n.error();
-  Expected<StereoDisparity> disparity = ComputeDisparity(pair.left, pair.right, config, *n);
-  if (!disparity) return disparity.error();
-
-  StereoDepth out;
-  out.depth_m = Grid<float>{pair.left.width, pair.left.height, {}};
-  out.depth_m.data.assign(pair.left.data.size(), 0.0f);
-  out.sigma_m = out.depth_m;
-  StereoDisparity& d = *disparity;
-  for (std::size_t i = 0; i < d.disparity_px.data.size(); ++i) {
-    const double disp = d.disparity_px.data[i];
-    if (!(disp > 0.0)) continue;
-    const double z = fb / disp;
-    if (config.max_depth_m > 0.0 && z > config.max_depth_m) {
-      d.disparity_px.data[i] = 0.0f;
-      d.hole.data[i] = static_cast<std::uint8_t>(StereoHole::kOutOfRange);
-      ++d.holes.out_of_range;
-      continue;
-    }
-    out.depth_m.data[i] = static_cast<float>(z);
-    out.sigma_m.data[i] = static_cast<float>(z * z / fb * config.disparity_sigma_px);
-  }
-  d.range_end_fraction = RangeEndFraction(d);  // over the pixels max_depth left matched
-  out.disparity = std::move(d);
-  return out;
+  return util::WriteImageAtomic(path, util::GreyMatView(image));
 }
 
 Status WriteDisparityPng(const std::filesystem::path& path, const Grid<float>& disparity_px) {
-  if (disparity_px.width <= 0 || disparity_px.height <= 0 ||
-      disparity_px.data.size() !=
-          static_cast<std::size_t>(disparity_px.width) * disparity_px.height) {
+  if (!disparity_px.well_formed()) {
     return Error{path.string() + ": disparity grid does not match its size"};
   }
   cv::Mat image(disparity_px.height, disparity_px.width, CV_16UC1);
@@ -857,8 +528,9 @@ Status WriteDisparityPng(const std::filesystem::path& path, const Grid<float>& d
       }
       const double units = std::round(d * 256.0);
       if (units > 65535.0) {
-        return Error{path.string() + ": disparity " + Num(d) + " px at row " + std::to_string(r) +
-                     ", col " + std::to_string(c) + " exceeds the 16-bit range (255.99 px)"};
+        return Error{path.string() + ": disparity " + util::Number(d) + " px at row " +
+                     std::to_string(r) + ", col " + std::to_string(c) +
+                     " exceeds the 16-bit range (255.99 px)"};
       }
       row[c] = static_cast<std::uint16_t>(std::max(1.0, units));
     }
@@ -868,9 +540,7 @@ Status WriteDisparityPng(const std::filesystem::path& path, const Grid<float>& d
 
 Status WriteDisparityColorPng(const std::filesystem::path& path, const Grid<float>& disparity_px,
                               double max_disparity_px) {
-  if (disparity_px.width <= 0 || disparity_px.height <= 0 ||
-      disparity_px.data.size() !=
-          static_cast<std::size_t>(disparity_px.width) * disparity_px.height) {
+  if (!disparity_px.well_formed()) {
     return Error{path.string() + ": disparity grid does not match its size"};
   }
   if (!(max_disparity_px > 0.0)) {
