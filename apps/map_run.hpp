@@ -141,10 +141,10 @@ FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecor
 /// The map against a synthetic world's truth (--truth).
 struct TruthScore {
   std::string world;  ///< the world file
-  eval::MapScore score;
+  cairn::eval::MapScore score;
 };
 
-/// eval::ScoreMap against the world file; an obstacle is found with a lethal cell within
+/// cairn::eval::ScoreMap against the world file; an obstacle is found with a lethal cell within
 /// 0.5 m and a cell of it (some drift). Fails naming the world file.
 Expected<TruthScore> ScoreAgainstWorld(const std::string& world_path,
                                        const map::TerrainMap& terrain);

@@ -32,9 +32,9 @@ json ObstacleBrief(const map::Obstacle& o) {
 double DistanceOrMinusOne(double d) { return std::isfinite(d) ? d : -1.0; }
 
 json TruthJson(const TruthScore& truth) {
-  const eval::MapScore& score = truth.score;
+  const cairn::eval::MapScore& score = truth.score;
   json objects = json::array();
-  for (const eval::MapObjectScore& t : score.objects) {
+  for (const cairn::eval::MapObjectScore& t : score.objects) {
     objects.push_back({{"id", t.id},
                        {"name", t.name},
                        {"is_obstacle", t.is_obstacle},
@@ -63,7 +63,7 @@ json TruthJson(const TruthScore& truth) {
 }
 
 void TruthText(const TruthScore& truth, std::ostringstream& text) {
-  const eval::MapScore& score = truth.score;
+  const cairn::eval::MapScore& score = truth.score;
   text << "  truth (" << truth.world << "): " << score.found << "/" << score.obstacles
        << " obstacles found, " << score.marked_non_obstacles << " non-obstacles marked, "
        << score.false_obstacle_ids.size() << " false obstacles; IoU of lethal and true obstacle "
@@ -71,7 +71,7 @@ void TruthText(const TruthScore& truth, std::ostringstream& text) {
        << " lethal cells away from every obstacle; elevation RMS error "
        << util::Fixed(score.elevation_rms_m, 3) << " m over " << score.elevation_cells
        << " cells away from the objects\n";
-  for (const eval::MapObjectScore& t : score.objects) {
+  for (const cairn::eval::MapObjectScore& t : score.objects) {
     text << "    " << std::left << std::setw(12) << t.name << std::right
          << (t.is_obstacle ? " obstacle     " : " not obstacle ") << "at ("
          << util::Fixed(t.centre.x(), 1) << ", " << util::Fixed(t.centre.y(), 1) << "): "

@@ -25,18 +25,18 @@ namespace {
 namespace fs = std::filesystem;
 
 /// The outline of a set of map cells, as polygons in world xy [m].
-std::vector<std::vector<Eigen::Vector2d>> Outline(const std::vector<eval::MapCell>& cells,
+std::vector<std::vector<Eigen::Vector2d>> Outline(const std::vector<cairn::eval::MapCell>& cells,
                                                   double cell_size) {
   std::vector<std::vector<Eigen::Vector2d>> out;
   if (cells.empty()) return out;
   int x0 = cells[0].first, y0 = cells[0].second, x1 = x0, y1 = y0;
-  for (const eval::MapCell& c : cells) {
+  for (const cairn::eval::MapCell& c : cells) {
     x0 = std::min(x0, c.first), x1 = std::max(x1, c.first);
     y0 = std::min(y0, c.second), y1 = std::max(y1, c.second);
   }
   // One pixel per cell with a border, y up as rows go down.
   cv::Mat mask = cv::Mat::zeros(y1 - y0 + 3, x1 - x0 + 3, CV_8U);
-  for (const eval::MapCell& c : cells)
+  for (const cairn::eval::MapCell& c : cells)
     mask.at<std::uint8_t>(y1 - c.second + 1, c.first - x0 + 1) = 255;
   cv::Mat large;  // 2 px per cell, so that the contour runs along the cells' edges
   cv::resize(mask, large, cv::Size(), 2, 2, cv::INTER_NEAREST);
@@ -59,9 +59,9 @@ Expected<TruthScore> ScoreAgainstWorld(const std::string& world_path,
                                        const map::TerrainMap& terrain) {
   Expected<sim::World> world = sim::LoadWorld(world_path);
   if (!world) return Error{"--truth: " + world.error().message};
-  eval::MapScoreOptions options;
+  cairn::eval::MapScoreOptions options;
   options.found_within_m = 0.5 + terrain.grid().cell_size();  // drift of a cell or so
-  Expected<eval::MapScore> score = eval::ScoreMap(world->scene, terrain, options);
+  Expected<cairn::eval::MapScore> score = cairn::eval::ScoreMap(world->scene, terrain, options);
   if (!score) return Error{"--truth: " + world_path + ": " + score.error().message};
   return TruthScore{world_path, std::move(*score)};
 }
@@ -83,7 +83,7 @@ Status WriteOverlay(const fs::path& cost_png, const fs::path& path, const map::T
     return cv::Point(static_cast<int>(std::lround(col)), static_cast<int>(std::lround(row)));
   };
   if (truth != nullptr) {  // the cells where an obstacle rises enough, or any object lies
-    for (const eval::MapObjectScore& t : truth->score.objects) {
+    for (const cairn::eval::MapObjectScore& t : truth->score.objects) {
       const cv::Scalar colour = t.is_obstacle ? cv::Scalar(0, 150, 0) : cv::Scalar(220, 170, 0);
       for (const std::vector<Eigen::Vector2d>& outline :
            Outline(t.is_obstacle ? t.obstacle_cells : t.cells, s)) {
