@@ -13,6 +13,7 @@
 #include "cairn/map/frame_imu.hpp"
 #include "cairn/map/mapper_config_file.hpp"
 #include "cairn/util/format.hpp"
+#include "cairn/util/quantile.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"
 #include "progress.hpp"
@@ -97,17 +98,17 @@ int RunSequenceBench(const MapOptions& o, double rate_hz) {
   if (frame_ms.empty()) return SequenceFail(input + ": no frame was fused");
 
   const double budget_ms = 1e3 / rate_hz;
-  const double median_ms = Quantile(frame_ms, 0.5);
+  const double median_ms = util::Quantile(frame_ms, 0.5);
   std::cout << "cairn bench: " << frame_ms.size() << " frames fused of " << read << " read ("
             << skipped << " skipped) from " << input << ", tilt "
             << map::TiltModeName(config.tilt.mode) << "\n"
             << "  per frame [ms]        median     95th pct   of the " << util::Fixed(budget_ms, 0)
             << " ms a frame has at " << util::Fixed(rate_hz, 1) << " Hz\n";
   for (const Stage& s : stages) {
-    const double median = Quantile(s.ms, 0.5);
+    const double median = util::Quantile(s.ms, 0.5);
     std::cout << "  " << std::string(2 * s.indent, ' ') << std::left << std::setw(20 - 2 * s.indent)
               << s.name << std::right << std::setw(9) << util::Fixed(median, 1) << std::setw(13)
-              << util::Fixed(Quantile(s.ms, 0.95), 1) << std::setw(12)
+              << util::Fixed(util::Quantile(s.ms, 0.95), 1) << std::setw(12)
               << util::Fixed(median / budget_ms, 2) << "\n";
   }
   std::cout << "  sustained: " << util::Fixed(1e3 / median_ms, 2)

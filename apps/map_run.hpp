@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "cairn/eval/map_score.hpp"
+#include "cairn/eval/pose_score.hpp"
 #include "cairn/map/mapper.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/od/expected.hpp"
@@ -158,16 +159,12 @@ Status WriteOverlay(const std::filesystem::path& cost_png, const std::filesystem
 /// poses.tum, frames.csv, summary.json and summary.txt into `dir` (setting times.write_s);
 /// returns summary.txt's text.
 /// The fused poses against true sensor poses (--truth-poses FILE.tum).
-struct PoseTruth {
+struct PoseTruth : cairn::eval::PoseScore {
   std::string source;  ///< the TUM file
-  int frames = 0;      ///< fused frames scored
-  /// Angle between the fused and the true up vector of the sensor [deg].
-  double tilt_median_deg = 0.0, tilt_p95_deg = 0.0, tilt_max_deg = 0.0;
-  double height_rms_m = 0.0;  ///< fused minus true sensor height, RMS [m]
 };
 
-/// Scores every record's fused T_world_sensor against the TUM file's pose at its stamp
-/// (interpolated). Fails naming the file when it cannot be read or does not span a stamp.
+/// cairn::eval::ScorePoses of every record's fused T_world_sensor against the TUM file's
+/// pose at its stamp. Fails naming the file when it cannot be read or does not span a stamp.
 Expected<PoseTruth> ScorePoses(const std::string& tum_path, const std::vector<FrameRecord>& records);
 
 struct RunReport {
@@ -181,8 +178,5 @@ struct RunReport {
 };
 Expected<std::string> WriteRunFiles(const RunReport& run, const std::filesystem::path& dir,
                                     StageTimes& times);
-
-/// The q-quantile (0..1) of `values` by the nearest rank; 0 when empty.
-double Quantile(std::vector<double> values, double q);
 
 }  // namespace cairn::apps

@@ -11,6 +11,7 @@
 #include "cairn/sources/trajectory.hpp"
 #include "cairn/util/atomic_file.hpp"
 #include "cairn/util/format.hpp"
+#include "cairn/util/quantile.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"
 
@@ -88,13 +89,6 @@ void TruthText(const TruthScore& truth, std::ostringstream& text) {
 
 }  // namespace
 
-double Quantile(std::vector<double> values, double q) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const double rank = std::clamp(q, 0.0, 1.0) * static_cast<double>(values.size() - 1);
-  return values[static_cast<std::size_t>(rank + 0.5)];
-}
-
 namespace {
 
 // Per fused frame, each stage's time [ms]: its median and 95th percentile, in the order
@@ -118,7 +112,7 @@ std::vector<StageStat> PerFrameStages(const std::vector<FrameRecord>& records) {
   for (const auto& [name, of] : stages) {
     std::vector<double> ms;
     for (const FrameRecord& r : records) ms.push_back(1e3 * of(r));
-    out.push_back({name, Quantile(ms, 0.5), Quantile(ms, 0.95)});
+    out.push_back({name, util::Quantile(ms, 0.5), util::Quantile(ms, 0.95)});
   }
   return out;
 }

@@ -153,28 +153,14 @@ Expected<PoseTruth> ScorePoses(const std::string& tum_path,
                                const std::vector<FrameRecord>& records) {
   Expected<sources::Trajectory> truth = sources::ReadTumTrajectory(tum_path);
   if (!truth) return Error{"--truth-poses: " + truth.error().message};
+  std::vector<cairn::eval::FusedPose> fused;
+  for (const FrameRecord& r : records) fused.push_back({r.index, r.stamp_s, r.T_world_sensor});
+  Expected<cairn::eval::PoseScore> score =
+      cairn::eval::ScorePoses(*truth, fused, "--truth-poses: " + tum_path);
+  if (!score) return score.error();
   PoseTruth out;
+  static_cast<cairn::eval::PoseScore&>(out) = *score;
   out.source = tum_path;
-  std::vector<double> tilt_deg;
-  double sum2 = 0.0;
-  for (const FrameRecord& r : records) {
-    Expected<sources::BodyPose> pose = truth->PoseAt(r.stamp_s);
-    if (!pose) return Error{"--truth-poses: " + tum_path + ": frame " + std::to_string(r.index) +
-                            ": " + pose.error().message};
-    const Eigen::Vector3d up_fused = r.T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
-    const Eigen::Vector3d up_true =
-        pose->T_world_body.linear().transpose() * Eigen::Vector3d::UnitZ();
-    tilt_deg.push_back(std::atan2(up_fused.cross(up_true).norm(), up_fused.dot(up_true)) * 180.0 /
-                       M_PI);
-    const double dz = r.T_world_sensor.translation().z() - pose->T_world_body.translation().z();
-    sum2 += dz * dz;
-  }
-  if (tilt_deg.empty()) return out;
-  out.frames = static_cast<int>(tilt_deg.size());
-  out.tilt_median_deg = Quantile(tilt_deg, 0.5);
-  out.tilt_p95_deg = Quantile(tilt_deg, 0.95);
-  out.tilt_max_deg = Quantile(tilt_deg, 1.0);
-  out.height_rms_m = std::sqrt(sum2 / out.frames);
   return out;
 }
 

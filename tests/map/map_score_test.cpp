@@ -8,6 +8,8 @@
 #include <cmath>
 #include <optional>
 
+#include "cairn/eval/pose_score.hpp"
+#include "cairn/od/units.hpp"
 #include "map_scene.hpp"
 
 namespace cairn::test {
@@ -147,6 +149,56 @@ TEST(MapScore, OptionsOutOfRangeAreNamed) {
   const Expected<eval::MapScore> nothing = eval::ScoreMap(SmallScene(), *empty);
   ASSERT_FALSE(nothing.ok());
   EXPECT_NE(nothing.error().message.find("observed nothing"), std::string::npos);
+}
+
+// Fused poses against true ones: each fused pose is the true one tilted by a known angle
+// (about an axis that varies) and raised by a known height, so the figures are known.
+TEST(PoseScore, TiltAndHeightErrorsAreTheOnesPutIn) {
+  std::vector<sources::StampedPose> truth;
+  for (int k = 0; k <= 10; ++k) {
+    sources::StampedPose p;
+    p.stamp_s = 100.0 + k;
+    p.T_world_x.linear() = (Eigen::AngleAxisd(0.3 * k, Eigen::Vector3d::UnitZ()) *
+                            Eigen::AngleAxisd(0.05 * k, Eigen::Vector3d::UnitX()))
+                               .toRotationMatrix();
+    p.T_world_x.translation() = Eigen::Vector3d(2.0 * k, 0.5 * k, 0.1 * k);
+    truth.push_back(p);
+  }
+  const Expected<sources::Trajectory> trajectory = sources::Trajectory::FromPoses(truth, "truth");
+  ASSERT_TRUE(trajectory.ok()) << trajectory.error().message;
+  std::vector<eval::FusedPose> fused;
+  const double tilt_deg[] = {0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0};
+  const double dz_m[] = {0.1, -0.1, 0.1, -0.1, 0.1, -0.1, 0.1, -0.1, 0.1, -0.1, 0.1};
+  for (int k = 0; k <= 10; ++k) {
+    eval::FusedPose f;
+    f.index = k;
+    f.stamp_s = truth[k].stamp_s;
+    f.T_world_sensor = truth[k].T_world_x;
+    // A rotation about an axis in the sensor's own x-y plane tilts its up vector by the angle.
+    const Eigen::Vector3d axis(std::cos(0.7 * k), std::sin(0.7 * k), 0.0);
+    const Eigen::Vector3d up_sensor =
+        truth[k].T_world_x.linear().transpose() * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d tilt_axis = up_sensor.cross(axis).normalized();
+    f.T_world_sensor.linear() =
+        truth[k].T_world_x.linear() *
+        Eigen::AngleAxisd(tilt_deg[k] * kDegToRad, tilt_axis).toRotationMatrix();
+    f.T_world_sensor.translation().z() += dz_m[k];
+    fused.push_back(f);
+  }
+  const Expected<eval::PoseScore> score = eval::ScorePoses(*trajectory, fused, "poses.tum");
+  ASSERT_TRUE(score.ok()) << score.error().message;
+  EXPECT_EQ(score->frames, 11);
+  EXPECT_NEAR(score->tilt_median_deg, 2.5, 1e-9);
+  EXPECT_NEAR(score->tilt_p95_deg, 5.0, 1e-9);  // rank round(0.95 * 10) = 10
+  EXPECT_NEAR(score->tilt_max_deg, 5.0, 1e-9);
+  EXPECT_NEAR(score->height_rms_m, 0.1, 1e-12);
+
+  // A stamp the truth does not span is an error naming the file and the frame.
+  fused.back().stamp_s = 200.0;
+  const Expected<eval::PoseScore> beyond = eval::ScorePoses(*trajectory, fused, "poses.tum");
+  ASSERT_FALSE(beyond.ok());
+  EXPECT_NE(beyond.error().message.find("poses.tum: frame 10"), std::string::npos)
+      << beyond.error().message;
 }
 
 }  // namespace

@@ -21,12 +21,6 @@ std::string WorldFile(const MapStudyOptions& options, const std::string& name) {
   return (options.root / "datasets" / "worlds" / (name + ".yaml")).string();
 }
 
-double Quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5))];
-}
-
 Status Drives::Run(int count, const std::function<Expected<std::string>(int)>& body) {
   std::vector<std::optional<Error>> errors(count);
   util::ParallelFor(

@@ -14,6 +14,7 @@
 
 #include "cairn/eval/drift_run.hpp"
 #include "cairn/eval/map_study.hpp"
+#include "cairn/util/quantile.hpp"
 
 namespace cairn::eval::study {
 
@@ -28,8 +29,7 @@ struct Row {
 /// (ending in .yaml).
 std::string WorldFile(const MapStudyOptions& options, const std::string& name);
 
-/// The q-quantile (0..1) of `v` by the nearest rank; 0 when empty.
-double Quantile(std::vector<double> v, double q);
+using util::Quantile;
 
 /// Drives mapped side by side, counted for the progress line.
 class Drives {
