@@ -304,17 +304,26 @@ Subcommand AddMapCommand(CLI::App& parent) {
                   "with --kitti: sensor preset (HDL-64E, VLP-16, VLP-32C, OS1-64; any case)")
       ->capture_default_str();
   CLI::Option* frames =
-      input->add_option("--frames", options->frames,
-                        "folder of 16-bit depth PNGs (named by stamp, or in pose order)")
+      input
+          ->add_option(
+              "--frames", options->frames,
+              "folder of 16-bit depth PNGs, or of stereo pairs in left/ and right/ (named by "
+              "stamp, or in pose order)")
           ->type_name("DIR");
   input->require_option(1);
   CLI::Option* poses =
       app->add_option("--poses", options->poses,
-                      "with --frames: TUM file of the camera's poses (optical frame, z-up world)")
+                      "with --frames: TUM file of the camera's (the left camera's) poses (optical "
+                      "frame, z-up world)")
           ->type_name("FILE.tum");
   frames->needs(poses);
   app->add_option("--intrinsics", options->intrinsics,
                   "with --frames: camera YAML (default DIR/intrinsics.yaml)")
+      ->type_name("FILE");
+  app->add_option("--stereo-calib", options->stereo_calib,
+                  "with --frames of stereo pairs (DIR/left/, DIR/right/): the rig's "
+                  "calibration, any format of cairn detect --stereo-calib (default "
+                  "DIR/stereo.yaml)")
       ->type_name("FILE");
   app->add_option("--config", options->config,
                   "settings YAML: detector, rules, stereo, map, tilt and frames sections "

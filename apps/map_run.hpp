@@ -38,6 +38,7 @@ struct MapOptions {
   std::string frames;  ///< folder of depth PNGs
   std::string poses;   ///< TUM file for --frames
   std::string intrinsics;
+  std::string stereo_calib;  ///< --frames of stereo pairs: the rig (default DIR/stereo.yaml)
   // Settings.
   std::string config;
   std::string out;

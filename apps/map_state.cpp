@@ -56,7 +56,9 @@ Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(const MapOptions
   Expected<std::unique_ptr<sources::FrameSource>> opened =
       !o.rawlog.empty()  ? sources::OpenRawlogFrames(o.rawlog, o.label, stereo)
       : !o.kitti.empty() ? sources::OpenKittiFrames(o.kitti, o.sequence, o.range, o.lidar)
-                         : sources::OpenDepthFolderFrames(o.frames, o.poses, o.intrinsics);
+      : sources::IsStereoFolder(o.frames)
+          ? sources::OpenStereoFolderFrames(o.frames, o.poses, o.stereo_calib, stereo)
+          : sources::OpenDepthFolderFrames(o.frames, o.poses, o.intrinsics);
   if (!opened) return opened.error();
   return sources::ReadAhead(std::move(*opened));  // the next frame is read while this one maps
 }

@@ -7,6 +7,7 @@
 #include "cairn/od/io/depth_png.hpp"
 #include "cairn/od/io/intrinsics.hpp"
 #include "cairn/sources/frame_source.hpp"
+#include "image_folder.hpp"
 
 namespace cairn::sources {
 namespace {
@@ -72,20 +73,16 @@ class DepthFolderFrames final : public FrameSource {
 
 }  // namespace
 
-Expected<std::unique_ptr<FrameSource>> OpenDepthFolderFrames(const std::string& dir,
-                                                             const std::string& poses,
-                                                             const std::string& intrinsics) {
-  if (!fs::is_directory(dir)) return Error{dir + ": no such folder (--frames)"};
+namespace internal {
+
+Expected<ImageFolder> ListImageFolder(const fs::path& dir, const std::string& poses,
+                                      const std::string& what) {
   std::vector<fs::path> files;
   for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
     if (e.is_regular_file() && e.path().extension() == ".png") files.push_back(e.path());
   }
   std::sort(files.begin(), files.end());
-  if (files.empty()) return Error{dir + ": no .png depth images (--frames)"};
-  const fs::path intrinsics_path =
-      intrinsics.empty() ? fs::path(dir) / "intrinsics.yaml" : fs::path(intrinsics);
-  Expected<od::io::CameraIntrinsics> camera = od::io::LoadIntrinsics(intrinsics_path);
-  if (!camera) return camera.error();
+  if (files.empty()) return Error{dir.string() + ": no .png " + what + " (--frames)"};
   Expected<std::vector<StampedPose>> tum = ReadTumPoses(poses);
   if (!tum) return tum.error();
   Expected<Trajectory> trajectory = Trajectory::FromPoses(*tum, poses);
@@ -106,14 +103,30 @@ Expected<std::unique_ptr<FrameSource>> OpenDepthFolderFrames(const std::string& 
   if (!named_by_stamp) {
     stamps.clear();
     if (tum->size() != files.size()) {
-      return Error{dir + ": " + std::to_string(files.size()) +
-                   " depth images not named by their stamps, but " + poses + " holds " +
+      return Error{dir.string() + ": " + std::to_string(files.size()) + " " + what +
+                   " not named by their stamps, but " + poses + " holds " +
                    std::to_string(tum->size()) + " poses (the k-th image takes the k-th pose)"};
     }
     for (const StampedPose& p : *tum) stamps.push_back(p.stamp_s);
   }
+  return ImageFolder{std::move(files), std::move(stamps), std::move(*trajectory)};
+}
+
+}  // namespace internal
+
+Expected<std::unique_ptr<FrameSource>> OpenDepthFolderFrames(const std::string& dir,
+                                                             const std::string& poses,
+                                                             const std::string& intrinsics) {
+  if (!fs::is_directory(dir)) return Error{dir + ": no such folder (--frames)"};
+  const fs::path intrinsics_path =
+      intrinsics.empty() ? fs::path(dir) / "intrinsics.yaml" : fs::path(intrinsics);
+  Expected<internal::ImageFolder> folder = internal::ListImageFolder(dir, poses, "depth images");
+  if (!folder) return folder.error();
+  Expected<od::io::CameraIntrinsics> camera = od::io::LoadIntrinsics(intrinsics_path);
+  if (!camera) return camera.error();
   return std::unique_ptr<FrameSource>(std::make_unique<DepthFolderFrames>(
-      dir, poses, std::move(files), std::move(stamps), *camera, std::move(*trajectory)));
+      dir, poses, std::move(folder->files), std::move(folder->stamps), *camera,
+      std::move(folder->trajectory)));
 }
 
 const char* SourceSkipName(SourceSkip skip) {

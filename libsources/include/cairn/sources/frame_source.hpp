@@ -7,6 +7,9 @@
 //                          poses (optical frame, z-up world): files named by their stamp
 //                          (TUM RGB-D's "1305031102.160407.png") are placed at that time,
 //                          otherwise the k-th file (by name) takes the k-th pose
+//   OpenStereoFolderFrames a folder of stereo pairs (left/ and right/ PNGs of the same
+//                          names) with the rig's calibration and a TUM file of the left
+//                          camera's poses, each pair matched into depth (od::ComputeStereoDepth)
 //
 // Nothing is skipped in silence: a frame the source knows of but cannot read as a frame
 // comes back with its reason (SourceSkip) and no image, so that the caller names and counts
@@ -29,6 +32,7 @@
 
 #include "cairn/od/expected.hpp"
 #include "cairn/od/range_image.hpp"
+#include "cairn/od/stereo.hpp"
 #include "cairn/sources/frame.hpp"
 #include "cairn/sources/trajectory.hpp"
 
@@ -99,6 +103,21 @@ Expected<std::unique_ptr<FrameSource>> OpenKittiFrames(const std::string& dir,
 Expected<std::unique_ptr<FrameSource>> OpenDepthFolderFrames(const std::string& dir,
                                                              const std::string& poses,
                                                              const std::string& intrinsics);
+
+/// True when `dir` holds left/ and right/ folders (a stereo folder, not a depth folder).
+bool IsStereoFolder(const std::string& dir);
+
+/// A folder of stereo pairs: DIR/left/*.png and DIR/right/*.png of the same names (named by
+/// their stamps, or the k-th pair taking the k-th pose, as depth folders), the TUM poses of
+/// the left camera's optical frame in a z-up world, and the rig's calibration in any format
+/// od::io::LoadStereoCalibration reads (default DIR/stereo.yaml; raw pairs are rectified).
+/// Each pair is matched with `stereo` into the left camera's depth. Fails, naming the file,
+/// on no pairs, a left image without its right one, unreadable poses or calibration, or a
+/// bad `stereo`.
+Expected<std::unique_ptr<FrameSource>> OpenStereoFolderFrames(const std::string& dir,
+                                                              const std::string& poses,
+                                                              const std::string& calibration,
+                                                              const od::StereoConfig& stereo);
 
 /// `source` read one frame ahead: while the caller works on a frame, the next is read (file,
 /// decoding, range image) on a thread of its own, so that reading overlaps the Mapper's
