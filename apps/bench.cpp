@@ -87,12 +87,12 @@ int RunBench(const BenchOptions& o) {
   od::RangeImage image;
   std::string what;
   if (!o.input.points.empty()) {
-    Expected<LoadedScan> scan = LoadScan(o.input);
+    Expected<sources::FileFrame> scan = ReadScanInput(o.input);
     if (!scan) return BenchFail(scan.error().message);
     image = std::move(scan->image);
     what = o.input.points;
   } else {
-    Expected<LoadedDepth> depth = LoadDepth(o.input);
+    Expected<sources::FileFrame> depth = ReadDepthInput(o.input);
     if (!depth) return BenchFail(depth.error().message);
     image = std::move(depth->image);
     what = o.input.depth;

@@ -79,9 +79,7 @@ using Options = DetectOptions;
 
 }  // namespace
 
-Expected<LoadedScan> LoadScan(const DetectOptions& options) {
-  Expected<Eigen::Vector3d> up = ParseUpVector(options.up);
-  if (!up) return up.error();
+Expected<od::LayoutOptions> ScanLayoutOptions(const DetectOptions& options) {
   od::LayoutOptions layout_options;
   layout_options.columns = options.columns;
   layout_options.organised = options.organised == "yes"  ? od::OrganisedMode::kYes
@@ -93,22 +91,19 @@ Expected<LoadedScan> LoadScan(const DetectOptions& options) {
     if (!preset) return Error{"--sensor: " + preset.error().message};
     layout_options.preset = *preset;
   }
-  Expected<od::PointCloud> cloud = io::ReadPointFile(options.points);
-  if (!cloud) return cloud.error();
-  Expected<od::PlacedScan> placed = od::PlaceScan(*cloud, layout_options, *up, options.points);
-  if (!placed) return placed.error();
-  return LoadedScan{std::move(*cloud), std::move(placed->layout), std::move(placed->image)};
+  return layout_options;
 }
 
-Expected<LoadedDepth> LoadDepth(const DetectOptions& options) {
-  Expected<io::CameraIntrinsics> intrinsics = io::LoadIntrinsics(options.intrinsics);
-  if (!intrinsics) return intrinsics.error();
-  Expected<od::Grid<float>> depth = io::ReadDepthImage(options.depth, *intrinsics);
-  if (!depth) return depth.error();
-  Expected<od::RangeImage> image =
-      od::RangeImage::FromDepth(depth->data, intrinsics->model, intrinsics->up);
-  if (!image) return Error{options.depth + ": " + image.error().message};
-  return LoadedDepth{std::move(*intrinsics), std::move(*depth), std::move(*image)};
+Expected<sources::FileFrame> ReadScanInput(const DetectOptions& options) {
+  Expected<Eigen::Vector3d> up = ParseUpVector(options.up);
+  if (!up) return up.error();
+  Expected<od::LayoutOptions> layout = ScanLayoutOptions(options);
+  if (!layout) return layout.error();
+  return sources::ReadScanFrame(options.points, *layout, *up);
+}
+
+Expected<sources::FileFrame> ReadDepthInput(const DetectOptions& options) {
+  return sources::ReadDepthFrame(options.depth, options.intrinsics);
 }
 
 namespace {
@@ -117,7 +112,7 @@ int RunDetectPoints(const DetectOptions& options) {
   const Clock::time_point start = Clock::now();
   Expected<io::DetectSettings> settings = LoadDetectSettingsOrDefaults(options);
   if (!settings) return DetectFail(settings.error().message);
-  Expected<LoadedScan> scan = LoadScan(options);
+  Expected<sources::FileFrame> scan = ReadScanInput(options);
   if (!scan) return DetectFail(scan.error().message);
   const od::PointCloud* cloud = &scan->cloud;
   const od::FoundLayout* layout = &scan->layout;
@@ -192,7 +187,7 @@ int RunDetect(const DetectOptions& options) {
   Expected<io::DetectSettings> loaded_settings = LoadDetectSettingsOrDefaults(options);
   if (!loaded_settings) return DetectFail(loaded_settings.error().message);
   const io::DetectSettings settings = *loaded_settings;
-  Expected<LoadedDepth> loaded = LoadDepth(options);
+  Expected<sources::FileFrame> loaded = ReadDepthInput(options);
   if (!loaded) return DetectFail(loaded.error().message);
   const od::Grid<float>* depth = &loaded->depth_m;
   const od::RangeImage* image = &loaded->image;

@@ -16,6 +16,7 @@
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
+#include "cairn/sources/file_frame.hpp"
 
 namespace cairn::apps {
 
@@ -76,22 +77,13 @@ Expected<DetectResult> DetectAndClassify(const od::RangeImage& image,
                                          const od::io::DetectSettings& settings,
                                          const DetectOptions& options);
 
-/// A LiDAR scan read and placed in its range image (--points, --sensor, --organised,
-/// --columns, --up of `options`).
-struct LoadedScan {
-  od::PointCloud cloud;
-  od::FoundLayout layout;
-  od::RangeImage image;
-};
-Expected<LoadedScan> LoadScan(const DetectOptions& options);
+/// How a scan's points are placed (--sensor, --organised, --columns of `options`).
+Expected<od::LayoutOptions> ScanLayoutOptions(const DetectOptions& options);
 
-/// A depth image and its range image (--depth, --intrinsics of `options`).
-struct LoadedDepth {
-  od::io::CameraIntrinsics intrinsics;
-  od::Grid<float> depth_m;
-  od::RangeImage image;
-};
-Expected<LoadedDepth> LoadDepth(const DetectOptions& options);
+/// The one scan (--points, --up and the layout options above) or the one depth image
+/// (--depth, --intrinsics) of `options`, read by cairn::sources (file_frame.hpp).
+Expected<sources::FileFrame> ReadScanInput(const DetectOptions& options);
+Expected<sources::FileFrame> ReadDepthInput(const DetectOptions& options);
 
 // The inputs that live in their own files (each present when its library is built).
 int RunDetectRawlog(const DetectOptions& options);  // detect_rawlog.cpp, CAIRN_HAVE_SOURCES

@@ -58,33 +58,18 @@ int RunDetectStereo(const DetectOptions& options) {
   const DetectClock::time_point start = DetectClock::now();
   Expected<io::DetectSettings> settings = LoadDetectSettingsOrDefaults(options);
   if (!settings) return DetectFail(settings.error().message);
-  Expected<od::StereoCalibration> calibration = io::LoadStereoCalibration(options.stereo_calib);
-  if (!calibration) return DetectFail(calibration.error().message);
-  Expected<od::GreyImage> left = io::ReadGreyImage(options.left);
-  if (!left) return DetectFail(left.error().message);
-  Expected<od::GreyImage> right = io::ReadGreyImage(options.right);
-  if (!right) return DetectFail(right.error().message);
-  const bool rectified_here = calibration->rectification.has_value();
-  Expected<od::StereoPair> pair = od::PrepareStereoPair(std::move(*left), std::move(*right),
-                                                        *calibration, options.left, options.right);
-  if (!pair) return DetectFail(pair.error().message);
-  const od::PinholeModel& model = pair->calibration.model;
-
-  const DetectClock::time_point stereo_start = DetectClock::now();
-  Expected<od::StereoDepth> stereo = od::ComputeStereoDepth(*pair, settings->stereo);
-  if (!stereo) {
-    return DetectFail(options.stereo_calib + " / " +
-                      (options.config.empty() ? "built-in stereo settings" : options.config) +
-                      ": " + stereo.error().message);
-  }
-  const double stereo_ms = MillisecondsSince(stereo_start);
-
-  // Without an up vector in the calibration the camera is taken to be level: heights are
-  // then measured along the image's -y axis.
-  const bool up_given = pair->calibration.up.has_value();
-  const Eigen::Vector3d up = up_given ? *pair->calibration.up : Eigen::Vector3d(0.0, -1.0, 0.0);
-  Expected<od::RangeImage> image = od::RangeImage::FromDepth(stereo->depth_m.data, model, up);
-  if (!image) return DetectFail(options.left + ": " + image.error().message);
+  Expected<sources::FileFrame> frame = sources::ReadStereoFrame(
+      options.left, options.right, options.stereo_calib, settings->stereo,
+      options.config.empty() ? "built-in stereo settings" : options.config);
+  if (!frame) return DetectFail(frame.error().message);
+  const od::RangeImage* image = &frame->image;
+  const od::StereoPair* pair = &*frame->pair;
+  const od::StereoDepth* stereo = &*frame->stereo;
+  const od::PinholeModel& model = frame->model;
+  const bool rectified_here = frame->rectified_here;
+  const bool up_given = frame->up_given;
+  const Eigen::Vector3d up = frame->up;
+  const double stereo_ms = 1e3 * frame->matching_s;
 
   Expected<DetectResult> result = DetectAndClassify(*image, *settings, options);
   if (!result) return DetectFail(result.error().message);

@@ -1,7 +1,8 @@
 // sources::OpenStereoFolderFrames: rendered stereo pairs written as left/ and right/ PNGs
 // with their TUM poses and the rig's stereo.yaml come back as frames at their poses, each
 // range image the one matching that pair gives, close to the rendered truth; a left image
-// without its right one and a missing calibration are named.
+// without its right one and a missing calibration are named. And single files
+// (file_frame.hpp): one pair, one depth image, each as a source of one frame.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,9 +12,12 @@
 #include <fstream>
 #include <vector>
 
+#include "cairn/od/io/depth_png.hpp"
+#include "cairn/od/io/intrinsics.hpp"
 #include "cairn/od/io/stereo_files.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/sim/stereo.hpp"
+#include "cairn/sources/file_frame.hpp"
 #include "cairn/sources/frame_source.hpp"
 #include "io/cairn_command.hpp"
 #include "io/temp_dir.hpp"
@@ -156,6 +160,85 @@ TEST(StereoFolderFrames, AMissingRightImageOrCalibrationIsNamed) {
   EXPECT_NE(uncalibrated.error().message.find("stereo.yaml"), std::string::npos)
       << uncalibrated.error().message;
   EXPECT_FALSE(IsStereoFolder((dir.path() / "left").string()));
+}
+
+// One pair read as single files is matched as the folder source matches it; as a source of
+// one frame it is placed with the level camera's up (the calibration gives none) on z.
+TEST(FileFrames, OnePairIsMatchedAsItsFolderMatchesIt) {
+  test::TempDir dir;
+  const WrittenFolder written = WriteStereoFolder(dir.path());
+  ASSERT_EQ(written.poses.size(), 3u);
+  od::StereoConfig stereo;
+  stereo.min_depth_m = 2.0;
+  Expected<std::unique_ptr<FrameSource>> folder =
+      OpenStereoFolderFrames(dir.path().string(), (dir.path() / "poses.tum").string(), "", stereo);
+  ASSERT_TRUE(folder.ok()) << folder.error().message;
+  Expected<std::optional<SequenceFrame>> first = (*folder)->Next();
+  ASSERT_TRUE(first.ok() && first->has_value());
+  const std::string name = fs::path((*first)->name).filename().string();
+  Expected<FileFrame> file =
+      ReadStereoFrame((dir.path() / "left" / name).string(), (dir.path() / "right" / name).string(),
+                      (dir.path() / "stereo.yaml").string(), stereo, "test settings");
+  ASSERT_TRUE(file.ok()) << file.error().message;
+  EXPECT_FALSE(file->up_given);
+  EXPECT_FALSE(file->rectified_here);
+  ASSERT_TRUE(file->stereo.has_value());
+  ASSERT_EQ(static_cast<int>(file->depth_m.data.size()), (*first)->image.size());
+  for (int i = 0; i < (*first)->image.size(); ++i) {
+    const bool valid = (*first)->image.valid(i);
+    ASSERT_EQ(valid, file->depth_m.data[i] > 0.0f) << "pixel " << i;
+    if (valid)
+      ASSERT_FLOAT_EQ((*first)->image.point(i).z(), file->depth_m.data[i]) << "pixel " << i;
+  }
+  const int valid_points = file->image.valid_count();
+  std::unique_ptr<FrameSource> one = OneFrameSource(std::move(*file));
+  EXPECT_EQ(one->total(), 1);
+  Expected<std::optional<SequenceFrame>> only = one->Next();
+  ASSERT_TRUE(only.ok() && only->has_value());
+  EXPECT_EQ((*only)->image.valid_count(), valid_points);
+  const Eigen::Vector3d up =
+      (*only)->T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
+  EXPECT_TRUE(up.isApprox(Eigen::Vector3d(0.0, -1.0, 0.0), 1e-12));
+  Expected<std::optional<SequenceFrame>> end = one->Next();
+  ASSERT_TRUE(end.ok());
+  EXPECT_FALSE(end->has_value());
+
+  // A failed matching names the calibration and the settings.
+  od::StereoConfig too_near = stereo;
+  too_near.min_depth_m = 0.05;
+  Expected<FileFrame> bad =
+      ReadStereoFrame((dir.path() / "left" / name).string(), (dir.path() / "right" / name).string(),
+                      (dir.path() / "stereo.yaml").string(), too_near, "test settings");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("stereo.yaml / test settings: "), std::string::npos)
+      << bad.error().message;
+}
+
+// The bundled demo depth frame read as single files: the range image od_io's readers and
+// RangeImage::FromDepth make, levelled with the camera YAML's up.
+TEST(FileFrames, TheDemoDepthFrameIsItsRangeImage) {
+  const fs::path demo = fs::path(CAIRN_SOURCE_DIR) / "datasets" / "frames" / "demo";
+  Expected<FileFrame> file =
+      ReadDepthFrame((demo / "depth.png").string(), (demo / "intrinsics.yaml").string());
+  ASSERT_TRUE(file.ok()) << file.error().message;
+  Expected<od::io::CameraIntrinsics> camera = od::io::LoadIntrinsics(demo / "intrinsics.yaml");
+  ASSERT_TRUE(camera.ok());
+  Expected<od::Grid<float>> depth = od::io::ReadDepthImage(demo / "depth.png", *camera);
+  ASSERT_TRUE(depth.ok());
+  Expected<od::RangeImage> image =
+      od::RangeImage::FromDepth(depth->data, camera->model, camera->up);
+  ASSERT_TRUE(image.ok());
+  ASSERT_EQ(file->image.size(), image->size());
+  EXPECT_EQ(file->image.valid_count(), image->valid_count());
+  for (int i = 0; i < image->size(); ++i) {
+    ASSERT_EQ(file->image.valid(i), image->valid(i));
+    if (image->valid(i)) ASSERT_EQ(file->image.point(i), image->point(i));
+  }
+  EXPECT_TRUE(file->up.isApprox(camera->up));
+  Expected<FileFrame> missing =
+      ReadDepthFrame((demo / "nothing.png").string(), (demo / "intrinsics.yaml").string());
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("nothing.png"), std::string::npos);
 }
 
 #ifdef CAIRN_EXE
