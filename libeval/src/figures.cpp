@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "cairn/eval/report.hpp"
+#include "cairn/util/format.hpp"
 #include "cairn/util/image_file.hpp"
 #include "opencv_image.hpp"
 
@@ -126,9 +127,7 @@ struct Column {
 
 std::string Num(double v, int decimals = 2) {
   if (!std::isfinite(v)) return "-";
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
-  return buf;
+  return util::Fixed(v, decimals);
 }
 
 /// BGR colours of the curves, by method position.

@@ -16,6 +16,7 @@
 
 #include "cairn/od/rules.hpp"
 #include "cairn/od/units.hpp"
+#include "cairn/util/format.hpp"
 #include "cairn/util/yaml.hpp"
 #include "opencv_image.hpp"
 
@@ -822,9 +823,7 @@ Expected<io::RgbImage> LabelBirdsEyeFigure(const LabelFrame& frame, const ClassM
 
 std::string FormatRatio3(double value) {
   if (!std::isfinite(value)) return "-";
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.3f", value);
-  return buf;
+  return util::Fixed(value, 3);
 }
 
 std::string LabelResultsMarkdown(const std::vector<Method>& methods,

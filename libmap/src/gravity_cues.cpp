@@ -6,6 +6,8 @@
 #include <limits>
 #include <string>
 
+#include "cairn/od/units.hpp"
+
 namespace cairn::map {
 namespace {
 
@@ -59,7 +61,7 @@ Status VerticalCueConfig::Validate() const {
   if (!(min_flatness >= 1.0 && std::isfinite(min_flatness))) {
     return VerticalsError("min_flatness", "must be >= 1");
   }
-  if (!(max_angle_rad > 0.0 && max_angle_rad <= 0.5 * M_PI)) {
+  if (!(max_angle_rad > 0.0 && max_angle_rad <= 0.5 * kPi)) {
     return VerticalsError("max_angle", "must be in (0, 90] deg");
   }
   if (!(max_range_m > 0.0)) return VerticalsError("max_range", "must be > 0 m");

@@ -8,18 +8,16 @@
 #include <map>
 #include <sstream>
 
+#include "cairn/od/units.hpp"
 #include "cairn/util/atomic_file.hpp"
+#include "cairn/util/format.hpp"
 
 namespace cairn::sources {
 namespace {
 
 constexpr const char* kAction3D = "CActionRobotMovement3D";
 
-std::string Seconds(double s, int decimals = 3) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(decimals) << s;
-  return out.str();
-}
+std::string Seconds(double s, int decimals = 3) { return util::Fixed(s, decimals); }
 
 /// Heading of a body rotation (Z-Y-X yaw), well defined unless the body points straight up.
 double YawOf(const Eigen::Matrix3d& R) { return std::atan2(R(1, 0), R(0, 0)); }
@@ -32,7 +30,7 @@ Eigen::Matrix3d FromYawPitchRoll(double yaw, double pitch, double roll) {
 }
 
 /// a + f (b - a) for angles, through the shorter way round.
-double LerpAngle(double a, double b, double f) { return a + f * std::remainder(b - a, 2 * M_PI); }
+double LerpAngle(double a, double b, double f) { return a + f * std::remainder(b - a, 2 * kPi); }
 
 /// The pose a fraction f of the way from a to b (f outside [0, 1] extrapolates at the same
 /// velocity): position linear, rotation along the geodesic.

@@ -187,8 +187,9 @@ TEST(FileFrames, OnePairIsMatchedAsItsFolderMatchesIt) {
   for (int i = 0; i < (*first)->image.size(); ++i) {
     const bool valid = (*first)->image.valid(i);
     ASSERT_EQ(valid, file->depth_m.data[i] > 0.0f) << "pixel " << i;
-    if (valid)
+    if (valid) {
       ASSERT_FLOAT_EQ((*first)->image.point(i).z(), file->depth_m.data[i]) << "pixel " << i;
+    }
   }
   const int valid_points = file->image.valid_count();
   std::unique_ptr<FrameSource> one = OneFrameSource(std::move(*file));
@@ -232,7 +233,9 @@ TEST(FileFrames, TheDemoDepthFrameIsItsRangeImage) {
   EXPECT_EQ(file->image.valid_count(), image->valid_count());
   for (int i = 0; i < image->size(); ++i) {
     ASSERT_EQ(file->image.valid(i), image->valid(i));
-    if (image->valid(i)) ASSERT_EQ(file->image.point(i), image->point(i));
+    if (image->valid(i)) {
+      ASSERT_EQ(file->image.point(i), image->point(i));
+    }
   }
   EXPECT_TRUE(file->up.isApprox(camera->up));
   Expected<FileFrame> missing =

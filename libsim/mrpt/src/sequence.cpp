@@ -17,6 +17,7 @@
 #include "cairn/sources/rawlog_file.hpp"
 #include "cairn/sources/trajectory.hpp"
 #include "cairn/util/atomic_file.hpp"
+#include "cairn/util/format.hpp"
 
 namespace cairn::sim {
 namespace {
@@ -42,16 +43,10 @@ Eigen::Vector3d LocalVelocity(const Pose2D& a, const Pose2D& b, double dt) {
 }
 
 std::string Vec3(const Eigen::Vector3d& v) {
-  char buf[128];
-  std::snprintf(buf, sizeof(buf), "[%.9g, %.9g, %.9g]", v.x(), v.y(), v.z());
-  return buf;
+  return "[" + util::Number(v.x()) + ", " + util::Number(v.y()) + ", " + util::Number(v.z()) + "]";
 }
 
-std::string Num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.9g", v);
-  return buf;
-}
+std::string Num(double v) { return util::Number(v); }
 
 std::string SequenceYaml(const World& world, const Drive& drive, const DriveSpec& spec,
                          const SequenceOptions& options, const SequenceSummary& summary) {
