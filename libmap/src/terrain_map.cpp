@@ -10,8 +10,8 @@
 #include <string>
 #include <utility>
 
+#include "cairn/od/parallel.hpp"
 #include "cairn/util/format.hpp"
-#include "cairn/util/parallel.hpp"
 #include "key_bricks.hpp"
 #include "ray_keys.hpp"
 
@@ -220,11 +220,11 @@ void CastFreeRays(const TerrainOcTree& tree, const octomap::point3d& sensor,
   }
   // One ray per end voxel, 1,024 rays at a time to each worker, each worker into its own
   // set (the first into free_keys); the union does not depend on the split.
-  const int most = util::ThreadCount(wanted_threads);
+  const int most = od::ThreadCount(wanted_threads);
   if (static_cast<int>(worker_keys.size()) < most - 1) worker_keys.resize(most - 1);
   free_keys.Clear(lo, hi);
   for (int t = 0; t < most - 1; ++t) worker_keys[t].Clear(lo, hi);
-  const int used = util::ParallelFor(
+  const int used = od::ParallelFor(
       static_cast<int>(ends.size()), most,
       [&](int worker, int e) {
         internal::KeyBricks::Inserter insert(worker == 0 ? free_keys : worker_keys[worker - 1]);

@@ -8,6 +8,7 @@
 #include <thread>
 #include <variant>
 
+#include "cairn/od/parallel.hpp"
 #include "cairn/od/units.hpp"
 #include "detection_internal.hpp"
 #include "pair_search.hpp"
@@ -97,15 +98,6 @@ PairTest::PairTest(const DetectorConfig& config)
       tan2_theta(static_cast<float>(std::tan(config.min_slope_rad) *
                                     std::tan(config.min_slope_rad))) {}
 
-namespace {
-
-int ThreadCount(const DetectorConfig& config) {
-  return config.threads > 0 ? config.threads
-                            : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-}
-
-}  // namespace
-
 Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config) {
   if (config.search != SearchMode::kExact) return DetectRegionScan(image, config);
   if (Status s = config.Validate(); !s) return s.error();
@@ -122,7 +114,7 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   const int leaf_rows = lidar ? 1 : 4, leaf_cols = lidar ? 16 : 8;
   const internal::Candidates candidates = internal::FindCandidates(level, test);
   internal::PairSearchOptions options;
-  options.threads = ThreadCount(config);
+  options.threads = ThreadCount(config.threads);
   // The two trees, side by side when there are threads for it.
   std::optional<internal::PointTree> lower, upper;
   {
@@ -170,7 +162,7 @@ Expected<Detection> DetectRegionScan(const RangeImage& image, const DetectorConf
   // result does not depend on the split.
   constexpr int kBlockRows = 4;
   const int blocks = (height + kBlockRows - 1) / kBlockRows;
-  const int threads = std::clamp(ThreadCount(config), 1, blocks);
+  const int threads = std::clamp(ThreadCount(config.threads), 1, blocks);
   struct Worker {
     internal::UnionFind sets;
     internal::RowSpans spans;
@@ -183,25 +175,21 @@ Expected<Detection> DetectRegionScan(const RangeImage& image, const DetectorConf
     workers.push_back({internal::UnionFind(t == 0 ? 0 : n), internal::RowSpans(height),
                        std::vector<std::uint8_t>(t == 0 ? 0 : n, 0), {}});
   }
-  std::atomic<int> next_block{0};
-  const auto work = [&](Worker& w, internal::UnionFind& worker_sets, std::uint8_t* worker_raised) {
-    for (int b = next_block++; b < blocks; b = next_block++) {
-      const int p_end = std::min(height, (b + 1) * kBlockRows) * width;
-      for (int p = b * kBlockRows * width; p < p_end; ++p) {
-        if (!image.valid(p)) continue;
-        region.Compute(p, w.spans);
-        ScanSpans(p, w.spans, width, level, tiles, test, worker_sets, worker_raised,
-                  w.stats);
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) {
-    pool.emplace_back(work, std::ref(workers[t]), std::ref(workers[t].sets),
-                      workers[t].raised.data());
-  }
-  work(workers[0], sets, raised.data());  // the calling thread works too, into the final sets
-  for (std::thread& thread : pool) thread.join();
+  // The calling thread is worker 0 and works into the final sets and flags.
+  ParallelFor(
+      blocks, threads,
+      [&](int worker, int b) {
+        Worker& w = workers[worker];
+        internal::UnionFind& worker_sets = worker == 0 ? sets : w.sets;
+        std::uint8_t* worker_raised = worker == 0 ? raised.data() : w.raised.data();
+        const int p_end = std::min(height, (b + 1) * kBlockRows) * width;
+        for (int p = b * kBlockRows * width; p < p_end; ++p) {
+          if (!image.valid(p)) continue;
+          region.Compute(p, w.spans);
+          ScanSpans(p, w.spans, width, level, tiles, test, worker_sets, worker_raised, w.stats);
+        }
+      },
+      1);
   for (const Worker& w : workers) {
     stats.pairs_tested += w.stats.pairs_tested;
     stats.pairs_compatible += w.stats.pairs_compatible;

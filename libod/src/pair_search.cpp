@@ -6,6 +6,8 @@
 #include <limits>
 #include <thread>
 
+#include "cairn/od/parallel.hpp"
+
 namespace cairn::od::internal {
 
 Candidates FindCandidates(const LevelPoints& level, const PairTest& test) {
@@ -543,14 +545,9 @@ PairSearchResult SearchPairs(const PointTree& lower, const PointTree& upper, int
   std::vector<Search> workers;
   workers.reserve(threads);
   for (int t = 0; t < threads; ++t) workers.emplace_back(lower, upper, pixels, test, options);
-  std::atomic<std::size_t> next{0};
-  const auto work = [&](Search& w) {
-    for (std::size_t k = next++; k < tasks.size(); k = next++) w.Visit(tasks[k].lower, tasks[k].upper);
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(work, std::ref(workers[t]));
-  work(workers[0]);
-  for (std::thread& thread : pool) thread.join();
+  ParallelFor(
+      static_cast<int>(tasks.size()), threads,
+      [&](int worker, int k) { workers[worker].Visit(tasks[k].lower, tasks[k].upper); }, 1);
   for (int t = 1; t < threads; ++t) workers[0].Merge(workers[t]);
   return workers[0].Result();
 }

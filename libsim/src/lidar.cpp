@@ -3,9 +3,9 @@
 #include <string>
 #include <vector>
 
+#include "cairn/od/parallel.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/sim/world.hpp"
-#include "cairn/util/parallel.hpp"
 #include "sampling.hpp"
 
 namespace cairn::sim {
@@ -85,7 +85,7 @@ Expected<LidarScan> RenderLidar(const Scene& scene, const LidarSpec& lidar,
   // Exact ranges first, in parallel (one row per ring); then the noise, in ray order.
   std::vector<double> range(static_cast<std::size_t>(rings) * steps, 0.0);
   std::vector<std::int32_t> id(range.size(), kNoHitId);
-  util::ParallelFor(rings, 0, [&](int r) {
+  od::ParallelFor(rings, 0, [&](int r) {
     const double ce = std::cos(lidar.elevations_rad[r]), se = std::sin(lidar.elevations_rad[r]);
     Ray ray;
     ray.origin = T_world_lidar.translation();

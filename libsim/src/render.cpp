@@ -3,7 +3,7 @@
 #include <cmath>
 #include <string>
 
-#include "cairn/util/parallel.hpp"
+#include "cairn/od/parallel.hpp"
 
 namespace cairn::sim {
 
@@ -55,7 +55,7 @@ Expected<DepthFrame> RenderDepth(const Scene& scene, const Camera& camera,
 
   const RayCaster caster(scene);
   const Eigen::Matrix3d& rotation = camera.T_world_camera.linear();
-  util::ParallelFor(m.height, options.threads, [&](int row) {
+  od::ParallelFor(m.height, options.threads, [&](int row) {
     Ray ray;
     ray.origin = camera.T_world_camera.translation();
     for (int col = 0; col < m.width; ++col) {

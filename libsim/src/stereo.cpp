@@ -4,7 +4,7 @@
 #include <cmath>
 #include <string>
 
-#include "cairn/util/parallel.hpp"
+#include "cairn/od/parallel.hpp"
 #include "sampling.hpp"
 
 namespace cairn::sim {
@@ -127,7 +127,7 @@ Expected<GreyImage> RenderGrey(const Scene& scene, const Camera& camera,
   const RayCaster caster(scene);
   const Eigen::Vector3d sun = spec.sun_world.normalized();
   const int s = spec.supersampling;
-  util::ParallelFor(m.height, 0, [&](int row) {
+  od::ParallelFor(m.height, 0, [&](int row) {
     for (int col = 0; col < m.width; ++col) {
       double sum = 0.0;
       for (int i = 0; i < s; ++i) {

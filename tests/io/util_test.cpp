@@ -1,18 +1,18 @@
 // cairn::util's parallel loop and cairn::util_image's image writer.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <filesystem>
-#include <unistd.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <vector>
 
+#include "cairn/od/parallel.hpp"
 #include "cairn/util/image_file.hpp"
-#include "cairn/util/parallel.hpp"
 
 namespace fs = std::filesystem;
-using cairn::util::ParallelFor;
+using cairn::od::ParallelFor;
 
 TEST(ParallelFor, CallsEveryItemOnceOnTheThreadsItReports) {
   for (const int count : {0, 1, 3, 7, 1000}) {

@@ -5,10 +5,10 @@
 #include <cmath>
 #include <optional>
 
+#include "cairn/od/parallel.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/util/atomic_file.hpp"
 #include "cairn/util/format.hpp"
-#include "cairn/util/parallel.hpp"
 #include "map_study_parts.hpp"
 
 namespace cairn::eval {
@@ -23,7 +23,7 @@ std::string WorldFile(const MapStudyOptions& options, const std::string& name) {
 
 Status Drives::Run(int count, const std::function<Expected<std::string>(int)>& body) {
   std::vector<std::optional<Error>> errors(count);
-  util::ParallelFor(
+  od::ParallelFor(
       count, options_.threads,
       [&](int k) {
         Expected<std::string> line = body(k);
@@ -395,7 +395,7 @@ Status WriteMapStudy(const MapStudyOptions& options, const std::filesystem::path
   const double total_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   report.replace(report.find("@SECONDS@"), 9, Fixed(total_s, 0));
-  const int threads = util::ThreadCount(options.threads);
+  const int threads = od::ThreadCount(options.threads);
   report.replace(report.find("@THREADS@"), 9,
                  std::to_string(threads) + (threads == 1 ? " drive" : " drives") + " at a time");
   md.str(report);

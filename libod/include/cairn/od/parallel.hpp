@@ -1,6 +1,6 @@
-// One parallel loop for the libraries above the core: items handed out a few at a time from
-// a shared counter to up to `threads` threads, the calling thread among them. When each
-// item's result depends on nothing but the item (or per-thread results are merged in an
+// One parallel loop for every cairn library, the core's exact search among them: items handed out a
+// few at a time from a shared counter to up to `threads` threads, the calling thread among them.
+// When each item's result depends on nothing but the item (or per-thread results are merged in an
 // order-free way), the output does not depend on the number of threads.
 #pragma once
 
@@ -10,7 +10,7 @@
 #include <type_traits>
 #include <vector>
 
-namespace cairn::util {
+namespace cairn::od {
 
 /// The threads a loop asked for `threads` runs on: `threads`, or one per hardware thread for
 /// 0 (at least 1).
@@ -51,4 +51,4 @@ int ParallelFor(int count, int threads, const Body& body, int chunk = 4) {
   return used;
 }
 
-}  // namespace cairn::util
+}  // namespace cairn::od
