@@ -1,7 +1,7 @@
 // What the parts of `cairn eval` share: its options and the few helpers its runs use.
 //   eval.cpp         the command line, and which run the options ask for
-//   eval_worlds.cpp  synthetic worlds or one depth frame with truth images: the methods
-//                    side by side, REPORT.md, results.csv, figures, the sweep
+//   eval_worlds.cpp  synthetic worlds or one depth frame with truth images, scored and
+//                    reported by cairn::eval::WorldEvaluation
 //   eval_labels.cpp  one LiDAR scan with real per-point labels and a class mapping
 //   eval_maps.cpp    the map study (--maps): maps of drives against their world's truth
 #pragma once

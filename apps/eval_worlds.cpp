@@ -1,6 +1,6 @@
-// cairn eval over synthetic worlds or one depth frame with truth images (eval_run.hpp).
-#include "eval_worlds.hpp"
-
+// cairn eval over synthetic worlds or one depth frame with truth images (eval_run.hpp): the
+// sources and settings from the command line, then cairn::eval's WorldEvaluation
+// (world_eval.hpp) scores them and writes the report folder.
 #include <algorithm>
 #include <cctype>
 #include <chrono>
@@ -22,78 +22,42 @@
 #include "cairn/eval/score.hpp"
 #include "cairn/eval/sweep.hpp"
 #include "cairn/eval/truth.hpp"
+#include "cairn/eval/world_eval.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/sim/world.hpp"
 #include "detect.hpp"
+#include "eval_run.hpp"
 
 namespace cairn::apps::eval {
 namespace {
 
 namespace fs = std::filesystem;
+namespace ev = cairn::eval;
 
-/// A file name made from a world or frame name.
-std::string FileStem(std::string name) {
-  for (char& c : name) {
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_')) c = '_';
+std::string CommandLine(const EvalOptions& o) {
+  std::string cmd = "cairn eval";
+  if (!o.worlds_dir.empty()) cmd += " --worlds " + o.worlds_dir;
+  for (const std::string& w : o.worlds) cmd += " --world " + w;
+  if (!o.depth.empty()) {
+    cmd += " --depth " + o.depth + " --intrinsics " + o.intrinsics + " --truth " + o.truth +
+           " --truth-yaml " + o.truth_yaml;
   }
-  return name.empty() ? "frame" : name;
+  if (!o.config.empty()) cmd += " --config " + o.config;
+  if (!o.methods.empty()) cmd += " --methods " + o.methods;
+  if (!o.sweep.empty()) cmd += " --sweep " + o.sweep;
+  const EvalOptions defaults;
+  if (o.found_fraction != defaults.found_fraction) {
+    std::ostringstream v;
+    v << o.found_fraction;
+    cmd += " --found-fraction " + v.str();
+  }
+  if (o.min_object_pixels != defaults.min_object_pixels) {
+    cmd += " --min-object-pixels " + std::to_string(o.min_object_pixels);
+  }
+  if (o.cell_width != defaults.cell_width) cmd += " --cell-width " + std::to_string(o.cell_width);
+  cmd += " --report " + o.report;
+  return cmd;
 }
-
-}  // namespace
-
-Status Evaluation::Add(const std::string& name, const std::string& description,
-                       const std::string& source, const std::vector<ev::EvalFrame>& frames) {
-  WorldRun run;
-  run.name = name;
-  run.description = description;
-  run.source = source;
-  run.per_method.assign(methods_.size(), ev::Score{});
-  run.ms_sum.assign(methods_.size(), 0.0);
-  std::vector<od::io::RgbImage> strips;
-  for (const ev::EvalFrame& frame : frames) {
-    Expected<ev::FrameEvaluation> e =
-        ev::EvaluateFrame(frame, settings_, methods_, score_options_);
-    if (!e) return e.error();
-    for (std::size_t m = 0; m < methods_.size(); ++m) {
-      run.per_method[m] += e->scores[m].score;
-      run.ms_sum[m] += e->runs[m].detect_ms;
-    }
-    ev::FigureOptions figure_options;
-    figure_options.cell_width = options_.cell_width;
-    Expected<od::io::RgbImage> strip = ev::ComparisonStrip(frame, *e, methods_, figure_options);
-    if (!strip) return strip.error();
-    strips.push_back(std::move(strip).value());
-    run.objects_markdown += ev::ObjectsMarkdown(frame.name, *e, methods_);
-    if (sweep_) {
-      const Clock::time_point start = Clock::now();
-      const int count = static_cast<int>(sweep_->Values().size());
-      Expected<ev::SweepScores> s =
-          ev::SweepFrame(frame, settings_, *sweep_, methods_, score_options_, [&](int v) {
-            std::cerr << "cairn eval:   sweep " << sweep_->key << " " << v + 1 << "/" << count
-                      << " (" << Fixed(util::SecondsSince(start), 1) << " s)\r" << std::flush;
-          });
-      std::cerr << "\n";
-      if (!s) return Error{"--sweep " + options_.sweep + ": " + s.error().message};
-      ev::Accumulate(run.sweep, *s);
-    }
-  }
-  const fs::path figure = fs::path("figures") / (FileStem(name) + ".png");
-  std::string title = name;
-  if (!description.empty()) {
-    const std::size_t end = description.find_first_of(".:\n");
-    title += " - " + description.substr(0, end);
-  }
-  if (Status s =
-          ev::WritePng(fs::path(options_.report) / figure, ev::ComparisonFigure(title, strips));
-      !s) {
-    return s;
-  }
-  run.figure = figure.generic_string();
-  runs_.push_back(std::move(run));
-  return Status::Ok();
-}
-
-namespace {
 
 /// World files named by --world and found in --worlds (sorted), or an error naming the path.
 Expected<std::vector<std::string>> WorldFiles(const EvalOptions& o) {
@@ -169,11 +133,23 @@ int RunWorldEval(const EvalOptions& o) {
     sweep = *parsed;
   }
 
-  if (RulesDisabled(settings.rules)) {
+  if (ev::RulesDisabled(settings.rules)) {
     std::cerr << "cairn eval: warning: every rule is disabled (the config sets them all to "
                  "0): \"+ rules\" methods equal their \"no rules\" twins\n";
   }
-  Evaluation evaluation(o, settings, methods, sweep);
+  ev::WorldEvalOptions options;
+  options.report = o.report;
+  options.command = CommandLine(o);
+  options.version = CAIRN_VERSION;
+  options.config = o.config;
+  options.score.found_fraction = o.found_fraction;
+  options.score.min_object_pixels = o.min_object_pixels;
+  options.cell_width = o.cell_width;
+  options.on_sweep = [](const std::string& key, int v, int count, double seconds) {
+    std::cerr << "cairn eval:   sweep " << key << " " << v << "/" << count << " ("
+              << Fixed(seconds, 1) << " s)" << (v == count ? "\n" : "\r") << std::flush;
+  };
+  ev::WorldEvaluation evaluation(std::move(options), settings, methods, sweep);
   if (Status s = evaluation.Validate(); !s) {
     // The message starts with the field: name it as the flag that sets it.
     std::string message = s.message();

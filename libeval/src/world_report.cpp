@@ -1,67 +1,26 @@
-// The report folder of cairn eval over worlds: REPORT.md, results.csv, the sweep's files.
-#include <algorithm>
-#include <cctype>
-#include <chrono>
-#include <cmath>
-#include <cstdio>
-#include <filesystem>
-#include <fstream>
-#include <iomanip>
-#include <iostream>
-#include <memory>
-#include <optional>
+// WorldEvaluation::Finish (world_eval.hpp): the report folder of a world evaluation.
 #include <sstream>
-#include <string>
-#include <vector>
 
 #include "cairn/eval/figures.hpp"
-#include "cairn/eval/methods.hpp"
 #include "cairn/eval/report.hpp"
-#include "cairn/eval/score.hpp"
-#include "cairn/eval/sweep.hpp"
+#include "cairn/eval/world_eval.hpp"
 #include "cairn/util/atomic_file.hpp"
-#include "eval_worlds.hpp"
 
-namespace cairn::apps::eval {
+namespace cairn::eval {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string CommandLine(const EvalOptions& o) {
-  std::string cmd = "cairn eval";
-  if (!o.worlds_dir.empty()) cmd += " --worlds " + o.worlds_dir;
-  for (const std::string& w : o.worlds) cmd += " --world " + w;
-  if (!o.depth.empty()) {
-    cmd += " --depth " + o.depth + " --intrinsics " + o.intrinsics + " --truth " + o.truth +
-           " --truth-yaml " + o.truth_yaml;
-  }
-  if (!o.config.empty()) cmd += " --config " + o.config;
-  if (!o.methods.empty()) cmd += " --methods " + o.methods;
-  if (!o.sweep.empty()) cmd += " --sweep " + o.sweep;
-  const EvalOptions defaults;
-  if (o.found_fraction != defaults.found_fraction) {
-    std::ostringstream v;
-    v << o.found_fraction;
-    cmd += " --found-fraction " + v.str();
-  }
-  if (o.min_object_pixels != defaults.min_object_pixels) {
-    cmd += " --min-object-pixels " + std::to_string(o.min_object_pixels);
-  }
-  if (o.cell_width != defaults.cell_width) cmd += " --cell-width " + std::to_string(o.cell_width);
-  cmd += " --report " + o.report;
-  return cmd;
-}
 
 const char* Mark(bool holds) { return holds ? "yes" : "**no**"; }
 
 }  // namespace
 
-Expected<std::string> Evaluation::Finish() {
+Expected<std::string> WorldEvaluation::Finish() {
   const fs::path dir = options_.report;
-  std::vector<ev::ResultRow> rows, totals;
-  ev::SweepScores sweep_total;
-  std::vector<ev::SweepRows> sweep_rows;
-  std::vector<ev::Score> all(methods_.size());
+  std::vector<ResultRow> rows, totals;
+  SweepScores sweep_total;
+  std::vector<SweepRows> sweep_rows;
+  std::vector<Score> all(methods_.size());
   std::vector<double> all_ms(methods_.size(), 0.0);
   for (const WorldRun& w : runs_) {
     for (std::size_t m = 0; m < methods_.size(); ++m) {
@@ -72,35 +31,34 @@ Expected<std::string> Evaluation::Finish() {
     }
     if (sweep_) {
       sweep_rows.push_back({w.name, w.sweep});
-      ev::Accumulate(sweep_total, w.sweep);
+      Accumulate(sweep_total, w.sweep);
     }
   }
   for (std::size_t m = 0; m < methods_.size(); ++m) {
     totals.push_back({"all", methods_[m], all[m], all_ms[m] / std::max(1, all[m].frames)});
   }
-  std::vector<ev::ResultRow> csv_rows = rows;
+  std::vector<ResultRow> csv_rows = rows;
   csv_rows.insert(csv_rows.end(), totals.begin(), totals.end());
-  if (Status s = util::WriteFileAtomic(dir / "results.csv", ev::ResultsCsv(csv_rows)); !s) {
+  if (Status s = util::WriteFileAtomic(dir / "results.csv", ResultsCsv(csv_rows)); !s) {
     return s.error();
   }
 
   std::string pr_figure;
   if (sweep_) {
     sweep_rows.push_back({"all", sweep_total});
-    if (Status s = util::WriteFileAtomic(dir / "sweep.csv",
-                                           ev::SweepCsv(*sweep_, methods_, sweep_rows));
+    if (Status s =
+            util::WriteFileAtomic(dir / "sweep.csv", SweepCsv(*sweep_, methods_, sweep_rows));
         !s) {
       return s.error();
     }
-    const std::string unit = ev::SettingUnit(sweep_->key);
+    const std::string unit = SettingUnit(sweep_->key);
     std::ostringstream title;
-    title << "Precision-recall over " << sweep_->key << " = " << sweep_->lo << " .. "
-          << sweep_->hi << (unit.empty() ? "" : " " + unit) << ", " << runs_.size()
+    title << "Precision-recall over " << sweep_->key << " = " << sweep_->lo << " .. " << sweep_->hi
+          << (unit.empty() ? "" : " " + unit) << ", " << runs_.size()
           << (runs_.size() == 1 ? " world" : " worlds");
     pr_figure = (fs::path("figures") / ("pr_" + sweep_->key + ".png")).generic_string();
-    if (Status s =
-            ev::WritePng(dir / pr_figure,
-                         ev::PrecisionRecallPlot(*sweep_, methods_, sweep_total, title.str()));
+    if (Status s = WritePng(dir / pr_figure,
+                            PrecisionRecallPlot(*sweep_, methods_, sweep_total, title.str()));
         !s) {
       return s.error();
     }
@@ -108,11 +66,11 @@ Expected<std::string> Evaluation::Finish() {
 
   // Claims.
   std::string claims_table = "| world | claim | measured | holds |\n| --- | --- | --- | --- |\n";
-  std::vector<std::vector<ev::ClaimCheck>> world_checks;
+  std::vector<std::vector<ClaimCheck>> world_checks;
   int specific = 0, specific_holding = 0;
   for (const WorldRun& w : runs_) {
-    world_checks.push_back(ev::CheckWorld({w.name, w.description, w.per_method}, methods_));
-    for (const ev::ClaimCheck& c : world_checks.back()) {
+    world_checks.push_back(CheckWorld({w.name, w.description, w.per_method}, methods_));
+    for (const ClaimCheck& c : world_checks.back()) {
       if (c.general) continue;
       ++specific;
       specific_holding += c.holds ? 1 : 0;
@@ -120,7 +78,7 @@ Expected<std::string> Evaluation::Finish() {
           "| " + w.name + " | " + c.claim + " | " + c.measured + " | " + Mark(c.holds) + " |\n";
     }
   }
-  std::vector<ev::ClaimCheck> gallery;
+  std::vector<ClaimCheck> gallery;
   const auto index = [&](const std::string& key) -> int {
     for (std::size_t m = 0; m < methods_.size(); ++m) {
       if (methods_[m].key == key) return static_cast<int>(m);
@@ -129,9 +87,8 @@ Expected<std::string> Evaluation::Finish() {
   };
   const int with = index("cone_exact_rules"), without = index("cone_exact");
   if (with >= 0 && without >= 0 && runs_.size() > 1) {
-    gallery =
-        ev::CheckGallery(all[with], all[without], methods_[with].label, methods_[without].label);
-    for (const ev::ClaimCheck& c : gallery) {
+    gallery = CheckGallery(all[with], all[without], methods_[with].label, methods_[without].label);
+    for (const ClaimCheck& c : gallery) {
       ++specific;
       specific_holding += c.holds ? 1 : 0;
       claims_table += "| all | " + c.claim + " | " + c.measured + " | " + Mark(c.holds) + " |\n";
@@ -140,10 +97,10 @@ Expected<std::string> Evaluation::Finish() {
 
   std::ostringstream md;
   md << "# cairn evaluation report\n\n"
-     << "Made by `" << CommandLine(options_) << "` (cairn " << CAIRN_VERSION << "). Every "
+     << "Made by `" << options_.command << "` (cairn " << options_.version << "). Every "
      << "frame is scored against its per-pixel ground truth; the methods run on the same "
      << "frames with the same settings.\n\n"
-     << ev::SettingsMarkdown(settings_, options_.config) << "\n";
+     << SettingsMarkdown(settings_, options_.config) << "\n";
   if (RulesDisabled(settings_.rules)) {
     md << "**Every rule is disabled** (the config sets every threshold to 0): the methods "
           "\"+ rules\" equal their \"no rules\" twins here.\n\n";
@@ -156,9 +113,9 @@ Expected<std::string> Evaluation::Finish() {
     md << specific_holding << " of " << specific << " claims hold.\n\n" << claims_table << "\n";
   }
   md << "## Scores over " << (runs_.size() == 1 ? "the frame" : "the gallery") << "\n\n"
-     << ev::ResultsMarkdown(runs_.size() == 1 ? rows : totals) << "\n"
-     << ev::ResultsLegend(score_options_) << "\n";
-  if (runs_.size() > 1) md << "## Scores per world\n\n" << ev::ResultsMarkdown(rows) << "\n";
+     << ResultsMarkdown(runs_.size() == 1 ? rows : totals) << "\n"
+     << ResultsLegend(options_.score) << "\n";
+  if (runs_.size() > 1) md << "## Scores per world\n\n" << ResultsMarkdown(rows) << "\n";
   md << "All numbers, with the counts behind them: [results.csv](results.csv).\n\n"
      << "## Worlds\n\n";
   for (std::size_t k = 0; k < runs_.size(); ++k) {
@@ -173,7 +130,7 @@ Expected<std::string> Evaluation::Finish() {
       md << text << "\n\n";
     }
     bool any_specific = false, all_hold = true;
-    for (const ev::ClaimCheck& c : world_checks[k]) {
+    for (const ClaimCheck& c : world_checks[k]) {
       if (c.general) continue;
       any_specific = true;
       all_hold = all_hold && c.holds;
@@ -181,11 +138,11 @@ Expected<std::string> Evaluation::Finish() {
     if (any_specific) {
       md << "**Verdict: the measurements " << (all_hold ? "support" : "do not support")
          << " the world's claim.**\n\n";
-    } else if (!ev::StatedExpectation(w.description).empty()) {
+    } else if (!StatedExpectation(w.description).empty()) {
       md << "The world states an expectation these checks do not recognise: judge it from "
             "the table and the figure.\n\n";
     }
-    for (const ev::ClaimCheck& c : world_checks[k]) {
+    for (const ClaimCheck& c : world_checks[k]) {
       md << "- " << (c.general ? "(general) " : "") << c.claim << ": " << c.measured << " - "
          << (c.holds ? "holds" : "**does not hold**") << "\n";
     }
@@ -201,12 +158,12 @@ Expected<std::string> Evaluation::Finish() {
           "without the foot band against per-point recall; each cell: precision / recall / "
           "objects found / false obstacles. Per world: [sweep.csv](sweep.csv).\n\n"
        << "![precision-recall](" << pr_figure << ")\n\n"
-       << ev::SweepMarkdown(*sweep_, methods_, sweep_total) << "\n";
+       << SweepMarkdown(*sweep_, methods_, sweep_total) << "\n";
   }
   if (Status s = util::WriteFileAtomic(dir / "REPORT.md", md.str()); !s) return s.error();
 
   std::ostringstream summary;
-  summary << ev::ResultsMarkdown(totals);
+  summary << ResultsMarkdown(totals);
   if (specific > 0) summary << "claims: " << specific_holding << " of " << specific << " hold\n";
   summary << "wrote: " << (dir / "REPORT.md").string() << "\n"
           << "       " << (dir / "results.csv").string() << "\n";
@@ -217,4 +174,4 @@ Expected<std::string> Evaluation::Finish() {
   return summary.str();
 }
 
-}  // namespace cairn::apps::eval
+}  // namespace cairn::eval
