@@ -20,6 +20,9 @@
 // Maps: TerrainMap on gallery worlds from drifting odometry, biased IMUs and each tilt mode,
 // against the worlds' truth (datasets/maps/REPORT.md, from the source tree):
 //   cairn eval --maps --report datasets/maps [--root DIR] [--threads N] [--config FILE]
+//
+// The gravity estimator on real data: EuRoC V1_01's IMU against its ground truth:
+//   cairn eval --euroc DIR
 #include <CLI/CLI.hpp>
 #include <memory>
 #include <string>
@@ -34,6 +37,15 @@ using eval::EvalOptions;
 using eval::Fail;
 
 int RunEval(const EvalOptions& o) {
+  if (!o.euroc.empty()) {
+    if (o.maps || !o.points.empty() || !o.worlds.empty() || !o.worlds_dir.empty() ||
+        !o.depth.empty()) {
+      return Fail(
+          "--euroc runs on its own: give no --maps, --world, --worlds, --depth or --points");
+    }
+    return eval::RunEurocStudy(o);
+  }
+  if (o.report.empty()) return Fail("--report is required");
   if (o.maps) {
     if (!o.points.empty() || !o.worlds.empty() || !o.worlds_dir.empty() || !o.depth.empty()) {
       return Fail(
@@ -106,6 +118,12 @@ Subcommand AddEvalCommand(CLI::App& parent) {
                 "the map study instead: TerrainMap on gallery worlds under odometry drift, IMU "
                 "errors and each tilt mode, scored against the worlds' truth (REPORT.md, "
                 "runs.csv, obstacles.csv, tilt.csv, figures/)");
+  app->add_option("--euroc", options->euroc,
+                  "the gravity estimator's IMU terms on EuRoC V1_01 (the folder holding mav0/ "
+                  "and ov_data/), and the up vector of the floor its stereo pairs see at rest, "
+                  "against the truth; prints the figures")
+      ->check(CLI::ExistingDirectory)
+      ->type_name("DIR");
   app->add_option("--root", options->root,
                   "maps: the source tree holding the study's worlds (datasets/)")
       ->capture_default_str()
@@ -119,8 +137,8 @@ Subcommand AddEvalCommand(CLI::App& parent) {
                   "settings YAML (detector, rules, column sections); defaults when absent")
       ->type_name("FILE.yaml");
   app->add_option("--report", options->report,
-                  "report directory: REPORT.md, results.csv, figures/ (created when missing)")
-      ->required()
+                  "report directory: REPORT.md, results.csv, figures/ (created when missing); "
+                  "required but with --euroc")
       ->type_name("DIR");
   app->add_option("--sweep", options->sweep,
                   "also step one setting (file units: m, deg, m^3): min_height, max_height, "

@@ -3,7 +3,8 @@
 //   eval_worlds.cpp  synthetic worlds or one depth frame with truth images, scored and
 //                    reported by cairn::eval::WorldEvaluation
 //   eval_labels.cpp  one LiDAR scan with real per-point labels and a class mapping
-//   eval_maps.cpp    the map study (--maps): maps of drives against their world's truth
+//   eval_maps.cpp    the map study (--maps): maps of drives against their world's truth;
+//                    the gravity estimator on EuRoC (--euroc)
 #pragma once
 
 #include <chrono>
@@ -41,6 +42,7 @@ struct EvalOptions {
   bool maps = false;
   std::filesystem::path root = ".";  ///< the source tree, where the study's worlds are
   int threads = 0;                   ///< drives mapped side by side (0: one per core)
+  std::string euroc;                 ///< --euroc: the EuRoC V1_01 folder
 };
 
 inline int Fail(const std::string& message) { return CommandFailure("eval", message); }
@@ -53,5 +55,7 @@ int RunWorldEval(const EvalOptions& o);
 int RunLabelEval(const EvalOptions& o);
 /// The map study (--maps).
 int RunMapStudy(const EvalOptions& o);
+/// The gravity estimator on EuRoC V1_01 (--euroc DIR), figures printed.
+int RunEurocStudy(const EvalOptions& o);
 
 }  // namespace cairn::apps::eval

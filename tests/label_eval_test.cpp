@@ -778,6 +778,13 @@ TEST(EvalMapsCli, TheMapStudyTakesNoFramesAndNeedsItsWorlds) {
   EXPECT_NE(output.find((dir.path() / "config" / "default.yaml").string()), std::string::npos)
       << output;
   EXPECT_FALSE(fs::exists(dir.path() / "out" / "REPORT.md"));
+  // --euroc runs on its own, and every other mode needs --report.
+  output.clear();
+  EXPECT_EQ(RunCairn({"eval", "--euroc", dir.path().string(), "--maps"}, &output), 1);
+  EXPECT_NE(output.find("--euroc runs on its own"), std::string::npos) << output;
+  output.clear();
+  EXPECT_EQ(RunCairn({"eval", "--world", "w.yaml"}, &output), 1);
+  EXPECT_NE(output.find("--report is required"), std::string::npos) << output;
 }
 
 #endif  // CAIRN_EXE

@@ -10,11 +10,11 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "cairn/eval/plane_fit.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/io/intrinsics.hpp"
 #include "cairn/od/range_image.hpp"
-#include "plane_fit.hpp"
 #include "temp_dir.hpp"
 
 namespace cairn::od::io {
@@ -291,7 +291,7 @@ TEST(DepthImage, TheTumOfficeIsFurnitureStandingOnAFloorOfFeet) {
       }
     }
   }
-  const test::PlaneFit plane = test::FitPlane(floor_points);
+  const eval::PlaneFit plane = eval::FitPlane(floor_points);
   EXPECT_EQ(plane.points, 1387);
   EXPECT_LT(plane.rms_m, 0.011);
   EXPECT_NEAR(plane.height_m, 1.79, 0.01);

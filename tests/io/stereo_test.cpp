@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/plane_fit.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/io/detect_config.hpp"
 #include "cairn/od/io/stereo_files.hpp"
@@ -26,7 +27,6 @@
 #include "cairn/sim/scene.hpp"
 #include "cairn/sim/world.hpp"
 #include "cairn_command.hpp"
-#include "plane_fit.hpp"
 #include "temp_dir.hpp"
 
 namespace cairn::od::io {
@@ -773,7 +773,7 @@ TEST(FoundationStereoDesk, RunsEndToEndWithItsKTxt) {
       if (image->valid(r * 960 + c)) keyboard.push_back(image->point(r * 960 + c));
     }
   }
-  const test::PlaneFit plane = test::FitPlane(keyboard, 2);
+  const eval::PlaneFit plane = eval::FitPlane(keyboard, 2);
   EXPECT_NEAR(plane.points, 9336, 50);
   EXPECT_LT(plane.rms_m, 0.002);
   EXPECT_NEAR(plane.height_m, 0.284, 0.003);

@@ -1,7 +1,8 @@
 // The ASL folder reader (cairn::sources) on EuRoC V1_01 and on broken copies, and the
 // gravity estimator's IMU terms alone on its 145 s of flight against the ground truth.
-#include <gtest/gtest.h>
+#include "cairn/eval/euroc_gravity.hpp"
 
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -10,7 +11,6 @@
 #include <string>
 
 #include "cairn/sources/asl_dataset.hpp"
-#include "euroc_gravity_run.hpp"
 
 namespace cairn {
 namespace {
@@ -130,7 +130,7 @@ constexpr double kMaxTiltP95Deg = 1.0;
 
 TEST(EurocGravity, ImuTermsAloneRecoverRollAndPitch) {
   if (!HaveEuroc()) GTEST_SKIP() << kEuroc << " is absent (the shared EuRoC V1_01 start)";
-  Expected<test::EurocGravityResult> r = test::RunEurocGravity(kEuroc);
+  Expected<eval::EurocGravityResult> r = eval::RunEurocGravity(kEuroc);
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_EQ(r->frames, 2895);
   EXPECT_NEAR(r->duration_s, 144.7, 0.1);
@@ -147,7 +147,7 @@ TEST(EurocGravity, ImuTermsAloneRecoverRollAndPitch) {
 // bias uncorrected, about 0.6 deg) at 0.63 deg median.
 TEST(EurocGravity, TheFloorSeenInStereoAtRestGivesTheTrueUp) {
   if (!HaveEuroc()) GTEST_SKIP() << kEuroc << " is absent (the shared EuRoC V1_01 start)";
-  Expected<test::EurocStereoUpResult> r = test::RunEurocStereoUp(kEuroc);
+  Expected<eval::EurocStereoUpResult> r = eval::RunEurocStereoUp(kEuroc);
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_EQ(r->pairs, 20);
   EXPECT_GT(r->floor_points, 20 * 10000);

@@ -1,63 +1,73 @@
-// GravityEstimator's IMU terms alone on EuRoC V1_01 (the ASL layout, read by
-// cairn::sources): the real 200 Hz accelerometer and gyro, with the OpenVINS ground truth's
-// velocity standing in for odometry (and its heading for the measured heading), no attitude
-// prior and no scene cues; roll and pitch against the truth. Shared by the
-// cairn_euroc_gravity program and its test.
-#pragma once
+#include "cairn/eval/euroc_gravity.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
-#include <filesystem>
 #include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include "../io/plane_fit.hpp"
+#include "cairn/eval/plane_fit.hpp"
 #include "cairn/map/gravity_estimator.hpp"
-#include "cairn/od/expected.hpp"
 #include "cairn/od/io/stereo_files.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/sources/asl_dataset.hpp"
+#include "cairn/util/quantile.hpp"
 
-namespace cairn::test {
-
-struct EurocGravityResult {
-  int frames = 0;
-  int imu_samples = 0;
-  double duration_s = 0.0;
-  // Errors against the truth [deg]: the angle between the true and the estimated up
-  // (tilt), and the roll and pitch of the level frame described below, each |error|.
-  double tilt_median_deg = 0.0, tilt_p95_deg = 0.0, tilt_max_deg = 0.0;
-  double roll_median_deg = 0.0, roll_p95_deg = 0.0;
-  double pitch_median_deg = 0.0, pitch_p95_deg = 0.0;
-  // At rest (before take-off): the mean accelerometer direction against the truth [deg].
-  double rest_accel_tilt_deg = 0.0;
-  Eigen::Vector3d accel_bias_mps2 = Eigen::Vector3d::Zero();  ///< estimated, at the end
-  Eigen::Vector3d gyro_bias_radps = Eigen::Vector3d::Zero();
-  Eigen::Vector3d truth_accel_bias_mps2 = Eigen::Vector3d::Zero();  ///< OpenVINS', at the end
-  Eigen::Vector3d truth_gyro_bias_radps = Eigen::Vector3d::Zero();
-};
-
-inline double EurocPercentile(std::vector<double> v, double q) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5))];
-}
+namespace cairn::eval {
+namespace {
 
 /// The estimator's body for the VI-Sensor: its IMU's x axis points about up, so the body
 /// is the IMU frame turned to put z there: z_body = x_imu, y_body = y_imu, x_body = -z_imu.
-inline Eigen::Matrix3d EurocBodyFromImu() {
+Eigen::Matrix3d EurocBodyFromImu() {
   Eigen::Matrix3d R;
   R << 0, 0, -1, 0, 1, 0, 1, 0, 0;
   return R;
 }
 
+/// The floor of a rectified depth image: RANSAC over planes whose normal lies within 40 deg
+/// of the image's up (-y), 2 cm inlier band, points 0.3-6 m; then the least-squares plane of
+/// its inliers (FitPlane), the normal turned up. Deterministic (fixed seed).
+bool FloorNormal(const std::vector<Eigen::Vector3d>& points, Eigen::Vector3d* normal,
+                 int* inliers_out) {
+  if (points.size() < 100) return false;
+  std::mt19937 rng(1);
+  std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
+  const double band = 0.02, cos_gate = std::cos(40.0 * 3.14159265358979323846 / 180.0);
+  int best = 0;
+  Eigen::Vector3d best_n = Eigen::Vector3d::Zero();
+  double best_d = 0.0;
+  for (int it = 0; it < 400; ++it) {
+    const Eigen::Vector3d a = points[pick(rng)], b = points[pick(rng)], c = points[pick(rng)];
+    Eigen::Vector3d n = (b - a).cross(c - a);
+    if (n.norm() < 1e-9) continue;
+    n.normalize();
+    if (std::abs(n.y()) < cos_gate) continue;
+    const double d = -n.dot(a);
+    int count = 0;
+    for (std::size_t k = 0; k < points.size(); k += 4)
+      count += std::abs(n.dot(points[k]) + d) < band;
+    if (count > best) {
+      best = count;
+      best_n = n;
+      best_d = d;
+    }
+  }
+  if (best == 0) return false;
+  std::vector<Eigen::Vector3d> in;
+  for (const Eigen::Vector3d& p : points) {
+    if (std::abs(best_n.dot(p) + best_d) < band) in.push_back(p);
+  }
+  *normal = FitPlane(in).normal;  // turned to -y: up in the optical frame
+  *inliers_out = static_cast<int>(in.size());
+  return true;
+}
+
+}  // namespace
+
 /// `root` holds mav0/ and ov_data/euroc_mav/V1_01_easy.csv. `max_frames` > 0 stops early.
-inline Expected<EurocGravityResult> RunEurocGravity(const std::filesystem::path& root,
-                                                    int max_frames = 0) {
+Expected<EurocGravityResult> RunEurocGravity(const std::filesystem::path& root, int max_frames) {
   Expected<sources::AslImu> imu = sources::ReadAslImu(root / "mav0");
   if (!imu) return imu.error();
   Expected<std::vector<sources::AslGroundTruth>> truth =
@@ -71,11 +81,11 @@ inline Expected<EurocGravityResult> RunEurocGravity(const std::filesystem::path&
   // The ADIS16448's noise densities, per sample at its rate.
   config.accel_sigma_mps2 = imu->accel_noise_density * std::sqrt(rate);
   config.gyro_sigma_radps = imu->gyro_noise_density * std::sqrt(rate);
-  config.motion_sigma_mps2 = 0.3;       // rotor vibration, truth velocity differences
-  config.gyro_bias_sigma_radps = 0.1;   // its z bias is 0.077 rad/s
-  config.yaw_sigma_rad = 0.02;          // the reference heading
-  config.estimate_mount = false;        // no scene cues here
-  config.accel_half_span_frames = 2;  // 0.2 s spans at 20 Hz
+  config.motion_sigma_mps2 = 0.3;      // rotor vibration, truth velocity differences
+  config.gyro_bias_sigma_radps = 0.1;  // its z bias is 0.077 rad/s
+  config.yaw_sigma_rad = 0.02;         // the reference heading
+  config.estimate_mount = false;       // no scene cues here
+  config.accel_half_span_frames = 2;   // 0.2 s spans at 20 Hz
   config.window_frames = 10;
   config.covariance = false;
   Expected<map::GravityEstimator> estimator =
@@ -124,13 +134,13 @@ inline Expected<EurocGravityResult> RunEurocGravity(const std::filesystem::path&
     result.truth_accel_bias_mps2 = g.accel_bias_mps2;
     result.truth_gyro_bias_radps = g.gyro_bias_radps;
   }
-  result.tilt_median_deg = EurocPercentile(tilt, 0.5);
-  result.tilt_p95_deg = EurocPercentile(tilt, 0.95);
-  result.tilt_max_deg = EurocPercentile(tilt, 1.0);
-  result.roll_median_deg = EurocPercentile(roll, 0.5);
-  result.roll_p95_deg = EurocPercentile(roll, 0.95);
-  result.pitch_median_deg = EurocPercentile(pitch, 0.5);
-  result.pitch_p95_deg = EurocPercentile(pitch, 0.95);
+  result.tilt_median_deg = util::Quantile(tilt, 0.5);
+  result.tilt_p95_deg = util::Quantile(tilt, 0.95);
+  result.tilt_max_deg = util::Quantile(tilt, 1.0);
+  result.roll_median_deg = util::Quantile(roll, 0.5);
+  result.roll_p95_deg = util::Quantile(roll, 0.95);
+  result.pitch_median_deg = util::Quantile(pitch, 0.5);
+  result.pitch_p95_deg = util::Quantile(pitch, 0.95);
   if (rest_sum.norm() > 0.0 && rest_up.norm() > 0.0) {
     const Eigen::Vector3d a = rest_sum.normalized(), b = rest_up.normalized();
     result.rest_accel_tilt_deg = std::atan2(a.cross(b).norm(), a.dot(b)) / kDegToRad;
@@ -138,58 +148,11 @@ inline Expected<EurocGravityResult> RunEurocGravity(const std::filesystem::path&
   return result;
 }
 
-/// The up vector at rest from the stereo pairs' floor and from the accelerometer, each
-/// against the truth, in the rectified left camera's frame [deg].
-struct EurocStereoUpResult {
-  int pairs = 0;       ///< pairs whose floor was found
-  int floor_points = 0;  ///< inliers of the floor plane, summed over pairs
-  double floor_median_deg = 0.0, floor_max_deg = 0.0;  ///< floor normal vs the true up
-  double accel_median_deg = 0.0, accel_max_deg = 0.0;  ///< mean specific force vs the true up
-  double floor_vs_accel_median_deg = 0.0;
-};
-
-/// The floor of a rectified depth image: RANSAC over planes whose normal lies within 40 deg
-/// of the image's up (-y), 2 cm inlier band, points 0.3-6 m; then the least-squares plane of
-/// its inliers (FitPlane), the normal turned up. Deterministic (fixed seed).
-inline bool FloorNormal(const std::vector<Eigen::Vector3d>& points, Eigen::Vector3d* normal,
-                        int* inliers_out) {
-  if (points.size() < 100) return false;
-  std::mt19937 rng(1);
-  std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
-  const double band = 0.02, cos_gate = std::cos(40.0 * 3.14159265358979323846 / 180.0);
-  int best = 0;
-  Eigen::Vector3d best_n = Eigen::Vector3d::Zero();
-  double best_d = 0.0;
-  for (int it = 0; it < 400; ++it) {
-    const Eigen::Vector3d a = points[pick(rng)], b = points[pick(rng)], c = points[pick(rng)];
-    Eigen::Vector3d n = (b - a).cross(c - a);
-    if (n.norm() < 1e-9) continue;
-    n.normalize();
-    if (std::abs(n.y()) < cos_gate) continue;
-    const double d = -n.dot(a);
-    int count = 0;
-    for (std::size_t k = 0; k < points.size(); k += 4) count += std::abs(n.dot(points[k]) + d) < band;
-    if (count > best) {
-      best = count;
-      best_n = n;
-      best_d = d;
-    }
-  }
-  if (best == 0) return false;
-  std::vector<Eigen::Vector3d> in;
-  for (const Eigen::Vector3d& p : points) {
-    if (std::abs(best_n.dot(p) + best_d) < band) in.push_back(p);
-  }
-  *normal = FitPlane(in).normal;  // turned to -y: up in the optical frame
-  *inliers_out = static_cast<int>(in.size());
-  return true;
-}
-
 /// The EuRoC pairs at rest: rectified with the data set's calibration (an OpenCV stereo
 /// calibration built from cam0/cam1's intrinsics, distortion and extrinsics), matched with
 /// od::ComputeStereoDepth, the floor's normal and the accelerometer's mean direction
 /// (+-25 ms around each pair) against the true up (OpenVINS' attitude).
-inline Expected<EurocStereoUpResult> RunEurocStereoUp(const std::filesystem::path& root) {
+Expected<EurocStereoUpResult> RunEurocStereoUp(const std::filesystem::path& root) {
   Expected<sources::AslDataset> data = sources::ReadAslDataset(root / "mav0");
   if (!data) return data.error();
   if (data->cameras.size() < 2) return Error{"EuRoC: cam0 and cam1 needed"};
@@ -244,7 +207,8 @@ inline Expected<EurocStereoUpResult> RunEurocStereoUp(const std::filesystem::pat
     std::vector<Eigen::Vector3d> points;
     for (int v = 0; v < depth->depth_m.height; ++v) {
       for (int u = 0; u < depth->depth_m.width; ++u) {
-        const double z = depth->depth_m.data[static_cast<std::size_t>(v) * depth->depth_m.width + u];
+        const double z =
+            depth->depth_m.data[static_cast<std::size_t>(v) * depth->depth_m.width + u];
         if (!(z >= 0.3 && z <= 6.0)) continue;
         points.emplace_back((u - m.cx) * z / m.fx, (v - m.cy) * z / m.fy, z);
       }
@@ -274,12 +238,12 @@ inline Expected<EurocStereoUpResult> RunEurocStereoUp(const std::filesystem::pat
     ++result.pairs;
     result.floor_points += inliers;
   }
-  result.floor_median_deg = EurocPercentile(floor_err, 0.5);
-  result.floor_max_deg = EurocPercentile(floor_err, 1.0);
-  result.accel_median_deg = EurocPercentile(accel_err, 0.5);
-  result.accel_max_deg = EurocPercentile(accel_err, 1.0);
-  result.floor_vs_accel_median_deg = EurocPercentile(floor_accel, 0.5);
+  result.floor_median_deg = util::Quantile(floor_err, 0.5);
+  result.floor_max_deg = util::Quantile(floor_err, 1.0);
+  result.accel_median_deg = util::Quantile(accel_err, 0.5);
+  result.accel_max_deg = util::Quantile(accel_err, 1.0);
+  result.floor_vs_accel_median_deg = util::Quantile(floor_accel, 0.5);
   return result;
 }
 
-}  // namespace cairn::test
+}  // namespace cairn::eval
