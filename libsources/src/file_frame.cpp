@@ -119,12 +119,17 @@ Expected<FileFrame> ReadStereoFrame(const std::string& left, const std::string& 
   return out;
 }
 
-std::unique_ptr<FrameSource> OneFrameSource(FileFrame frame) {
+Expected<std::unique_ptr<FrameSource>> OneFrameSource(FileFrame frame) {
+  if (!frame.up.allFinite() || frame.up.norm() == 0.0) {
+    return Error{frame.name + ": the up vector must be finite and not zero"};
+  }
   StampedPose pose;
   pose.stamp_s = 0.0;
   pose.T_world_x = OneFrame::Placed(frame.up);
   Expected<Trajectory> trajectory = Trajectory::FromPoses({pose}, frame.name);
-  return std::make_unique<OneFrame>(std::move(frame), std::move(*trajectory));
+  if (!trajectory) return trajectory.error();
+  return std::unique_ptr<FrameSource>(
+      std::make_unique<OneFrame>(std::move(frame), std::move(*trajectory)));
 }
 
 }  // namespace cairn::sources

@@ -192,7 +192,12 @@ TEST(FileFrames, OnePairIsMatchedAsItsFolderMatchesIt) {
     }
   }
   const int valid_points = file->image.valid_count();
-  std::unique_ptr<FrameSource> one = OneFrameSource(std::move(*file));
+  FileFrame level_less = *file;  // a frame without a usable up vector is refused
+  level_less.up = Eigen::Vector3d::Zero();
+  EXPECT_FALSE(OneFrameSource(std::move(level_less)).ok());
+  Expected<std::unique_ptr<FrameSource>> source = OneFrameSource(std::move(*file));
+  ASSERT_TRUE(source.ok()) << source.error().message;
+  FrameSource* one = source->get();
   EXPECT_EQ(one->total(), 1);
   Expected<std::optional<SequenceFrame>> only = one->Next();
   ASSERT_TRUE(only.ok() && only->has_value());

@@ -57,8 +57,8 @@ Expected<FileFrame> ReadStereoFrame(const std::string& left, const std::string& 
                                     const std::string& calibration, const od::StereoConfig& stereo,
                                     const std::string& settings_name);
 
-/// `frame` as a source of one frame (index 0, no stamp), placed so that its up vector is
-/// the world's z.
-std::unique_ptr<FrameSource> OneFrameSource(FileFrame frame);
+/// `frame` as a source of one frame (index 0, stamp 0), placed so that its up vector is the
+/// world's z. Fails when the up vector is zero or not finite.
+Expected<std::unique_ptr<FrameSource>> OneFrameSource(FileFrame frame);
 
 }  // namespace cairn::sources
