@@ -6,6 +6,7 @@
 #include "cairn/od/io/intrinsics.hpp"
 #include "cairn/od/io/point_cloud.hpp"
 #include "cairn/od/io/stereo_files.hpp"
+#include "stereo_pair_files.hpp"
 
 namespace cairn::sources {
 namespace {
@@ -85,37 +86,53 @@ Expected<FileFrame> ReadScanFrame(const std::string& points, const od::LayoutOpt
   return out;
 }
 
+namespace internal {
+
+Expected<MatchedPair> MatchStereoFiles(const std::string& left, const std::string& right,
+                                       const od::StereoCalibration& rig,
+                                       const od::StereoConfig& stereo,
+                                       const std::string& failure_prefix) {
+  Expected<od::GreyImage> left_image = od::io::ReadGreyImage(left);
+  if (!left_image) return left_image.error();
+  Expected<od::GreyImage> right_image = od::io::ReadGreyImage(right);
+  if (!right_image) return right_image.error();
+  Expected<od::StereoPair> pair =
+      od::PrepareStereoPair(std::move(*left_image), std::move(*right_image), rig, left, right);
+  if (!pair) return pair.error();
+  const auto start = std::chrono::steady_clock::now();
+  Expected<od::StereoDepth> depth = od::ComputeStereoDepth(*pair, stereo);
+  if (!depth) return Error{failure_prefix + ": " + depth.error().message};
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return MatchedPair{std::move(*pair), std::move(*depth), seconds};
+}
+
+}  // namespace internal
+
 Expected<FileFrame> ReadStereoFrame(const std::string& left, const std::string& right,
                                     const std::string& calibration, const od::StereoConfig& stereo,
                                     const std::string& settings_name) {
   Expected<od::StereoCalibration> rig = od::io::LoadStereoCalibration(calibration);
   if (!rig) return rig.error();
-  Expected<od::GreyImage> left_image = od::io::ReadGreyImage(left);
-  if (!left_image) return left_image.error();
-  Expected<od::GreyImage> right_image = od::io::ReadGreyImage(right);
-  if (!right_image) return right_image.error();
+  Expected<internal::MatchedPair> matched = internal::MatchStereoFiles(
+      left, right, *rig, stereo, calibration + " / " + settings_name);
+  if (!matched) return matched.error();
   FileFrame out;
   out.name = left + " + " + right;
   out.rectified_here = rig->rectification.has_value();
-  Expected<od::StereoPair> pair =
-      od::PrepareStereoPair(std::move(*left_image), std::move(*right_image), *rig, left, right);
-  if (!pair) return pair.error();
-  const auto start = std::chrono::steady_clock::now();
-  Expected<od::StereoDepth> depth = od::ComputeStereoDepth(*pair, stereo);
-  if (!depth) return Error{calibration + " / " + settings_name + ": " + depth.error().message};
-  out.matching_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.matching_s = matched->matching_s;
   // Without an up vector in the calibration the camera is taken to be level: heights are
   // then measured along the image's -y axis.
-  out.up_given = pair->calibration.up.has_value();
-  out.up = out.up_given ? *pair->calibration.up : Eigen::Vector3d(0.0, -1.0, 0.0);
-  out.model = pair->calibration.model;
+  out.up_given = matched->pair.calibration.up.has_value();
+  out.up = out.up_given ? *matched->pair.calibration.up : Eigen::Vector3d(0.0, -1.0, 0.0);
+  out.model = matched->pair.calibration.model;
   Expected<od::RangeImage> image =
-      od::RangeImage::FromDepth(depth->depth_m.data, out.model, out.up);
+      od::RangeImage::FromDepth(matched->depth.depth_m.data, out.model, out.up);
   if (!image) return Error{left + ": " + image.error().message};
   out.image = std::move(*image);
-  out.depth_m = depth->depth_m;
-  out.pair = std::move(*pair);
-  out.stereo = std::move(*depth);
+  out.depth_m = matched->depth.depth_m;
+  out.pair = std::move(matched->pair);
+  out.stereo = std::move(matched->depth);
   return out;
 }
 

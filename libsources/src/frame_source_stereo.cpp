@@ -5,6 +5,7 @@
 #include "cairn/od/io/stereo_files.hpp"
 #include "cairn/sources/frame_source.hpp"
 #include "image_folder.hpp"
+#include "stereo_pair_files.hpp"
 
 namespace cairn::sources {
 namespace {
@@ -33,18 +34,12 @@ class StereoFolderFrames final : public FrameSource {
     Expected<BodyPose> pose = left_.trajectory.PoseAt(out.stamp_s);
     if (!pose) return Error{out.name + ": " + pose.error().message};
     out.T_world_body = out.T_world_sensor = pose->T_world_body;
-    Expected<od::GreyImage> left = od::io::ReadGreyImage(left_file);
-    if (!left) return left.error();
-    Expected<od::GreyImage> right = od::io::ReadGreyImage(right_file);
-    if (!right) return right.error();
-    Expected<od::StereoPair> pair = od::PrepareStereoPair(
-        std::move(*left), std::move(*right), calibration_, left_file.string(), right_file.string());
-    if (!pair) return pair.error();
-    Expected<od::StereoDepth> depth = od::ComputeStereoDepth(*pair, stereo_);
-    if (!depth) return Error{out.name + ": " + depth.error().message};
+    Expected<internal::MatchedPair> matched = internal::MatchStereoFiles(
+        left_file.string(), right_file.string(), calibration_, stereo_, out.name);
+    if (!matched) return matched.error();
     const Eigen::Vector3d up = out.T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
     Expected<od::RangeImage> image =
-        od::RangeImage::FromDepth(depth->depth_m.data, pair->calibration.model, up);
+        od::RangeImage::FromDepth(matched->depth.depth_m.data, matched->pair.calibration.model, up);
     if (!image) return Error{out.name + ": " + image.error().message};
     out.image = std::move(*image);
     return std::optional<SequenceFrame>(std::move(out));
