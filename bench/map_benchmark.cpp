@@ -303,8 +303,8 @@ std::int64_t CastWithWalk(const RayFrame& f, map::internal::KeyBricks& keys) {
   for (const octomap::OcTreeKey& end : f.ends) {
     map::internal::KeyBricks::Inserter insert(keys);
     map::internal::ForEachRayKey(f.tree, f.sensor, f.tree.keyToCoord(end),
-                                 [&](const octomap::OcTreeKey& k) {
-                                   insert(k);
+                                 [&](unsigned k0, unsigned k1, unsigned k2) {
+                                   insert(k0, k1, k2);
                                    ++steps;
                                  });
   }

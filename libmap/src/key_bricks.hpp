@@ -66,15 +66,16 @@ class KeyBricks {
   class Inserter {
    public:
     explicit Inserter(KeyBricks& set) : set_(set) {}
-    void operator()(const octomap::OcTreeKey& key) {
-      const std::uint64_t packed = PackBrick(key);
+    void operator()(const octomap::OcTreeKey& key) { (*this)(key[0], key[1], key[2]); }
+    void operator()(unsigned k0, unsigned k1, unsigned k2) {
+      const std::uint64_t packed = PackBrick(k0, k1, k2);
       if (packed != last_) {
         bits_ =
             set_.bricks_[set_.dense_.empty() ? set_.FindOrAdd(packed) : set_.FindOrAddDense(packed)]
                 .bits;
         last_ = packed;
       }
-      const unsigned bit = Local(key);
+      const unsigned bit = Local(k0, k1, k2);
       bits_[bit >> 6] |= std::uint64_t{1} << (bit & 63);
     }
 
@@ -174,8 +175,11 @@ class KeyBricks {
 
   // Brick coordinates (13 bits each) packed into 39 bits, + 1.
   static std::uint64_t PackBrick(const octomap::OcTreeKey& k) {
-    return (static_cast<std::uint64_t>(k[0] >> 3) | static_cast<std::uint64_t>(k[1] >> 3) << 13 |
-            static_cast<std::uint64_t>(k[2] >> 3) << 26) +
+    return PackBrick(k[0], k[1], k[2]);
+  }
+  static std::uint64_t PackBrick(unsigned k0, unsigned k1, unsigned k2) {
+    return (static_cast<std::uint64_t>(k0 >> 3) | static_cast<std::uint64_t>(k1 >> 3) << 13 |
+            static_cast<std::uint64_t>(k2 >> 3) << 26) +
            1;
   }
   static std::uint64_t PackFromCode(std::uint64_t code) {
@@ -185,9 +189,10 @@ class KeyBricks {
            1;
   }
   // The voxel's Morton code within its brick (9 bits).
-  static unsigned Local(const octomap::OcTreeKey& k) {
+  static unsigned Local(const octomap::OcTreeKey& k) { return Local(k[0], k[1], k[2]); }
+  static unsigned Local(unsigned k0, unsigned k1, unsigned k2) {
     static constexpr unsigned kSpread[8] = {0, 1, 8, 9, 64, 65, 72, 73};  // Spread3(0..7)
-    return kSpread[k[0] & 7u] | kSpread[k[1] & 7u] << 1 | kSpread[k[2] & 7u] << 2;
+    return kSpread[k0 & 7u] | kSpread[k1 & 7u] << 1 | kSpread[k2 & 7u] << 2;
   }
   // Every bit of v (up to 21) to every third bit, and back.
   static std::uint64_t Spread3(std::uint64_t v) {

@@ -14,8 +14,22 @@
 
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 namespace cairn::map::internal {
+
+/// Hands a key to f: as its three coordinates when f takes them (they stay in registers;
+/// an OcTreeKey built in memory and read back whole stalls the walk on every step), else as
+/// an OcTreeKey.
+template <typename F>
+void Visit(F& f, int k0, int k1, int k2) {
+  if constexpr (std::is_invocable_v<F&, unsigned, unsigned, unsigned>) {
+    f(static_cast<unsigned>(k0), static_cast<unsigned>(k1), static_cast<unsigned>(k2));
+  } else {
+    f(octomap::OcTreeKey(static_cast<octomap::key_type>(k0), static_cast<octomap::key_type>(k1),
+                         static_cast<octomap::key_type>(k2)));
+  }
+}
 
 /// Calls f(key) for every voxel computeRayKeys(origin, end) would put in its ray. Returns
 /// false, calling nothing, when origin or end lies outside the tree (computeRayKeys' false).
@@ -27,7 +41,7 @@ bool ForEachRayKey(const Tree& tree, const octomap::point3d& origin, const octom
     return false;
   }
   if (key == key_end) return true;
-  f(key);
+  Visit(f, key[0], key[1], key[2]);
   octomap::point3d direction = end - origin;
   const float length = static_cast<float>(direction.norm());
   direction /= length;
@@ -66,8 +80,7 @@ bool ForEachRayKey(const Tree& tree, const octomap::point3d& origin, const octom
     // Past the end's distance without meeting its voxel (rounding): stop, as OctoMap does.
     const double t_least01 = t0 < t1 ? t0 : t1;  // by value: the t's stay in registers
     if ((t_least01 < t2 ? t_least01 : t2) > length_d) return true;
-    f(octomap::OcTreeKey(static_cast<octomap::key_type>(k0), static_cast<octomap::key_type>(k1),
-                         static_cast<octomap::key_type>(k2)));
+    Visit(f, k0, k1, k2);
   }
 }
 
