@@ -72,6 +72,7 @@ struct TerrainMap::Scratch {
   std::vector<octomap::OcTreeKey> ray_ends;        // the endpoints and the far ends
   std::vector<internal::KeyBricks> worker_keys;    // free keys of the other ray workers
   std::vector<std::pair<std::uint64_t, std::uint32_t>> brick_order;
+  std::vector<TerrainOcTree::FreeBrick> free_bricks;  // a frame's free voxels, brick by brick
   std::vector<CellIndex> ground_disc;  // cells that may hold a return within ground_radius
   std::vector<CellIndex> fit_disc;     // offsets within plane_fit_radius
   std::vector<CellIndex> merge_disc;   // offsets within merge_distance
@@ -470,12 +471,16 @@ void TerrainMap::UpdateOctree(const Eigen::Vector3d& origin, std::int64_t stamp,
                                 static_cast<float>(origin.z()));
   CastFreeRays(tree, sensor, sc.ray_ends, config_.threads, sc.free_keys, sc.worker_keys);
   // Endpoints win: their voxels are not updated as free. A brick at a time: the tree is
-  // walked to each brick once.
+  // walked to each brick once, and the bricks' subtrees are updated on map.threads threads.
+  std::vector<TerrainOcTree::FreeBrick>& bricks = sc.free_bricks;
+  bricks.clear();
   sc.free_keys.ForEachBrickInMortonOrder(
       &sc.endpoints, sc.brick_order,
       [&](const internal::KeyBricks::Brick& brick, const internal::KeyBricks::Brick* ends) {
+        TerrainOcTree::FreeBrick& free = bricks.emplace_back();
         const octomap::OcTreeKey base = internal::KeyBricks::BaseKey(brick);
-        std::uint64_t voxels[8];
+        free.base = base;
+        std::uint64_t* voxels = free.voxels;
         for (int w = 0; w < 8; ++w) voxels[w] = brick.bits[w] & ~(ends ? ends->bits[w] : 0);
         // The window is an interval in x and y: a brick whose corner voxels lie in it does.
         const octomap::OcTreeKey far(static_cast<octomap::key_type>(base[0] + 7),
@@ -487,18 +492,20 @@ void TerrainMap::UpdateOctree(const Eigen::Vector3d& origin, std::int64_t stamp,
             }
           }
         }
-        std::uint64_t was_obstacle[8];
-        summary.voxels_free += tree.UpdateFreeBrick(base, voxels, was_obstacle);
-        for (unsigned w = 0; w < 8; ++w) {
-          for (std::uint64_t word = was_obstacle[w]; word != 0; word &= word - 1) {
-            // A ray went through where an obstacle was: evidence against the cell below it.
-            const unsigned b = w * 64 + static_cast<unsigned>(__builtin_ctzll(word));
-            const octomap::point3d c = tree.keyToCoord(internal::KeyBricks::KeyOf(base, b));
-            const CellIndex cell = grid_.IndexOf({c.x(), c.y()});
-            if (grid_.Contains(cell)) sc.Stamp(grid_, cell, stamp).seen_through = true;
-          }
-        }
       });
+  tree.UpdateFreeBricks(bricks, config_.threads);
+  for (const TerrainOcTree::FreeBrick& brick : bricks) {
+    summary.voxels_free += brick.changed;
+    for (unsigned w = 0; w < 8; ++w) {
+      for (std::uint64_t word = brick.was_obstacle[w]; word != 0; word &= word - 1) {
+        // A ray went through where an obstacle was: evidence against the cell below it.
+        const unsigned b = w * 64 + static_cast<unsigned>(__builtin_ctzll(word));
+        const octomap::point3d c = tree.keyToCoord(internal::KeyBricks::KeyOf(brick.base, b));
+        const CellIndex cell = grid_.IndexOf({c.x(), c.y()});
+        if (grid_.Contains(cell)) sc.Stamp(grid_, cell, stamp).seen_through = true;
+      }
+    }
+  }
   sc.endpoints.ForEachInMortonOrder(
       &sc.obstacle_endpoints, sc.brick_order, [&](const octomap::OcTreeKey& key, bool obstacle) {
         if (!in_window(key)) return;

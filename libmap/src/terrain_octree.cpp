@@ -1,8 +1,11 @@
 #include "cairn/map/terrain_octree.hpp"
 
 #include <algorithm>
+#include <array>
 #include <iterator>
 #include <limits>
+
+#include "cairn/od/parallel.hpp"
 
 namespace cairn::map {
 
@@ -54,15 +57,17 @@ TerrainOcTreeNode* TerrainOcTree::Root(bool& created) {
 // whether `node` was made by this walk (a new node has no children, which then is no sign
 // of pruning); it is updated to the child.
 TerrainOcTreeNode* TerrainOcTree::Step(TerrainOcTreeNode* node, unsigned pos, bool& created,
-                                       bool free_update) {
+                                       bool free_update, std::size_t& made) {
   if (nodeChildExists(node, pos)) {
     created = false;
   } else if (!nodeHasChildren(node) && !created) {
     if (free_update && IsSaturatedFree(*node)) return nullptr;
-    expandNode(node);
+    node->Expand();
+    made += 8;
     created = false;
   } else {
-    createNodeChild(node, pos);
+    node->MakeChild(pos);
+    ++made;
     created = true;
   }
   return getNodeChild(node, pos);
@@ -70,16 +75,21 @@ TerrainOcTreeNode* TerrainOcTree::Step(TerrainOcTreeNode* node, unsigned pos, bo
 
 TerrainOcTreeNode* TerrainOcTree::TouchLeaf(const octomap::OcTreeKey& key) {
   bool created = false;
+  std::size_t made = 0;
   TerrainOcTreeNode* node = Root(created);
   for (unsigned depth = 0; depth < tree_depth; ++depth) {
     node = Step(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth)),
-                created, false);
+                created, false, made);
   }
+  CountMade(made);
   return node;
 }
 
 namespace {
 constexpr unsigned kBrickLevels = 3;  // a brick: the node this many levels above the leaves
+// UpdateFreeBricks' subtrees: this many levels above a brick (8 x 8 x 8 bricks, 6.4 m at
+// 0.1 m voxels; a LiDAR frame's bricks fall into a few hundred).
+constexpr unsigned kSubtreeLevels = 3;
 }  // namespace
 
 // The leaf's update once the walk has reached it.
@@ -94,44 +104,125 @@ TerrainOcTree::FreeUpdate TerrainOcTree::FreeLeaf(TerrainOcTreeNode* leaf) const
 
 TerrainOcTree::FreeUpdate TerrainOcTree::UpdateFree(const octomap::OcTreeKey& key) {
   bool created = false;
+  std::size_t made = 0;
   TerrainOcTreeNode* node = Root(created);
   for (unsigned depth = 0; depth < tree_depth && node != nullptr; ++depth) {
     node = Step(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth)),
-                created, true);
+                created, true, made);
   }
+  CountMade(made);
   return FreeLeaf(node);
+}
+
+TerrainOcTreeNode* TerrainOcTree::WalkFree(const octomap::OcTreeKey& key, unsigned depth,
+                                           bool& created) {
+  std::size_t made = 0;
+  TerrainOcTreeNode* node = Root(created);
+  for (unsigned d = 0; d < depth && node != nullptr; ++d) {
+    node = Step(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - d)), created,
+                true, made);
+  }
+  CountMade(made);
+  return node;
+}
+
+namespace {
+bool AnyVoxel(const std::uint64_t (&voxels)[8]) {
+  return std::any_of(std::begin(voxels), std::end(voxels), [](std::uint64_t w) { return w != 0; });
+}
+}  // namespace
+
+int TerrainOcTree::UpdateFreeBrickBelow(TerrainOcTreeNode* node, unsigned depth, bool created,
+                                        FreeBrick& brick, std::size_t& made) {
+  for (unsigned d = depth; d + kBrickLevels < tree_depth && node != nullptr; ++d) {
+    node = Step(node, octomap::computeChildIdx(brick.base, static_cast<int>(tree_depth - 1 - d)),
+                created, true, made);
+  }
+  if (node == nullptr) return 0;  // inside a pruned node saturated free
+  int changed = 0;
+  for (unsigned w = 0; w < 8; ++w) {
+    for (std::uint64_t word = brick.voxels[w]; word != 0; word &= word - 1) {
+      const unsigned b = w * 64 + static_cast<unsigned>(__builtin_ctzll(word));
+      // Three levels down, each picked by three bits of the local Morton code; only the
+      // first voxel's walk can meet the brick node as made by this update.
+      TerrainOcTreeNode* leaf = node;
+      for (int level = 2; level >= 0 && leaf != nullptr; --level) {
+        leaf = Step(leaf, b >> (3 * level) & 7u, created, true, made);
+      }
+      created = false;
+      const FreeUpdate update = FreeLeaf(leaf);
+      changed += update.changed;
+      if (update.was_obstacle) brick.was_obstacle[w] |= std::uint64_t{1} << (b & 63);
+    }
+  }
+  return changed;
 }
 
 int TerrainOcTree::UpdateFreeBrick(const octomap::OcTreeKey& base, const std::uint64_t (&voxels)[8],
                                    std::uint64_t (&was_obstacle)[8]) {
   std::fill(std::begin(was_obstacle), std::end(was_obstacle), 0);
-  if (std::all_of(std::begin(voxels), std::end(voxels), [](std::uint64_t w) { return w == 0; })) {
-    return 0;  // no walk: it would make nodes
-  }
+  if (!AnyVoxel(voxels)) return 0;  // no walk: it would make nodes
+  FreeBrick brick;
+  brick.base = base;
+  std::copy(std::begin(voxels), std::end(voxels), std::begin(brick.voxels));
   bool created = false;
-  TerrainOcTreeNode* brick = Root(created);
-  for (unsigned depth = 0; depth + kBrickLevels < tree_depth; ++depth) {
-    brick = Step(brick, octomap::computeChildIdx(base, static_cast<int>(tree_depth - 1 - depth)),
-                 created, true);
-    if (brick == nullptr) return 0;  // inside a pruned node saturated free
-  }
-  int changed = 0;
-  for (unsigned w = 0; w < 8; ++w) {
-    for (std::uint64_t word = voxels[w]; word != 0; word &= word - 1) {
-      const unsigned b = w * 64 + static_cast<unsigned>(__builtin_ctzll(word));
-      // Three levels down, each picked by three bits of the local Morton code; only the
-      // first voxel's walk can meet the brick node as made by this update.
-      TerrainOcTreeNode* node = brick;
-      for (int level = 2; level >= 0 && node != nullptr; --level) {
-        node = Step(node, b >> (3 * level) & 7u, created, true);
-      }
-      created = false;
-      const FreeUpdate update = FreeLeaf(node);
-      changed += update.changed;
-      if (update.was_obstacle) was_obstacle[w] |= std::uint64_t{1} << (b & 63);
-    }
-  }
+  std::size_t made = 0;
+  TerrainOcTreeNode* top = Root(created);
+  const int changed = UpdateFreeBrickBelow(top, 0, created, brick, made);
+  CountMade(made);
+  std::copy(std::begin(brick.was_obstacle), std::end(brick.was_obstacle), std::begin(was_obstacle));
   return changed;
+}
+
+void TerrainOcTree::UpdateFreeBricks(std::vector<FreeBrick>& bricks, int threads) {
+  const unsigned depth = tree_depth - kBrickLevels - kSubtreeLevels;  // the subtrees' depth
+  const unsigned shift = tree_depth - depth;
+  auto subtree_of = [&](const octomap::OcTreeKey& k) {
+    return std::array<unsigned, 3>{static_cast<unsigned>(k[0]) >> shift,
+                                   static_cast<unsigned>(k[1]) >> shift,
+                                   static_cast<unsigned>(k[2]) >> shift};
+  };
+  // The subtrees, as runs of bricks, and the node each starts from: walked in order, as the
+  // first brick with a voxel in each would walk it.
+  struct Subtree {
+    std::size_t first = 0, last = 0;  // the bricks [first, last)
+    TerrainOcTreeNode* node = nullptr;
+    bool created = false;  // the node was made by this walk
+  };
+  std::vector<Subtree> subtrees;
+  for (std::size_t i = 0; i < bricks.size();) {
+    Subtree t;
+    t.first = i;
+    const auto id = subtree_of(bricks[i].base);
+    while (i < bricks.size() && subtree_of(bricks[i].base) == id) ++i;
+    t.last = i;
+    for (std::size_t j = t.first; j < t.last; ++j) {
+      std::fill(std::begin(bricks[j].was_obstacle), std::end(bricks[j].was_obstacle), 0);
+      bricks[j].changed = 0;
+    }
+    const auto with_voxels = std::find_if(bricks.begin() + static_cast<std::ptrdiff_t>(t.first),
+                                          bricks.begin() + static_cast<std::ptrdiff_t>(t.last),
+                                          [](const FreeBrick& b) { return AnyVoxel(b.voxels); });
+    if (with_voxels == bricks.begin() + static_cast<std::ptrdiff_t>(t.last)) continue;
+    t.node = WalkFree(with_voxels->base, depth, t.created);
+    if (t.node != nullptr) subtrees.push_back(t);
+  }
+  std::vector<std::size_t> made(static_cast<std::size_t>(std::max(1, od::ThreadCount(threads))), 0);
+  od::ParallelFor(
+      static_cast<int>(subtrees.size()), threads,
+      [&](int worker, int s) {
+        const Subtree& t = subtrees[static_cast<std::size_t>(s)];
+        bool created = t.created;
+        for (std::size_t j = t.first; j < t.last; ++j) {
+          FreeBrick& brick = bricks[j];
+          if (!AnyVoxel(brick.voxels)) continue;
+          brick.changed = UpdateFreeBrickBelow(t.node, depth, created, brick,
+                                               made[static_cast<std::size_t>(worker)]);
+          created = false;  // the path to the subtree's node has children now
+        }
+      },
+      1);
+  for (std::size_t m : made) CountMade(m);
 }
 
 void TerrainOcTree::Update(TerrainOcTreeNode* leaf, bool occupied, bool obstacle) const {

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 #include <set>
@@ -633,16 +634,17 @@ TEST(KeyBricks, HoldsEveryKeyOnceAndGivesThemInMortonOrder) {
 
 // The free updates of a brick at a time (a walk in Morton order) change the tree exactly as
 // the walk from the root for each voxel, on a tree with occupied, free and pruned saturated
-// regions.
+// regions; and so do the bricks' subtrees updated on several threads (UpdateFreeBricks).
 TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
   std::mt19937 rng(5);
-  TerrainOcTree a(0.1), b(0.1);
+  TerrainOcTree a(0.1), b(0.1), c(0.1), d(0.1);
+  const std::vector<TerrainOcTree*> trees = {&a, &b, &c, &d};
   std::uniform_int_distribution<int> near(32700, 32835);
   for (int k = 0; k < 4000; ++k) {  // occupied voxels, some obstacles
     const octomap::OcTreeKey key(static_cast<octomap::key_type>(near(rng)),
                                  static_cast<octomap::key_type>(near(rng)),
                                  static_cast<octomap::key_type>(near(rng)));
-    for (TerrainOcTree* t : {&a, &b}) t->Update(t->TouchLeaf(key), true, k % 3 == 0);
+    for (TerrainOcTree* t : trees) t->Update(t->TouchLeaf(key), true, k % 3 == 0);
   }
   // Saturate the free space of a 32-voxel cube around the rays' origin (which prunes to a
   // few nodes), and some of it again along rays.
@@ -661,14 +663,13 @@ TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
   keys.insert(keys.end(), along.begin(), along.end());
   for (const octomap::OcTreeKey& key : keys) {
     for (int r = 0; r < 8; ++r) {
-      a.UpdateFree(key);
-      b.UpdateFree(key);
+      for (TerrainOcTree* t : trees) t->UpdateFree(key);
     }
   }
-  a.updateInnerOccupancy();
-  b.updateInnerOccupancy();
-  a.prune();
-  b.prune();
+  for (TerrainOcTree* t : trees) {
+    t->updateInnerOccupancy();
+    t->prune();
+  }
   keys = RayKeys(rng, 900);
   std::sort(keys.begin(), keys.end(), [](const octomap::OcTreeKey& x, const octomap::OcTreeKey& y) {
     return MortonOf(x) < MortonOf(y);
@@ -686,6 +687,8 @@ TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
   for (const octomap::OcTreeKey& key : keys) bricks.Insert(key);
   std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
   int brick_changed = 0, brick_obstacles = 0;
+  std::vector<TerrainOcTree::FreeBrick> many;
+  std::vector<std::array<std::uint64_t, 8>> each_was_obstacle;
   bricks.ForEachBrickInMortonOrder(
       nullptr, order,
       [&](const internal::KeyBricks::Brick& brick, const internal::KeyBricks::Brick*) {
@@ -693,7 +696,34 @@ TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
         brick_changed +=
             b.UpdateFreeBrick(internal::KeyBricks::BaseKey(brick), brick.bits, was_obstacle);
         for (const std::uint64_t w : was_obstacle) brick_obstacles += __builtin_popcountll(w);
+        each_was_obstacle.push_back({});
+        std::copy(std::begin(was_obstacle), std::end(was_obstacle),
+                  each_was_obstacle.back().begin());
+        TerrainOcTree::FreeBrick& free = many.emplace_back();
+        free.base = internal::KeyBricks::BaseKey(brick);
+        std::copy(std::begin(brick.bits), std::end(brick.bits), std::begin(free.voxels));
+        free.was_obstacle[0] = 12345;  // overwritten
       });
+  EXPECT_GT(many.size(), 100u);
+  // c on two threads, d on one: brick for brick the answers of b, and b's tree.
+  for (const auto& [tree, threads] : {std::pair{&c, 2}, std::pair{&d, 1}}) {
+    std::vector<TerrainOcTree::FreeBrick> updated = many;
+    tree->UpdateFreeBricks(updated, threads);
+    int tree_changed = 0;
+    for (std::size_t i = 0; i < updated.size(); ++i) {
+      tree_changed += updated[i].changed;
+      for (int w = 0; w < 8; ++w) {
+        ASSERT_EQ(updated[i].was_obstacle[w], each_was_obstacle[i][static_cast<std::size_t>(w)])
+            << "brick " << i << ", " << threads << " threads";
+      }
+    }
+    EXPECT_EQ(tree_changed, brick_changed) << threads << " threads";
+    EXPECT_EQ(tree->size(), b.size()) << threads << " threads";
+    std::ostringstream sb, st;
+    b.writeData(sb);
+    tree->writeData(st);
+    EXPECT_EQ(st.str(), sb.str()) << threads << " threads";
+  }
   EXPECT_EQ(brick_changed, changed);
   EXPECT_EQ(brick_obstacles, obstacles);
   EXPECT_GT(changed, 1000);

@@ -25,6 +25,7 @@
 #include <istream>
 #include <ostream>
 #include <string>
+#include <vector>
 
 namespace cairn::map {
 
@@ -56,6 +57,20 @@ class TerrainOcTreeNode : public octomap::OcTreeNode {
   void ReleaseChildArray() {
     delete[] children;
     children = nullptr;
+  }
+  // OctoMap's createNodeChild and expandNode without the tree's node count, which walks on
+  // several threads would share: the caller counts the nodes made.
+  TerrainOcTreeNode* MakeChild(unsigned pos) {
+    if (children == nullptr) {
+      children = new octomap::AbstractOcTreeNode*[8];
+      for (unsigned i = 0; i < 8; ++i) children[i] = nullptr;
+    }
+    auto* child = new TerrainOcTreeNode();
+    children[pos] = child;
+    return child;
+  }
+  void Expand() {
+    for (unsigned i = 0; i < 8; ++i) MakeChild(i)->copyData(*this);
   }
 
   float obstacle_ = 0.0f;
@@ -102,6 +117,21 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   int UpdateFreeBrick(const octomap::OcTreeKey& base, const std::uint64_t (&voxels)[8],
                       std::uint64_t (&was_obstacle)[8]);
 
+  /// Free updates of many bricks, as UpdateFreeBrick on each in turn, on up to `threads`
+  /// threads (0: every core): the same tree and answers when the bricks come in the Morton
+  /// order of their bases (KeyBricks::ForEachBrickInMortonOrder's), as the sequential
+  /// updates would leave them in that order. The bricks are split by their subtree a few
+  /// levels above them (Morton order keeps each subtree's bricks together); the path to
+  /// each subtree is walked first, in order, on one thread, then the subtrees, which share
+  /// no node, each on one thread.
+  struct FreeBrick {
+    octomap::OcTreeKey base;
+    std::uint64_t voxels[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    std::uint64_t was_obstacle[8] = {0, 0, 0, 0, 0, 0, 0, 0};  ///< out
+    int changed = 0;                                           ///< out
+  };
+  void UpdateFreeBricks(std::vector<FreeBrick>& bricks, int threads);
+
   /// Whether a node is saturated free in both values (a free update changes nothing).
   bool IsSaturatedFree(const TerrainOcTreeNode& node) const;
   bool IsObstacle(const TerrainOcTreeNode& node) const {
@@ -115,7 +145,19 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
 
  private:
   TerrainOcTreeNode* Root(bool& created);
-  TerrainOcTreeNode* Step(TerrainOcTreeNode* node, unsigned pos, bool& created, bool free_update);
+  TerrainOcTreeNode* Step(TerrainOcTreeNode* node, unsigned pos, bool& created, bool free_update,
+                          std::size_t& made);
+  // The walk from the root down to `depth` along `key` (free updates), as UpdateFreeBrick
+  // makes it; null inside a pruned node saturated free.
+  TerrainOcTreeNode* WalkFree(const octomap::OcTreeKey& key, unsigned depth, bool& created);
+  // UpdateFreeBrick's work below `node`, at `depth` on the path to the brick (reached with
+  // `created`); the nodes made are counted into `made`.
+  int UpdateFreeBrickBelow(TerrainOcTreeNode* node, unsigned depth, bool created, FreeBrick& brick,
+                           std::size_t& made);
+  void CountMade(std::size_t made) {
+    tree_size += made;
+    if (made > 0) size_changed = true;
+  }
   FreeUpdate FreeLeaf(TerrainOcTreeNode* leaf) const;
   // Deletes every descendant of `node` (not the node itself); counts them.
   void DeleteDescendants(TerrainOcTreeNode* node, std::size_t& count);
