@@ -144,6 +144,8 @@ void GravityEstimator::State::Build(ceres::Problem& problem,
   problem.AddParameterBlock(ba_, 3);
   problem.AddParameterBlock(bg_, 3);
   problem.AddParameterBlock(mount_, 2);
+  // The IMU terms are pre-integrated at the gyro bias as it stands (GyroTerm).
+  const Eigen::Vector3d bg_now(bg[0], bg[1], bg[2]);
   const int n = static_cast<int>(window.size());
   for (int i = 0; i < n; ++i) {
     WindowFrame& f = *window[i];
@@ -193,6 +195,7 @@ void GravityEstimator::State::Build(ceres::Problem& problem,
       auto* gyro = new gravity::GyroTerm;
       gyro->segments = SegmentsOf(window, t0, t1, true);
       gyro->R_body_imu = R_body_imu;
+      gyro->Preintegrate(bg_now);
       double sum_sq = 0.0;
       for (const ImuSegment& s : gyro->segments) {
         sum_sq += (s.before_s + s.after_s) * (s.before_s + s.after_s);
@@ -228,6 +231,7 @@ void GravityEstimator::State::Build(ceres::Problem& problem,
       acc->forward = SegmentsOf(window, in.stamp_s, tb, true);
       acc->backward = SegmentsOf(window, ta, in.stamp_s, false);
       acc->R_body_imu = R_body_imu;
+      acc->Preintegrate(bg_now);
       acc->span_s = tb - ta;
       acc->gravity_mps2 = c.gravity_mps2;
       const Eigen::Matrix3d R_level_world =

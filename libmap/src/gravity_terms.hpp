@@ -72,38 +72,6 @@ Eigen::Matrix<T, 3, 1> Log(const Eigen::Matrix<T, 3, 3>& R) {
   return w;
 }
 
-/// The IMU integrations below depend on the gyro bias alone (the accelerometer bias enters
-/// linearly, after them). They run with derivatives with respect to those 3 biases only and
-/// are lifted, by the chain rule, to the caller's scalar, whose derivatives span every
-/// parameter of the cost (9 or 15): the values are the same, the work per sample 3-5 times
-/// less. BiasScalar<T>::type is double when T is double and Jet<double, 3> otherwise.
-template <typename T>
-struct BiasScalar {
-  using type = ceres::Jet<double, 3>;
-  static type Seed(const T& bias, int k) { return type(bias.a, k); }
-  static T Lift(const type& x, const T* bias) {
-    T out(x.a);
-    out.v = x.v[0] * bias[0].v + x.v[1] * bias[1].v + x.v[2] * bias[2].v;
-    return out;
-  }
-};
-template <>
-struct BiasScalar<double> {
-  using type = double;
-  static double Seed(double bias, int) { return bias; }
-  static double Lift(double x, const double*) { return x; }
-};
-
-template <typename T, int R, int C>
-Eigen::Matrix<T, R, C> LiftBias(const Eigen::Matrix<typename BiasScalar<T>::type, R, C>& m,
-                                const T* bias) {
-  Eigen::Matrix<T, R, C> out;
-  for (int i = 0; i < R; ++i) {
-    for (int j = 0; j < C; ++j) out(i, j) = BiasScalar<T>::Lift(m(i, j), bias);
-  }
-  return out;
-}
-
 /// One raw IMU sample cut to an integration span: the span runs `before_s` up to the
 /// sample's stamp and `after_s` beyond it (both >= 0, clipped to the span's ends). Its
 /// specific force is used when the stamp lies inside the span (use_force).
@@ -115,36 +83,124 @@ struct ImuSegment {
   bool use_force = true;
 };
 
+/// The IMU integrations of the terms below, at a gyro bias bg (S: double, or a Jet for
+/// derivatives with respect to bg).
+///
+/// The gyro-integrated rotation over `segments`, in time order:
+///   dR(bg) = prod_j Exp(R_body_imu (omega_j - bg) d_j)
+template <typename S>
+Eigen::Matrix<S, 3, 3> IntegrateRotation(const std::vector<ImuSegment>& segments,
+                                         const Eigen::Matrix3d& R_body_imu,
+                                         const Eigen::Matrix<S, 3, 1>& bg) {
+  using M3s = Eigen::Matrix<S, 3, 3>;
+  using V3s = Eigen::Matrix<S, 3, 1>;
+  const M3s R_bi = R_body_imu.cast<S>();
+  M3s dR = M3s::Identity();
+  for (const ImuSegment& s : segments) {
+    const V3s w = R_bi * (s.omega_imu.cast<S>() - bg);
+    dR = dR * Exp<S>(w * S(s.before_s + s.after_s));
+  }
+  return dR;
+}
+
+/// The specific forces rotated into frame k's body axes, forward from t_k and backward to
+/// it: sum_j dR_kj(bg) R_body_imu f_j (sum_force), sum_j dR_kj(bg) (sum_rotation), over the
+/// n samples whose force is used. The measured mean is (sum_force - sum_rotation
+/// R_body_imu ba) / n: the accelerometer bias enters linearly.
+template <typename S>
+struct ForceSums {
+  Eigen::Matrix<S, 3, 1> sum_force = Eigen::Matrix<S, 3, 1>::Zero();
+  Eigen::Matrix<S, 3, 3> sum_rotation = Eigen::Matrix<S, 3, 3>::Zero();
+  int n = 0;
+};
+template <typename S>
+ForceSums<S> IntegrateForces(const std::vector<ImuSegment>& forward,
+                             const std::vector<ImuSegment>& backward,
+                             const Eigen::Matrix3d& R_body_imu, const Eigen::Matrix<S, 3, 1>& bg) {
+  using M3s = Eigen::Matrix<S, 3, 3>;
+  using V3s = Eigen::Matrix<S, 3, 1>;
+  const M3s R_bi = R_body_imu.cast<S>();
+  ForceSums<S> out;
+  M3s R = M3s::Identity();
+  for (const ImuSegment& s : forward) {
+    const V3s w = R_bi * (s.omega_imu.cast<S>() - bg);
+    R = R * Exp<S>(w * S(s.before_s));
+    if (s.use_force) {
+      out.sum_force += R * (R_body_imu * s.force_imu).cast<S>();
+      out.sum_rotation += R;
+      ++out.n;
+    }
+    R = R * Exp<S>(w * S(s.after_s));
+  }
+  R = M3s::Identity();
+  for (const ImuSegment& s : backward) {
+    const V3s w = R_bi * (s.omega_imu.cast<S>() - bg);
+    R = R * Exp<S>(V3s(-w * S(s.after_s)));
+    if (s.use_force) {
+      out.sum_force += R * (R_body_imu * s.force_imu).cast<S>();
+      out.sum_rotation += R;
+      ++out.n;
+    }
+    R = R * Exp<S>(V3s(-w * S(s.before_s)));
+  }
+  return out;
+}
+
+using Jet3 = ceres::Jet<double, 3>;
+inline Eigen::Matrix<Jet3, 3, 1> SeedBias(const Eigen::Vector3d& bg) {
+  return {Jet3(bg.x(), 0), Jet3(bg.y(), 1), Jet3(bg.z(), 2)};
+}
+
 /// Gyro-integrated rotation between consecutive frames k and k+1:
 ///   r = Log(dR(bg)^T R_world_body_k^T R_world_body_k+1) / sigma_rad      [3, rad / rad]
-/// dR(bg) = prod_j Exp(R_body_imu (omega_j - bg) d_j) over the samples' spans, in time order.
+/// dR(bg) = prod_j Exp(R_body_imu (omega_j - bg) d_j) over the samples' spans, in time order
+/// (IntegrateRotation), pre-integrated once at bg0 (Preintegrate) and moved to bg to first
+/// order, as visual-inertial estimators do (Forster et al., "On-manifold preintegration",
+/// T-RO 2017): dR(bg) = dR(bg0) Exp(J (bg - bg0)), J = d Log(dR(bg0)^T dR(bg)) / d bg.
+/// The window moves bg0 to the latest estimate every frame, where the residual is exact;
+/// the rest is second order in bg - bg0.
 /// sigma_rad = sqrt(gyro_sigma^2 sum_j d_j^2 + floor^2): white gyro noise integrated.
 struct GyroTerm {
   std::vector<ImuSegment> segments;  ///< in time order, from t_k to t_k+1
   Eigen::Matrix3d R_body_imu = Eigen::Matrix3d::Identity();
   double sigma_rad = 1e-3;
 
+  /// Integrates the segments at gyro bias bg0; the residual is valid only after this.
+  void Preintegrate(const Eigen::Vector3d& bg0) {
+    const Eigen::Matrix<Jet3, 3, 3> dR =
+        IntegrateRotation<Jet3>(segments, R_body_imu, SeedBias(bg0));
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) dR0_(i, j) = dR(i, j).a;
+    }
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Matrix3d d;
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) d(i, j) = dR(i, j).v[k];
+      }
+      const Eigen::Matrix3d m = dR0_.transpose() * d;  // skew-symmetric: [J e_k]x
+      J_.col(k) = 0.5 * Eigen::Vector3d(m(2, 1) - m(1, 2), m(0, 2) - m(2, 0), m(1, 0) - m(0, 1));
+    }
+    bg0_ = bg0;
+    ready_ = true;
+  }
+
   template <typename T>
   bool operator()(const T* rpy_k, const T* rpy_k1, const T* bg, T* residual) const {
     using M3 = Eigen::Matrix<T, 3, 3>;
     using V3 = Eigen::Matrix<T, 3, 1>;
-    using B = BiasScalar<T>;
-    using S = typename B::type;
-    using M3s = Eigen::Matrix<S, 3, 3>;
-    using V3s = Eigen::Matrix<S, 3, 1>;
-    const V3s bias(B::Seed(bg[0], 0), B::Seed(bg[1], 1), B::Seed(bg[2], 2));
-    const M3s R_bi = R_body_imu.cast<S>();
-    M3s dR_s = M3s::Identity();
-    for (const ImuSegment& s : segments) {
-      const V3s w = R_bi * (s.omega_imu.cast<S>() - bias);
-      dR_s = dR_s * Exp<S>(w * S(s.before_s + s.after_s));
-    }
-    const M3 dR = LiftBias<T>(dR_s, bg);
+    if (!ready_) return false;
+    const V3 db = Eigen::Map<const V3>(bg) - bg0_.cast<T>();
+    const M3 dR = dR0_.cast<T>() * Exp<T>(V3(J_.cast<T>() * db));
     const M3 rel = WorldFromBody(rpy_k).transpose() * WorldFromBody(rpy_k1);
     const V3 e = Log<T>(M3(dR.transpose() * rel));
     for (int i = 0; i < 3; ++i) residual[i] = e[i] / T(sigma_rad);
     return true;
   }
+
+ private:
+  Eigen::Matrix3d dR0_ = Eigen::Matrix3d::Identity(), J_ = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d bg0_ = Eigen::Vector3d::Zero();
+  bool ready_ = false;
 };
 
 /// Accelerometer against gravity plus the motion the odometry (or a known velocity)
@@ -158,9 +214,12 @@ struct GyroTerm {
 /// changes of speed and the lateral speed x yaw rate both appear); vertical parts given
 /// too (a known velocity), or, for a ground vehicle whose velocity lies along its nose,
 /// -|v_xy| tan(pitch) of frames a and b. dR_kj: the gyro-integrated rotation from t_k to
-/// sample j (backwards for the samples before t_k). A span of several frames averages the
-/// odometry's displacement noise down (it enters divided by the span). sigma_mps2 =
-/// sqrt(accel_sigma^2 / N + motion_sigma^2 + odometry part^2); used with a robust loss.
+/// sample j (backwards for the samples before t_k). The sums over the samples
+/// (IntegrateForces) are pre-integrated once at bg0 and moved to bg to first order (their
+/// derivatives with respect to bg), as GyroTerm's rotation; exact in ba. A span of several
+/// frames averages the odometry's displacement noise down (it enters divided by the span).
+/// sigma_mps2 = sqrt(accel_sigma^2 / N + motion_sigma^2 + odometry part^2); used with a
+/// robust loss.
 struct AccelTerm {
   std::vector<ImuSegment> forward;   ///< from t_k to t_b, in time order
   std::vector<ImuSegment> backward;  ///< from t_k back to t_a, in reverse time order
@@ -172,48 +231,35 @@ struct AccelTerm {
   double gravity_mps2 = 9.80665;
   double sigma_mps2 = 0.05;
 
+  /// Integrates the samples at gyro bias bg0; the residual is valid only after this.
+  void Preintegrate(const Eigen::Vector3d& bg0) {
+    const ForceSums<Jet3> sums =
+        IntegrateForces<Jet3>(forward, backward, R_body_imu, SeedBias(bg0));
+    for (int i = 0; i < 3; ++i) {
+      force0_(i) = sums.sum_force(i).a;
+      for (int k = 0; k < 3; ++k) force_J_(i, k) = sums.sum_force(i).v[k];
+      for (int j = 0; j < 3; ++j) {
+        rotation0_(i, j) = sums.sum_rotation(i, j).a;
+        for (int k = 0; k < 3; ++k) rotation_J_[k](i, j) = sums.sum_rotation(i, j).v[k];
+      }
+    }
+    n_ = sums.n;
+    bg0_ = bg0;
+    ready_ = true;
+  }
+
   template <typename T>
   bool operator()(const T* rpy_prev, const T* rpy_k, const T* rpy_next, const T* ba, const T* bg,
                   T* residual) const {
+    using M3 = Eigen::Matrix<T, 3, 3>;
     using V3 = Eigen::Matrix<T, 3, 1>;
-    using B = BiasScalar<T>;
-    using S = typename B::type;
-    using M3s = Eigen::Matrix<S, 3, 3>;
-    using V3s = Eigen::Matrix<S, 3, 1>;
-    // sum_j dR_kj R_bi (f_j - ba) = sum_j dR_kj R_bi f_j - (sum_j dR_kj) R_bi ba: the
-    // rotations depend on the gyro bias only.
-    const V3s gyro_bias(B::Seed(bg[0], 0), B::Seed(bg[1], 1), B::Seed(bg[2], 2));
-    const M3s R_bi = R_body_imu.cast<S>();
-    V3s sum_force = V3s::Zero();
-    M3s sum_rotation = M3s::Zero();
-    int n = 0;
-    M3s R = M3s::Identity();
-    for (const ImuSegment& s : forward) {
-      const V3s w = R_bi * (s.omega_imu.cast<S>() - gyro_bias);
-      R = R * Exp<S>(w * S(s.before_s));
-      if (s.use_force) {
-        sum_force += R * (R_body_imu * s.force_imu).cast<S>();
-        sum_rotation += R;
-        ++n;
-      }
-      R = R * Exp<S>(w * S(s.after_s));
-    }
-    R = M3s::Identity();
-    for (const ImuSegment& s : backward) {
-      const V3s w = R_bi * (s.omega_imu.cast<S>() - gyro_bias);
-      R = R * Exp<S>(V3s(-w * S(s.after_s)));
-      if (s.use_force) {
-        sum_force += R * (R_body_imu * s.force_imu).cast<S>();
-        sum_rotation += R;
-        ++n;
-      }
-      R = R * Exp<S>(V3s(-w * S(s.before_s)));
-    }
-    if (n == 0) return false;
+    if (!ready_ || n_ == 0) return false;
+    const V3 db = Eigen::Map<const V3>(bg) - bg0_.cast<T>();
+    const V3 sum_force = force0_.cast<T>() + force_J_.cast<T>() * db;
+    const M3 sum_rotation = rotation0_.cast<T>() + rotation_J_[0].cast<T>() * db[0] +
+                            rotation_J_[1].cast<T>() * db[1] + rotation_J_[2].cast<T>() * db[2];
     const Eigen::Map<const V3> acc_bias(ba);
-    const V3 measured = (LiftBias<T>(sum_force, bg) -
-                         LiftBias<T>(sum_rotation, bg) * (R_body_imu.cast<T>() * acc_bias)) /
-                        T(n);
+    const V3 measured = (sum_force - sum_rotation * (R_body_imu.cast<T>() * acc_bias)) / T(n_);
 
     V3 vm = v_minus.cast<T>(), vp = v_plus.cast<T>();
     if (vertical_from_pitch) {
@@ -225,6 +271,19 @@ struct AccelTerm {
     for (int i = 0; i < 3; ++i) residual[i] = (measured[i] - expected[i]) / T(sigma_mps2);
     return true;
   }
+
+  /// The number of samples whose force the term averages (after Preintegrate).
+  int samples() const { return n_; }
+
+ private:
+  Eigen::Vector3d force0_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d force_J_ = Eigen::Matrix3d::Zero();  // column k: d sum_force / d bg_k
+  Eigen::Matrix3d rotation0_ = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d rotation_J_[3] = {Eigen::Matrix3d::Zero(), Eigen::Matrix3d::Zero(),
+                                    Eigen::Matrix3d::Zero()};
+  Eigen::Vector3d bg0_ = Eigen::Vector3d::Zero();
+  int n_ = 0;
+  bool ready_ = false;
 };
 
 /// The IMU's attitude output (its filter's roll and pitch) as a prior, with a constant bias

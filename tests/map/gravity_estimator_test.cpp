@@ -315,9 +315,11 @@ TEST(GravityTerms, DerivativesMatchNumericOnes) {
   const std::vector<double> bias3 = {0.02, -0.01, 0.03}, gyro3 = {0.001, -0.002, 0.0015};
   const std::vector<double> mount = {0.01, -0.02}, bias2 = {0.03, -0.01};
 
+  const Eigen::Vector3d bg0(gyro3[0], gyro3[1], gyro3[2]);
   auto* gyro = new gravity::GyroTerm;
   gyro->segments = SomeSegments(10, 1);
   gyro->R_body_imu = Eigen::AngleAxisd(0.2, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  gyro->Preintegrate(bg0);
   ceres::AutoDiffCostFunction<gravity::GyroTerm, 3, 3, 3, 3> gyro_cost(gyro);
   ExpectDerivativesMatchNumeric(gyro_cost, {rpy0, rpy1, gyro3});
 
@@ -328,6 +330,7 @@ TEST(GravityTerms, DerivativesMatchNumericOnes) {
     acc->v_minus << 1.9, 0.1, 0.05;
     acc->v_plus << 2.1, 0.3, -0.02;
     acc->vertical_from_pitch = from_pitch;
+    acc->Preintegrate(bg0);
     ceres::AutoDiffCostFunction<gravity::AccelTerm, 3, 3, 3, 3, 3, 3> acc_cost(acc);
     ExpectDerivativesMatchNumeric(acc_cost, {rpy0, rpy1, rpy2, bias3, gyro3});
   }
@@ -362,6 +365,66 @@ TEST(GravityTerms, DerivativesMatchNumericOnes) {
   gravity::LinearPrior linear(L, Eigen::Vector4d(0.1, 0.2, 0.3, 0.4),
                               Eigen::Vector4d(0.01, 0.0, -0.02, 0.0), {2, 2});
   ExpectDerivativesMatchNumeric(linear, {{0.5, 0.1}, {-0.2, 0.7}});
+}
+
+// The IMU terms are pre-integrated at one gyro bias and moved to another to first order:
+// against the samples integrated afresh at that bias (the reference), the residual differs
+// by the second order only, and not at all at the bias it was integrated at.
+TEST(GravityTerms, PreintegratedTermsMatchTheSamplesIntegratedAtTheBias) {
+  const double rpy0[3] = {0.05, -0.12, 0.7}, rpy1[3] = {0.09, -0.1, 0.78},
+               rpy2[3] = {0.1, -0.08, 0.85};
+  const double ba[3] = {0.02, -0.01, 0.03};
+  const Eigen::Vector3d bg0(0.001, -0.002, 0.0015);
+  const Eigen::Matrix3d R_bi =
+      Eigen::AngleAxisd(0.2, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  // Residuals of the terms integrated at `at`, evaluated at bias `bg`.
+  auto gyro_at = [&](const Eigen::Vector3d& at, const Eigen::Vector3d& bg) {
+    gravity::GyroTerm t;
+    t.segments = SomeSegments(20, 1);
+    t.R_body_imu = R_bi;
+    t.Preintegrate(at);
+    Eigen::Vector3d r;
+    EXPECT_TRUE(t(rpy0, rpy1, bg.data(), r.data()));
+    return r;
+  };
+  auto accel_at = [&](const Eigen::Vector3d& at, const Eigen::Vector3d& bg) {
+    gravity::AccelTerm t;
+    t.forward = SomeSegments(20, 2);
+    t.backward = SomeSegments(4, 3);  // mostly forward: a bias turns the sum one way
+    t.R_body_imu = R_bi;
+    t.v_minus << 1.9, 0.1, 0.05;
+    t.v_plus << 2.1, 0.3, -0.02;
+    t.Preintegrate(at);
+    Eigen::Vector3d r;
+    EXPECT_TRUE(t(rpy0, rpy1, rpy2, ba, bg.data(), r.data()));
+    return r;
+  };
+  // At the bias it was integrated at: the samples' own integration, in double.
+  const Eigen::Matrix3d dR = gravity::IntegrateRotation<double>(SomeSegments(20, 1), R_bi, bg0);
+  const Eigen::Matrix3d rel =
+      gravity::WorldFromBody(rpy0).transpose() * gravity::WorldFromBody(rpy1);
+  const Eigen::Vector3d gyro_exact =
+      gravity::Log<double>(Eigen::Matrix3d(dR.transpose() * rel)) / 1e-3;
+  EXPECT_LT((gyro_at(bg0, bg0) - gyro_exact).norm(), 1e-9);
+  double last_gyro_error = 0.0, last_accel_error = 0.0;
+  for (const double step : {2e-3, 1e-2}) {
+    const Eigen::Vector3d bg = bg0 + step * Eigen::Vector3d(1.0, -0.5, 0.7);
+    // Moved from bg0 against integrated at bg: the change the bias makes is first order
+    // in the step, what the pre-integration misses second order.
+    const double gyro_change = (gyro_at(bg0, bg0) - gyro_at(bg, bg)).norm();
+    const double gyro_error = (gyro_at(bg0, bg) - gyro_at(bg, bg)).norm();
+    EXPECT_GT(gyro_change, 100 * gyro_error) << step;
+    const double accel_change = (accel_at(bg0, bg0) - accel_at(bg, bg)).norm();
+    const double accel_error = (accel_at(bg0, bg) - accel_at(bg, bg)).norm();
+    EXPECT_GT(accel_change, 100 * accel_error) << step;
+    if (last_gyro_error > 0.0) {
+      // Second order: five times the step, 25 times the error.
+      EXPECT_GT(gyro_error / last_gyro_error, 15.0);
+      EXPECT_GT(accel_error / last_accel_error, 15.0);
+    }
+    last_gyro_error = gyro_error;
+    last_accel_error = accel_error;
+  }
 }
 
 TEST(GravityEstimator, ConfigAndInputErrorsNameTheField) {
