@@ -31,13 +31,32 @@ struct FilledPatch {
       }
     }
     // A few passes of neighbour averaging fill the holes next to known cells; what stays
-    // unknown after that is never inside the stencil of a point that is used.
+    // unknown after that is never inside the stencil of a point that is used. Most of a
+    // patch is unknown and far from any known cell: a pass visits only the cells with a
+    // filled neighbour (the filled mask dilated by 3 x 3, row then column).
     std::vector<std::uint8_t> filled = known;
+    std::vector<std::uint8_t> near(z.size()), across(z.size());
     for (int pass = 0; pass < 3; ++pass) {
+      for (int r = 0; r < rows; ++r) {
+        for (int c = 0; c < cols; ++c) {
+          std::uint8_t any = filled[Index(r, c)];
+          if (c > 0) any |= filled[Index(r, c - 1)];
+          if (c + 1 < cols) any |= filled[Index(r, c + 1)];
+          across[Index(r, c)] = any;
+        }
+      }
+      for (int r = 0; r < rows; ++r) {
+        for (int c = 0; c < cols; ++c) {
+          std::uint8_t any = across[Index(r, c)];
+          if (r > 0) any |= across[Index(r - 1, c)];
+          if (r + 1 < rows) any |= across[Index(r + 1, c)];
+          near[Index(r, c)] = any;
+        }
+      }
       std::vector<std::uint8_t> next = filled;
       for (int r = 0; r < rows; ++r) {
         for (int c = 0; c < cols; ++c) {
-          if (filled[Index(r, c)]) continue;
+          if (filled[Index(r, c)] || !near[Index(r, c)]) continue;
           double sum = 0.0;
           int n = 0;
           for (int dr = -1; dr <= 1; ++dr) {
