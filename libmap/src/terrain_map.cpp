@@ -593,7 +593,10 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
     const std::ptrdiff_t slot = slots(CellIndex(i + d.x(), j + d.y()));
     return slot < 0 ? nullptr : &grid_.AtSlot(static_cast<std::size_t>(slot));
   };
-  for (int j = from.y(); j <= to.y(); ++j) {
+  // Each cell's fit writes the cell alone and reads only its neighbours' elevations (which
+  // no fit writes): rows go to map.threads threads.
+  const auto fit_row = [&](int k) {
+    const int j = from.y() + k;
     for (int i = from.x(); i <= to.x(); ++i) {
       Cell& cell = grid_.AtSlot(static_cast<std::size_t>(slots({i, j})));
       cell.slope_rad = cell.roughness_m = kNaN;
@@ -634,7 +637,8 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
       cell.terrain_cost =
           static_cast<Cost>(std::lround(kMaxTerrainCost * std::clamp(level, 0.0, 1.0)));
     }
-  }
+  };
+  od::ParallelFor(to.y() - from.y() + 1, config_.threads, fit_row, 8);
 }
 
 void TerrainMap::UpdateCosts(const CellIndex& lo, const CellIndex& hi) {
