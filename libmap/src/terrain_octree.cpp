@@ -140,15 +140,28 @@ int TerrainOcTree::UpdateFreeBrickBelow(TerrainOcTreeNode* node, unsigned depth,
   }
   if (node == nullptr) return 0;  // inside a pruned node saturated free
   int changed = 0;
+  // Three levels down, each picked by three bits of the local Morton code; only the first
+  // voxel's walk can meet the brick node as made by this update. Voxels in Morton order
+  // share their first two steps with the voxel before in runs of 64 and 8: those steps
+  // are kept (a step taken again returns what it returned, null included, and changes
+  // nothing), so most voxels take one step.
+  unsigned last_64 = ~0u, last_8 = ~0u;
+  TerrainOcTreeNode* upper = nullptr;  // the node of voxels b >> 6 == last_64
+  TerrainOcTreeNode* lower = nullptr;  // the node of voxels b >> 3 == last_8
   for (unsigned w = 0; w < 8; ++w) {
     for (std::uint64_t word = brick.voxels[w]; word != 0; word &= word - 1) {
       const unsigned b = w * 64 + static_cast<unsigned>(__builtin_ctzll(word));
-      // Three levels down, each picked by three bits of the local Morton code; only the
-      // first voxel's walk can meet the brick node as made by this update.
-      TerrainOcTreeNode* leaf = node;
-      for (int level = 2; level >= 0 && leaf != nullptr; --level) {
-        leaf = Step(leaf, b >> (3 * level) & 7u, created, true, made);
+      if (b >> 6 != last_64) {
+        upper = Step(node, b >> 6, created, true, made);
+        last_64 = b >> 6;
+        last_8 = ~0u;
       }
+      if (b >> 3 != last_8) {
+        lower = upper == nullptr ? nullptr : Step(upper, b >> 3 & 7u, created, true, made);
+        last_8 = b >> 3;
+      }
+      TerrainOcTreeNode* leaf =
+          lower == nullptr ? nullptr : Step(lower, b & 7u, created, true, made);
       created = false;
       const FreeUpdate update = FreeLeaf(leaf);
       changed += update.changed;
