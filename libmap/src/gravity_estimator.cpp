@@ -91,7 +91,10 @@ struct GravityEstimator::State {
   double last_heading = NAN;
   int verticals_seen = 0;
 
-  void Build(ceres::Problem& problem, std::vector<Residual>& residuals) const;
+  // The window's problem; with `oldest_only`, only the residuals that may involve the
+  // oldest frame (those Marginalise needs: built the same way, the rest left out).
+  void Build(ceres::Problem& problem, std::vector<Residual>& residuals,
+             bool oldest_only = false) const;
   void Marginalise();
 };
 
@@ -124,8 +127,8 @@ std::vector<gravity::ImuSegment> SegmentsOf(const std::deque<std::unique_ptr<Win
 
 }  // namespace
 
-void GravityEstimator::State::Build(ceres::Problem& problem,
-                                    std::vector<Residual>& residuals) const {
+void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residual>& residuals,
+                                    bool oldest_only) const {
   const GravityEstimatorConfig& c = config;
   auto add = [&](ceres::CostFunction* cost, ceres::LossFunction* loss,
                  std::vector<double*> blocks, Kind kind, int frame) {
@@ -155,74 +158,78 @@ void GravityEstimator::State::Build(ceres::Problem& problem,
   for (int i = 0; i < n; ++i) {
     WindowFrame& f = *window[i];
     const GravityFrame& in = f.input;
-    if (in.attitude_prior_rad) {
-      auto* t = new gravity::AttitudePriorTerm{(*in.attitude_prior_rad)[0],
-                                               (*in.attitude_prior_rad)[1],
-                                               c.attitude_prior_sigma_rad};
-      add(new ceres::AutoDiffCostFunction<gravity::AttitudePriorTerm, 2, 3, 2>(t), nullptr,
-          {f.rpy, prior_bias_}, Kind::kAttitude, i);
-    }
-    auto* yaw = new gravity::YawPriorTerm{in.odometry_xy_yaw.z(), c.yaw_sigma_rad};
-    add(new ceres::AutoDiffCostFunction<gravity::YawPriorTerm, 1, 3>(yaw), nullptr, {f.rpy},
-        Kind::kYaw, i);
-    for (const VerticalCue& v : in.verticals) {
-      auto* t = new gravity::VerticalTerm;
-      t->direction_sensor = v.direction_sensor.normalized();
-      t->R_body_sensor = R_body_sensor;
-      t->wall_normal = v.wall_normal;
-      t->sigma_rad = v.wall_normal ? c.wall_sigma_rad : c.vertical_sigma_rad;
-      ceres::CostFunction* cost =
-          v.wall_normal
-              ? static_cast<ceres::CostFunction*>(
-                    new ceres::AutoDiffCostFunction<gravity::VerticalTerm, 1, 3, 2>(t))
-              : new ceres::AutoDiffCostFunction<gravity::VerticalTerm, 2, 3, 2>(t);
-      add(cost, new ceres::CauchyLoss(c.vertical_cauchy), {f.rpy, mount_}, Kind::kVertical, i);
-    }
-    if (in.ground_height_m) {
-      auto* t = new gravity::HeightTerm{*in.ground_height_m, in.ground_height_sigma_m};
-      add(new ceres::AutoDiffCostFunction<gravity::HeightTerm, 1, 1>(t),
-          new ceres::HuberLoss(c.ground_height_huber), {f.h}, Kind::kGround, i);
-    }
-    if (f.id == 0) {
-      // The start's anchor: heights are relative to it.
-      auto* t = new gravity::HeightTerm{in.ground_height_m.value_or(0.0), 0.01};
-      add(new ceres::AutoDiffCostFunction<gravity::HeightTerm, 1, 1>(t), nullptr, {f.h},
-          Kind::kAnchor, i);
-    }
-    if (i + 1 < n) {
-      WindowFrame& g = *window[i + 1];
-      const double t0 = in.stamp_s, t1 = g.input.stamp_s;
-      auto* gyro = new gravity::GyroTerm;
-      gyro->segments = SegmentsOf(window, t0, t1, true);
-      gyro->R_body_imu = R_body_imu;
-      gyro->Preintegrate(bg_now);
-      double sum_sq = 0.0;
-      for (const ImuSegment& s : gyro->segments) {
-        sum_sq += (s.before_s + s.after_s) * (s.before_s + s.after_s);
-      }
-      gyro->sigma_rad = std::sqrt(c.gyro_sigma_radps * c.gyro_sigma_radps * sum_sq +
-                                  c.rotation_floor_rad * c.rotation_floor_rad);
-      if (!gyro->segments.empty()) {
-        add(new ceres::AutoDiffCostFunction<gravity::GyroTerm, 3, 3, 3, 3>(gyro), nullptr,
-            {f.rpy, g.rpy, bg_}, Kind::kGyro, i);
-      } else {
-        delete gyro;
-      }
-      auto* step = new gravity::HeightStepTerm;
-      if (in.velocity_world_mps && g.input.velocity_world_mps) {
-        step->from_pitch = false;
-        step->known_dh_m =
-            0.5 * (in.velocity_world_mps->z() + g.input.velocity_world_mps->z()) * (t1 - t0);
-        step->sigma_m = c.height_step_sigma_m;
-      } else {
-        step->distance_m = (g.input.odometry_xy_yaw.head<2>() - in.odometry_xy_yaw.head<2>()).norm();
-        step->sigma_m = c.height_step_sigma_m + c.height_step_sigma_per_m * step->distance_m;
-      }
-      add(new ceres::AutoDiffCostFunction<gravity::HeightStepTerm, 1, 1, 1, 3, 3>(step), nullptr,
-          {f.h, g.h, f.rpy, g.rpy}, Kind::kHeightStep, i);
-    }
+    // The terms of frame i and of the step from i to i + 1 involve frame i; an accelerometer
+    // term frames i - m to i + m.
     const int m = AccelHalfSpanAt(c, f.id);
-    if (m > 0 && i - m >= 0 && i + m < n && window[i - m]->velocity &&
+    const bool accel_wanted = !oldest_only || i - m == 0;
+    if (!oldest_only || i == 0) {
+      if (in.attitude_prior_rad) {
+        auto* t = new gravity::AttitudePriorTerm{
+            (*in.attitude_prior_rad)[0], (*in.attitude_prior_rad)[1], c.attitude_prior_sigma_rad};
+        add(new ceres::AutoDiffCostFunction<gravity::AttitudePriorTerm, 2, 3, 2>(t), nullptr,
+            {f.rpy, prior_bias_}, Kind::kAttitude, i);
+      }
+      auto* yaw = new gravity::YawPriorTerm{in.odometry_xy_yaw.z(), c.yaw_sigma_rad};
+      add(new ceres::AutoDiffCostFunction<gravity::YawPriorTerm, 1, 3>(yaw), nullptr, {f.rpy},
+          Kind::kYaw, i);
+      for (const VerticalCue& v : in.verticals) {
+        auto* t = new gravity::VerticalTerm;
+        t->direction_sensor = v.direction_sensor.normalized();
+        t->R_body_sensor = R_body_sensor;
+        t->wall_normal = v.wall_normal;
+        t->sigma_rad = v.wall_normal ? c.wall_sigma_rad : c.vertical_sigma_rad;
+        ceres::CostFunction* cost =
+            v.wall_normal ? static_cast<ceres::CostFunction*>(
+                                new ceres::AutoDiffCostFunction<gravity::VerticalTerm, 1, 3, 2>(t))
+                          : new ceres::AutoDiffCostFunction<gravity::VerticalTerm, 2, 3, 2>(t);
+        add(cost, new ceres::CauchyLoss(c.vertical_cauchy), {f.rpy, mount_}, Kind::kVertical, i);
+      }
+      if (in.ground_height_m) {
+        auto* t = new gravity::HeightTerm{*in.ground_height_m, in.ground_height_sigma_m};
+        add(new ceres::AutoDiffCostFunction<gravity::HeightTerm, 1, 1>(t),
+            new ceres::HuberLoss(c.ground_height_huber), {f.h}, Kind::kGround, i);
+      }
+      if (f.id == 0) {
+        // The start's anchor: heights are relative to it.
+        auto* t = new gravity::HeightTerm{in.ground_height_m.value_or(0.0), 0.01};
+        add(new ceres::AutoDiffCostFunction<gravity::HeightTerm, 1, 1>(t), nullptr, {f.h},
+            Kind::kAnchor, i);
+      }
+      if (i + 1 < n) {
+        WindowFrame& g = *window[i + 1];
+        const double t0 = in.stamp_s, t1 = g.input.stamp_s;
+        auto* gyro = new gravity::GyroTerm;
+        gyro->segments = SegmentsOf(window, t0, t1, true);
+        gyro->R_body_imu = R_body_imu;
+        gyro->Preintegrate(bg_now);
+        double sum_sq = 0.0;
+        for (const ImuSegment& s : gyro->segments) {
+          sum_sq += (s.before_s + s.after_s) * (s.before_s + s.after_s);
+        }
+        gyro->sigma_rad = std::sqrt(c.gyro_sigma_radps * c.gyro_sigma_radps * sum_sq +
+                                    c.rotation_floor_rad * c.rotation_floor_rad);
+        if (!gyro->segments.empty()) {
+          add(new ceres::AutoDiffCostFunction<gravity::GyroTerm, 3, 3, 3, 3>(gyro), nullptr,
+              {f.rpy, g.rpy, bg_}, Kind::kGyro, i);
+        } else {
+          delete gyro;
+        }
+        auto* step = new gravity::HeightStepTerm;
+        if (in.velocity_world_mps && g.input.velocity_world_mps) {
+          step->from_pitch = false;
+          step->known_dh_m =
+              0.5 * (in.velocity_world_mps->z() + g.input.velocity_world_mps->z()) * (t1 - t0);
+          step->sigma_m = c.height_step_sigma_m;
+        } else {
+          step->distance_m =
+              (g.input.odometry_xy_yaw.head<2>() - in.odometry_xy_yaw.head<2>()).norm();
+          step->sigma_m = c.height_step_sigma_m + c.height_step_sigma_per_m * step->distance_m;
+        }
+        add(new ceres::AutoDiffCostFunction<gravity::HeightStepTerm, 1, 1, 1, 3, 3>(step), nullptr,
+            {f.h, g.h, f.rpy, g.rpy}, Kind::kHeightStep, i);
+      }
+    }
+    if (accel_wanted && m > 0 && i - m >= 0 && i + m < n && window[i - m]->velocity &&
         window[i + m]->velocity) {
       WindowFrame& fa = *window[i - m];
       WindowFrame& fb = *window[i + m];
@@ -272,7 +279,7 @@ void GravityEstimator::State::Marginalise() {
   WindowFrame& old = *window.front();
   ceres::Problem problem;
   std::vector<Residual> residuals;
-  Build(problem, residuals);
+  Build(problem, residuals, /*oldest_only=*/true);
   std::vector<ceres::ResidualBlockId> leaving;
   std::vector<double*> order = {old.rpy, old.h};
   std::map<double*, int> size_of = {{old.rpy, 3}, {old.h, 1}};
