@@ -506,10 +506,11 @@ void TerrainMap::UpdateOctree(const Eigen::Vector3d& origin, std::int64_t stamp,
       }
     }
   }
+  TerrainOcTree::LeafWalk touch(tree);
   sc.endpoints.ForEachInMortonOrder(
       &sc.obstacle_endpoints, sc.brick_order, [&](const octomap::OcTreeKey& key, bool obstacle) {
         if (!in_window(key)) return;
-        tree.Update(tree.TouchLeaf(key), true, obstacle);
+        tree.Update(touch.Touch(key), true, obstacle);
         ++summary.voxels_occupied;
       });
   // Inner nodes and pruning cost a walk over the whole tree: done every few frames, and

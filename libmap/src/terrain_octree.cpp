@@ -85,6 +85,34 @@ TerrainOcTreeNode* TerrainOcTree::TouchLeaf(const octomap::OcTreeKey& key) {
   return node;
 }
 
+TerrainOcTreeNode* TerrainOcTree::LeafWalk::Touch(const octomap::OcTreeKey& key) {
+  TerrainOcTree& t = tree_;
+  bool created = false;
+  std::size_t made = 0;
+  unsigned depth = 0;
+  if (started_ && t.root == path_[0]) {
+    // The first depth whose child differs from the last key's: below the highest bit in
+    // which the keys differ, along any axis.
+    const unsigned differ =
+        static_cast<unsigned>((key[0] ^ last_[0]) | (key[1] ^ last_[1]) | (key[2] ^ last_[2]));
+    if (differ == 0) return path_[t.tree_depth];
+    const unsigned highest = 31u - static_cast<unsigned>(__builtin_clz(differ));  // bit index
+    depth = t.tree_depth - 1 - highest;
+  } else {
+    path_[0] = t.Root(created);
+  }
+  TerrainOcTreeNode* node = path_[depth];
+  for (; depth < t.tree_depth; ++depth) {
+    node = t.Step(node, octomap::computeChildIdx(key, static_cast<int>(t.tree_depth - 1 - depth)),
+                  created, false, made);
+    path_[depth + 1] = node;
+  }
+  t.CountMade(made);
+  last_ = key;
+  started_ = true;
+  return node;
+}
+
 namespace {
 constexpr unsigned kBrickLevels = 3;  // a brick: the node this many levels above the leaves
 // UpdateFreeBricks' subtrees: this many levels above a brick (8 x 8 x 8 bricks, 6.4 m at

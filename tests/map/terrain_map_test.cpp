@@ -736,5 +736,60 @@ TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
   EXPECT_EQ(sa.str(), sb.str());
 }
 
+// Touching leaves with a LeafWalk (each walk resumed from the path it shares with the walk
+// before) makes the tree TouchLeaf makes from the root, through pruned, existing and new
+// nodes, and hands out the same leaves.
+TEST(TerrainOcTree, LeafWalkTouchesTheLeavesTouchLeafDoes) {
+  std::mt19937 rng(11);
+  TerrainOcTree a(0.1), b(0.1);
+  const octomap::OcTreeKey origin = a.coordToKey(0.3, -0.2, 1.0);
+  const auto near = [&](int dx, int dy, int dz) {
+    return octomap::OcTreeKey(static_cast<octomap::key_type>((origin[0] & ~15) + dx),
+                              static_cast<octomap::key_type>((origin[1] & ~15) + dy),
+                              static_cast<octomap::key_type>((origin[2] & ~15) + dz));
+  };
+  // A 16-voxel cube saturated free (it prunes to one node) and occupied voxels around it.
+  std::uniform_int_distribution<int> around(-40, 56);
+  for (TerrainOcTree* t : {&a, &b}) {
+    for (int dx = 0; dx < 16; ++dx) {
+      for (int dy = 0; dy < 16; ++dy) {
+        for (int dz = 0; dz < 16; ++dz) {
+          for (int r = 0; r < 8; ++r) t->UpdateFree(near(dx, dy, dz));
+        }
+      }
+    }
+  }
+  for (int k = 0; k < 500; ++k) {
+    const octomap::OcTreeKey key = near(around(rng), around(rng), around(rng));
+    for (TerrainOcTree* t : {&a, &b}) t->Update(t->TouchLeaf(key), true, k % 3 == 0);
+  }
+  for (TerrainOcTree* t : {&a, &b}) {
+    t->updateInnerOccupancy();
+    t->prune();
+  }
+  // Keys in Morton order, some in the pruned cube, some repeated.
+  std::vector<octomap::OcTreeKey> keys;
+  for (int k = 0; k < 3000; ++k) keys.push_back(near(around(rng), around(rng), around(rng)));
+  for (int k = 0; k < 300; ++k) keys.push_back(keys[static_cast<std::size_t>(k) * 7]);
+  std::sort(keys.begin(), keys.end(), [](const octomap::OcTreeKey& x, const octomap::OcTreeKey& y) {
+    return MortonOf(x) < MortonOf(y);
+  });
+  const std::size_t before = a.size();
+  TerrainOcTree::LeafWalk walk(b);
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    TerrainOcTreeNode* from_root = a.TouchLeaf(keys[k]);
+    TerrainOcTreeNode* walked = walk.Touch(keys[k]);
+    ASSERT_EQ(*walked, *from_root) << "key " << k;
+    a.Update(from_root, true, k % 2 == 0);
+    b.Update(walked, true, k % 2 == 0);
+  }
+  EXPECT_GT(a.size(), before + 1000);  // many nodes made, some expanded from the cube
+  EXPECT_EQ(a.size(), b.size());
+  std::ostringstream sa, sb;
+  a.writeData(sa);
+  b.writeData(sb);
+  EXPECT_EQ(sa.str(), sb.str());
+}
+
 }  // namespace
 }  // namespace cairn::map

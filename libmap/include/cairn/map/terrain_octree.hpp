@@ -91,6 +91,22 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   /// nodes are not updated (call updateInnerOccupancy() after a batch, as with lazy_eval).
   TerrainOcTreeNode* TouchLeaf(const octomap::OcTreeKey& key);
 
+  /// TouchLeaf for keys in turn, each walk resumed from the deepest node it shares with the
+  /// walk before (the nodes on the way are kept): keys in Morton order share most of their
+  /// path. The same tree and leaves as TouchLeaf on each key, as long as nothing else
+  /// changes the tree's structure between two calls (updating a leaf's values is fine).
+  class LeafWalk {
+   public:
+    explicit LeafWalk(TerrainOcTree& tree) : tree_(tree) {}
+    TerrainOcTreeNode* Touch(const octomap::OcTreeKey& key);
+
+   private:
+    TerrainOcTree& tree_;
+    octomap::OcTreeKey last_;
+    bool started_ = false;
+    TerrainOcTreeNode* path_[17] = {};  // path_[d]: the node at depth d of the last walk
+  };
+
   /// One update of both log-odds of a leaf, clamped with the tree's thresholds:
   /// `occupied` adds the hit (else the miss) log-odds to occupancy; `obstacle` adds the hit
   /// (else the miss) log-odds to the obstacle value.
