@@ -216,24 +216,32 @@ Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_poi
   }
 
   double correction[3] = {0.0, 0.0, 0.0};
-  ceres::Problem problem;
-  std::vector<HeightResidual*> residuals;
+  // The residuals, their cost functions and one Huber loss live here, in two arrays, not as
+  // three allocations per point (the Problem, made after them, goes first).
+  using HeightCost = ceres::AutoDiffCostFunction<HeightResidual, 1, 3>;
+  std::vector<HeightResidual> residuals;
+  std::vector<HeightCost> costs;
+  residuals.reserve(used_rel.size());
+  costs.reserve(used_rel.size());
+  ceres::HuberLoss huber(1.0);
+  PriorResidual prior{config.prior_sigma_rad, config.prior_sigma_z_m};
+  ceres::AutoDiffCostFunction<PriorResidual, 3, 3> prior_cost(&prior, ceres::DO_NOT_TAKE_OWNERSHIP);
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
   for (const Eigen::Vector3d& p_rel : used_rel) {
-    auto* functor = new HeightResidual(p_rel, origin, terrain, interpolator, config.huber_m);
-    residuals.push_back(functor);
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<HeightResidual, 1, 3>(functor),
-        new ceres::HuberLoss(1.0), correction);
+    residuals.emplace_back(p_rel, origin, terrain, interpolator, config.huber_m);
+    costs.emplace_back(&residuals.back(), ceres::DO_NOT_TAKE_OWNERSHIP);
+    problem.AddResidualBlock(&costs.back(), &huber, correction);
   }
-  problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResidual, 3, 3>(
-                               new PriorResidual{config.prior_sigma_rad, config.prior_sigma_z_m}),
-                           nullptr, correction);
+  problem.AddResidualBlock(&prior_cost, nullptr, correction);
 
   auto rms = [&](const double* c) {
     double sum = 0.0;
-    for (const HeightResidual* r : residuals) {
+    for (const HeightResidual& r : residuals) {
       double value = 0.0;
-      (*r)(c, &value);
+      r(c, &value);
       sum += value * value;
     }
     return std::sqrt(sum / static_cast<double>(residuals.size())) * config.huber_m;
