@@ -201,7 +201,6 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
         auto* gyro = new gravity::GyroTerm;
         gyro->segments = SegmentsOf(window, t0, t1, true);
         gyro->R_body_imu = R_body_imu;
-        gyro->Preintegrate(bg_now);
         double sum_sq = 0.0;
         for (const ImuSegment& s : gyro->segments) {
           sum_sq += (s.before_s + s.after_s) * (s.before_s + s.after_s);
@@ -209,6 +208,7 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
         gyro->sigma_rad = std::sqrt(c.gyro_sigma_radps * c.gyro_sigma_radps * sum_sq +
                                     c.rotation_floor_rad * c.rotation_floor_rad);
         if (!gyro->segments.empty()) {
+          gyro->Preintegrate(bg_now);
           add(new ceres::AutoDiffCostFunction<gravity::GyroTerm, 3, 3, 3, 3>(gyro), nullptr,
               {f.rpy, g.rpy, bg_}, Kind::kGyro, i);
         } else {

@@ -272,9 +272,6 @@ struct AccelTerm {
     return true;
   }
 
-  /// The number of samples whose force the term averages (after Preintegrate).
-  int samples() const { return n_; }
-
  private:
   Eigen::Vector3d force0_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d force_J_ = Eigen::Matrix3d::Zero();  // column k: d sum_force / d bg_k

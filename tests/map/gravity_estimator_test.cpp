@@ -368,8 +368,9 @@ TEST(GravityTerms, DerivativesMatchNumericOnes) {
 }
 
 // The IMU terms are pre-integrated at one gyro bias and moved to another to first order:
-// against the samples integrated afresh at that bias (the reference), the residual differs
-// by the second order only, and not at all at the bias it was integrated at.
+// against their definitions evaluated sample by sample at that bias (the references,
+// written here with Eigen's rotations), the residual differs by the second order only,
+// and not at all at the bias it was integrated at.
 TEST(GravityTerms, PreintegratedTermsMatchTheSamplesIntegratedAtTheBias) {
   const double rpy0[3] = {0.05, -0.12, 0.7}, rpy1[3] = {0.09, -0.1, 0.78},
                rpy2[3] = {0.1, -0.08, 0.85};
@@ -399,23 +400,68 @@ TEST(GravityTerms, PreintegratedTermsMatchTheSamplesIntegratedAtTheBias) {
     EXPECT_TRUE(t(rpy0, rpy1, rpy2, ba, bg.data(), r.data()));
     return r;
   };
-  // At the bias it was integrated at: the samples' own integration, in double.
-  const Eigen::Matrix3d dR = gravity::IntegrateRotation<double>(SomeSegments(20, 1), R_bi, bg0);
-  const Eigen::Matrix3d rel =
-      gravity::WorldFromBody(rpy0).transpose() * gravity::WorldFromBody(rpy1);
-  const Eigen::Vector3d gyro_exact =
-      gravity::Log<double>(Eigen::Matrix3d(dR.transpose() * rel)) / 1e-3;
-  EXPECT_LT((gyro_at(bg0, bg0) - gyro_exact).norm(), 1e-9);
+  // The references: the terms' definitions, sample by sample, in double, with Eigen's
+  // rotations (none of the terms' own code).
+  const auto exp = [](const Eigen::Vector3d& w) -> Eigen::Matrix3d {
+    const double angle = w.norm();
+    if (angle == 0.0) return Eigen::Matrix3d::Identity();
+    return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+  };
+  const auto gyro_reference = [&](const Eigen::Vector3d& bg) {
+    Eigen::Matrix3d dR = Eigen::Matrix3d::Identity();
+    for (const gravity::ImuSegment& s : SomeSegments(20, 1)) {
+      dR = dR * exp(R_bi * (s.omega_imu - bg) * (s.before_s + s.after_s));
+    }
+    const Eigen::Matrix3d rel =
+        gravity::WorldFromBody(rpy0).transpose() * gravity::WorldFromBody(rpy1);
+    const Eigen::AngleAxisd e(Eigen::Matrix3d(dR.transpose() * rel));
+    return Eigen::Vector3d(e.axis() * e.angle() / 1e-3);
+  };
+  const auto accel_reference = [&](const Eigen::Vector3d& bg) {
+    // The mean of dR_kj(bg) R_bi (f_j - ba), forward from t_k and backward to it.
+    const Eigen::Vector3d bias(ba[0], ba[1], ba[2]);
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int n = 0;
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    for (const gravity::ImuSegment& s : SomeSegments(20, 2)) {
+      const Eigen::Vector3d w = R_bi * (s.omega_imu - bg);
+      R = R * exp(w * s.before_s);
+      sum += R * (R_bi * (s.force_imu - bias));
+      ++n;
+      R = R * exp(w * s.after_s);
+    }
+    R = Eigen::Matrix3d::Identity();
+    for (const gravity::ImuSegment& s : SomeSegments(4, 3)) {
+      const Eigen::Vector3d w = R_bi * (s.omega_imu - bg);
+      R = R * exp(-w * s.after_s);
+      sum += R * (R_bi * (s.force_imu - bias));
+      ++n;
+      R = R * exp(-w * s.before_s);
+    }
+    // Expected: R_level_body^T ((v_b - v_a) / span + g e_z), the vertical speeds from the
+    // pitches of the span's ends (the term's defaults: span 0.1 s, sigma 0.05 m/s^2).
+    Eigen::Vector3d vm(1.9, 0.1, 0.05), vp(2.1, 0.3, -0.02);
+    vm.z() = -vm.head<2>().norm() * std::tan(rpy0[1]);
+    vp.z() = -vp.head<2>().norm() * std::tan(rpy2[1]);
+    const Eigen::Vector3d expected =
+        gravity::LevelFromBody(rpy1).transpose() *
+        Eigen::Vector3d((vp - vm) / 0.1 + Eigen::Vector3d(0.0, 0.0, 9.80665));
+    return Eigen::Vector3d((sum / n - expected) / 0.05);
+  };
+  // At the bias they were integrated at, the terms are their definitions.
+  EXPECT_LT((gyro_at(bg0, bg0) - gyro_reference(bg0)).norm(), 1e-6);
+  EXPECT_LT((accel_at(bg0, bg0) - accel_reference(bg0)).norm(), 1e-9);
+  EXPECT_GT(accel_reference(bg0).norm(), 1.0);  // a residual worth comparing
   double last_gyro_error = 0.0, last_accel_error = 0.0;
   for (const double step : {2e-3, 1e-2}) {
     const Eigen::Vector3d bg = bg0 + step * Eigen::Vector3d(1.0, -0.5, 0.7);
     // Moved from bg0 against integrated at bg: the change the bias makes is first order
     // in the step, what the pre-integration misses second order.
-    const double gyro_change = (gyro_at(bg0, bg0) - gyro_at(bg, bg)).norm();
-    const double gyro_error = (gyro_at(bg0, bg) - gyro_at(bg, bg)).norm();
+    const double gyro_change = (gyro_reference(bg0) - gyro_reference(bg)).norm();
+    const double gyro_error = (gyro_at(bg0, bg) - gyro_reference(bg)).norm();
     EXPECT_GT(gyro_change, 100 * gyro_error) << step;
-    const double accel_change = (accel_at(bg0, bg0) - accel_at(bg, bg)).norm();
-    const double accel_error = (accel_at(bg0, bg) - accel_at(bg, bg)).norm();
+    const double accel_change = (accel_reference(bg0) - accel_reference(bg)).norm();
+    const double accel_error = (accel_at(bg0, bg) - accel_reference(bg)).norm();
     EXPECT_GT(accel_change, 100 * accel_error) << step;
     if (last_gyro_error > 0.0) {
       // Second order: five times the step, 25 times the error.

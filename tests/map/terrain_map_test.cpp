@@ -447,6 +447,20 @@ TEST(TerrainMap, TheMapDoesNotDependOnTheThreads) {
     }
     std::ostringstream data;
     map.octree().writeData(data);
+    // And the grid: the terrain fit's slope, roughness and cost per cell, and the cost.
+    const TerrainGrid& grid = map.grid();
+    int fitted = 0;
+    for (int j = 0; j < grid.extent().y(); ++j) {
+      for (int i = 0; i < grid.extent().x(); ++i) {
+        const Cell& cell = grid.At(grid.min_index() + CellIndex(i, j));
+        data.write(reinterpret_cast<const char*>(&cell.slope_rad), sizeof(cell.slope_rad));
+        data.write(reinterpret_cast<const char*>(&cell.roughness_m), sizeof(cell.roughness_m));
+        data.write(reinterpret_cast<const char*>(&cell.terrain_cost), sizeof(cell.terrain_cost));
+        data.write(reinterpret_cast<const char*>(&cell.cost), sizeof(cell.cost));
+        fitted += std::isfinite(cell.slope_rad) ? 1 : 0;
+      }
+    }
+    EXPECT_GT(fitted, 500) << threads << " threads";
     trees.push_back(data.str());
   }
   EXPECT_GT(trees[0].size(), 10000u);

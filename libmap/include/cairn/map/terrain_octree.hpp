@@ -126,8 +126,9 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   /// x 8 voxels) whose first voxel is `base` (its keys' low three bits zero). Bit b of
   /// `voxels` (bit b % 64 of word b / 64) is the voxel whose local coordinates, interleaved
   /// x, y, z from the lowest bit, make b: the same Morton code that picks the child at each
-  /// of the three levels. The tree walks to the brick once, then three levels per voxel; the
-  /// tree and the answers are those of UpdateFree on each voxel in ascending b. Sets bit b
+  /// of the three levels. The tree walks to the brick once, then down to each voxel, the
+  /// steps it shares with the voxel before taken once; the tree and the answers are those
+  /// of UpdateFree on each voxel in ascending b. Sets bit b
   /// of `was_obstacle` for the voxels that were obstacle voxels before; returns how many
   /// voxels changed.
   int UpdateFreeBrick(const octomap::OcTreeKey& base, const std::uint64_t (&voxels)[8],
@@ -137,9 +138,11 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   /// threads (0: every core): the same tree and answers when the bricks come in the Morton
   /// order of their bases (KeyBricks::ForEachBrickInMortonOrder's), as the sequential
   /// updates would leave them in that order. The bricks are split by their subtree a few
-  /// levels above them (Morton order keeps each subtree's bricks together); the path to
-  /// each subtree is walked first, in order, on one thread, then the subtrees, which share
-  /// no node, each on one thread.
+  /// levels above them (Morton order keeps each subtree's bricks together, which the
+  /// threads rely on: a subtree met twice would be updated by two threads at once); the
+  /// path to each subtree is walked first, in order, on one thread, then the subtrees,
+  /// which share no node, each on one thread. UpdateFree, UpdateFreeBrick and TouchLeaf
+  /// are the references the tests hold this and LeafWalk to.
   struct FreeBrick {
     octomap::OcTreeKey base;
     std::uint64_t voxels[8] = {0, 0, 0, 0, 0, 0, 0, 0};
