@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <system_error>
 #include <thread>
 #include <type_traits>
 #include <vector>
@@ -45,10 +46,19 @@ int ParallelFor(int count, int threads, const Body& body, int chunk = 4) {
     }
   };
   std::vector<std::thread> pool;
-  for (int worker = 1; worker < used; ++worker) pool.emplace_back(work, worker);
+  for (int worker = 1; worker < used; ++worker) {
+    // A thread the system cannot start (EAGAIN on a loaded machine) leaves its share to the
+    // others, which take items from the same counter; throwing here would terminate the
+    // program through the threads already started.
+    try {
+      pool.emplace_back(work, worker);
+    } catch (const std::system_error&) {
+      break;
+    }
+  }
   work(0);
   for (std::thread& thread : pool) thread.join();
-  return used;
+  return static_cast<int>(pool.size()) + 1;  // workers 0 .. pool.size() ran
 }
 
 }  // namespace cairn::od
