@@ -7,8 +7,10 @@
 #include <cmath>
 #include <cstdio>
 #include <deque>
+#include <exception>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <utility>
 
@@ -83,9 +85,7 @@ struct GravityEstimator::State {
   double prior_bias[2] = {0.0, 0.0};
   std::vector<Prior> priors;
   int added = 0;
-  bool anchored = false;  // the first frame's height anchor has been marginalised
   double last_sample_stamp_s = NAN;
-  double last_dt_s = NAN;
   // Heading: unwrapped odometry yaw, its range so far; verticals seen so far.
   double heading_unwrapped = 0.0, heading_min = 0.0, heading_max = 0.0;
   double last_heading = NAN;
@@ -518,6 +518,7 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
 
   auto wf = std::make_unique<WindowFrame>();
   wf->input = frame;
+  wf->input.imu.clear();  // kept as `samples`
   wf->id = st.added;
   for (std::size_t j = 0; j < frame.imu.size(); ++j) {
     const GravityImuSample& s = frame.imu[j];
@@ -737,6 +738,204 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
     }
   }
   return est;
+}
+
+namespace {
+
+using nlohmann::json;
+
+// Non-finite numbers (NaN before the first sample) are written as null.
+json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+double NumberFrom(const json& j) { return j.is_null() ? NAN : j.get<double>(); }
+
+json Array(const double* v, int n) {
+  json a = json::array();
+  for (int i = 0; i < n; ++i) a.push_back(v[i]);
+  return a;
+}
+// Reads n numbers of `j` into v; throws (json's exceptions) on a wrong type or length.
+void ArrayFrom(const json& j, double* v, int n, const char* what) {
+  if (!j.is_array() || static_cast<int>(j.size()) != n) {
+    throw std::runtime_error(std::string("'") + what + "' must be an array of " +
+                             std::to_string(n) + " numbers");
+  }
+  for (int i = 0; i < n; ++i) v[i] = j.at(i).get<double>();
+}
+Eigen::Vector3d Vector3From(const json& j, const char* what) {
+  Eigen::Vector3d v;
+  ArrayFrom(j, v.data(), 3, what);
+  return v;
+}
+
+json FrameJson(const WindowFrame& f) {
+  const GravityFrame& in = f.input;
+  json samples = json::array();
+  for (const Sample& s : f.samples) {
+    const Eigen::Vector3d& a = s.raw.specific_force_mps2;
+    const Eigen::Vector3d& w = s.raw.angular_rate_radps;
+    samples.push_back({s.raw.stamp_s, s.dt_s, a.x(), a.y(), a.z(), w.x(), w.y(), w.z()});
+  }
+  json verticals = json::array();
+  for (const VerticalCue& v : in.verticals) {
+    verticals.push_back({Array(v.direction_sensor.data(), 3), v.wall_normal});
+  }
+  json j = {{"id", f.id},
+            {"rpy", Array(f.rpy, 3)},
+            {"h", f.h[0]},
+            {"stamp", in.stamp_s},
+            {"odom", Array(in.odometry_xy_yaw.data(), 3)},
+            {"verticals", verticals},
+            {"ground_sigma", in.ground_height_sigma_m},
+            {"samples", samples}};
+  if (f.velocity) j["velocity"] = Array(f.velocity->data(), 3);
+  if (in.velocity_world_mps) j["velocity_world"] = Array(in.velocity_world_mps->data(), 3);
+  if (in.attitude_prior_rad) j["attitude"] = Array(in.attitude_prior_rad->data(), 2);
+  if (in.ground_height_m) j["ground"] = *in.ground_height_m;
+  return j;
+}
+
+std::unique_ptr<WindowFrame> FrameFrom(const json& j) {
+  auto f = std::make_unique<WindowFrame>();
+  GravityFrame& in = f->input;
+  f->id = j.at("id").get<int>();
+  ArrayFrom(j.at("rpy"), f->rpy, 3, "rpy");
+  f->h[0] = j.at("h").get<double>();
+  in.stamp_s = j.at("stamp").get<double>();
+  in.odometry_xy_yaw = Vector3From(j.at("odom"), "odom");
+  for (const json& v : j.at("verticals")) {
+    in.verticals.push_back({Vector3From(v.at(0), "verticals"), v.at(1).get<bool>()});
+  }
+  in.ground_height_sigma_m = j.at("ground_sigma").get<double>();
+  for (const json& s : j.at("samples")) {
+    double v[8];
+    ArrayFrom(s, v, 8, "samples");
+    Sample sample;
+    sample.raw.stamp_s = v[0];
+    sample.dt_s = v[1];
+    sample.raw.specific_force_mps2 = Eigen::Vector3d(v[2], v[3], v[4]);
+    sample.raw.angular_rate_radps = Eigen::Vector3d(v[5], v[6], v[7]);
+    f->samples.push_back(sample);
+  }
+  if (j.contains("velocity")) f->velocity = Vector3From(j.at("velocity"), "velocity");
+  if (j.contains("velocity_world")) {
+    in.velocity_world_mps = Vector3From(j.at("velocity_world"), "velocity_world");
+  }
+  if (j.contains("attitude")) {
+    Eigen::Vector2d a;
+    ArrayFrom(j.at("attitude"), a.data(), 2, "attitude");
+    in.attitude_prior_rad = a;
+  }
+  if (j.contains("ground")) in.ground_height_m = j.at("ground").get<double>();
+  return f;
+}
+
+}  // namespace
+
+// A prior's blocks are named: the slow states by name, a frame's states by its id.
+std::string GravityEstimator::SaveState() const {
+  const State& st = *state_;
+  const auto name = [&](const double* block) -> std::string {
+    if (block == st.ba) return "ba";
+    if (block == st.bg) return "bg";
+    if (block == st.mount) return "mount";
+    if (block == st.prior_bias) return "attitude_bias";
+    for (const auto& f : st.window) {
+      if (block == f->rpy) return "rpy:" + std::to_string(f->id);
+      if (block == f->h) return "h:" + std::to_string(f->id);
+    }
+    return "?";  // not reached: every prior's block is one of these
+  };
+  json window = json::array();
+  for (const auto& f : st.window) window.push_back(FrameJson(*f));
+  json priors = json::array();
+  for (const Prior& p : st.priors) {
+    json blocks = json::array();
+    for (const double* b : p.blocks) blocks.push_back(name(b));
+    priors.push_back({{"blocks", blocks},
+                      {"L", Array(p.L.data(), static_cast<int>(p.L.size()))},
+                      {"x0", Array(p.x0.data(), static_cast<int>(p.x0.size()))},
+                      {"e0", Array(p.e0.data(), static_cast<int>(p.e0.size()))}});
+  }
+  const json j = {{"window", window},
+                  {"priors", priors},
+                  {"ba", Array(st.ba, 3)},
+                  {"bg", Array(st.bg, 3)},
+                  {"mount", Array(st.mount, 2)},
+                  {"attitude_bias", Array(st.prior_bias, 2)},
+                  {"added", st.added},
+                  {"last_sample_stamp", Number(st.last_sample_stamp_s)},
+                  {"heading", {st.heading_unwrapped, st.heading_min, st.heading_max}},
+                  {"last_heading", Number(st.last_heading)},
+                  {"verticals_seen", st.verticals_seen}};
+  return j.dump();
+}
+
+Status GravityEstimator::RestoreState(const std::string& text) {
+  auto next = std::make_unique<State>();
+  State& st = *next;
+  st.config = state_->config;
+  st.R_body_imu = state_->R_body_imu;
+  st.R_body_sensor = state_->R_body_sensor;
+  try {
+    const json j = json::parse(text);
+    for (const json& f : j.at("window")) st.window.push_back(FrameFrom(f));
+    if (static_cast<int>(st.window.size()) > st.config.window_frames) {
+      return GravityError("state", "holds " + std::to_string(st.window.size()) +
+                                       " frames, more than the window (" +
+                                       std::to_string(st.config.window_frames) + ")");
+    }
+    ArrayFrom(j.at("ba"), st.ba, 3, "ba");
+    ArrayFrom(j.at("bg"), st.bg, 3, "bg");
+    ArrayFrom(j.at("mount"), st.mount, 2, "mount");
+    ArrayFrom(j.at("attitude_bias"), st.prior_bias, 2, "attitude_bias");
+    const auto block = [&](const std::string& name, int& size) -> double* {
+      if (name == "ba") return size = 3, st.ba;
+      if (name == "bg") return size = 3, st.bg;
+      if (name == "mount") return size = 2, st.mount;
+      if (name == "attitude_bias") return size = 2, st.prior_bias;
+      const std::size_t colon = name.find(':');
+      if (colon != std::string::npos) {
+        const std::string part = name.substr(0, colon);
+        const int id = std::stoi(name.substr(colon + 1));
+        for (const auto& f : st.window) {
+          if (f->id != id) continue;
+          if (part == "rpy") return size = 3, f->rpy;
+          if (part == "h") return size = 1, f->h;
+        }
+      }
+      throw std::runtime_error("a prior's block '" + name + "' is no state of the window");
+    };
+    for (const json& pj : j.at("priors")) {
+      Prior p;
+      int n = 0;
+      for (const json& b : pj.at("blocks")) {
+        int size = 0;
+        p.blocks.push_back(block(b.get<std::string>(), size));
+        p.sizes.push_back(size);
+        n += size;
+      }
+      p.L.resize(n, n);
+      p.x0.resize(n);
+      p.e0.resize(n);
+      ArrayFrom(pj.at("L"), p.L.data(), n * n, "L");
+      ArrayFrom(pj.at("x0"), p.x0.data(), n, "x0");
+      ArrayFrom(pj.at("e0"), p.e0.data(), n, "e0");
+      st.priors.push_back(std::move(p));
+    }
+    st.added = j.at("added").get<int>();
+    st.last_sample_stamp_s = NumberFrom(j.at("last_sample_stamp"));
+    double heading[3];
+    ArrayFrom(j.at("heading"), heading, 3, "heading");
+    st.heading_unwrapped = heading[0];
+    st.heading_min = heading[1];
+    st.heading_max = heading[2];
+    st.last_heading = NumberFrom(j.at("last_heading"));
+    st.verticals_seen = j.at("verticals_seen").get<int>();
+  } catch (const std::exception& e) {
+    return GravityError("state", std::string("unreadable: ") + e.what());
+  }
+  state_ = std::move(next);
+  return Status::Ok();
 }
 
 }  // namespace cairn::map

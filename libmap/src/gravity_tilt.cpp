@@ -40,38 +40,6 @@ Eigen::Matrix<double, N, 1> VecFrom(const json& a) {
   return v;
 }
 
-json FrameJson(const GravityFrame& f) {
-  json imu = json::array();
-  for (const GravityImuSample& s : f.imu) {
-    imu.push_back({s.stamp_s, Vec(s.specific_force_mps2), Vec(s.angular_rate_radps)});
-  }
-  json verticals = json::array();
-  for (const VerticalCue& v : f.verticals) verticals.push_back({Vec(v.direction_sensor), v.wall_normal});
-  json j = {{"stamp", f.stamp_s}, {"imu", imu}, {"odom", Vec(f.odometry_xy_yaw)},
-            {"verticals", verticals}};
-  if (f.attitude_prior_rad) j["attitude"] = Vec(*f.attitude_prior_rad);
-  if (f.velocity_world_mps) j["velocity"] = Vec(*f.velocity_world_mps);
-  if (f.ground_height_m) j["ground"] = {*f.ground_height_m, f.ground_height_sigma_m};
-  return j;
-}
-
-GravityFrame FrameFrom(const json& j) {
-  GravityFrame f;
-  f.stamp_s = j.at("stamp").get<double>();
-  for (const json& s : j.at("imu")) {
-    f.imu.push_back({s.at(0).get<double>(), VecFrom<3>(s.at(1)), VecFrom<3>(s.at(2))});
-  }
-  f.odometry_xy_yaw = VecFrom<3>(j.at("odom"));
-  for (const json& v : j.at("verticals")) f.verticals.push_back({VecFrom<3>(v.at(0)), v.at(1).get<bool>()});
-  if (j.contains("attitude")) f.attitude_prior_rad = VecFrom<2>(j.at("attitude"));
-  if (j.contains("velocity")) f.velocity_world_mps = VecFrom<3>(j.at("velocity"));
-  if (j.contains("ground")) {
-    f.ground_height_m = j.at("ground").at(0).get<double>();
-    f.ground_height_sigma_m = j.at("ground").at(1).get<double>();
-  }
-  return f;
-}
-
 constexpr const char* kNoGround = "no ground overlap";
 
 class GravityTilt final : public TiltStep {
@@ -130,7 +98,6 @@ class GravityTilt final : public TiltStep {
     Expected<GravityEstimate> estimate = estimator_->AddFrame(g);
     if (!estimate) return estimate.error();
     verticals_seen_ += static_cast<int>(g.verticals.size());
-    frames_.push_back(FrameJson(g));
 
     TiltOutcome outcome;
     outcome.estimated = true;
@@ -177,37 +144,39 @@ class GravityTilt final : public TiltStep {
     return body.translation().z() + fit->dz_m;
   }
 
-  // The estimator's window and marginalised prior are a function of every frame it was
-  // given: the state is those frames, replayed on restore (the solve is deterministic).
+  // The estimator's own state (bounded by its window) and what this step carries.
   std::string SaveState() const override {
-    json j = {{"frames", frames_},
-              {"correction", Vec(Eigen::Map<const Eigen::Matrix<double, 9, 1>>(R_correction_.data()))},
-              {"dz", dz_m_},
-              {"z0", z0_m_},
-              {"mount", Vec(Eigen::Map<const Eigen::Matrix<double, 16, 1>>(T_body_sensor_.matrix().data()))}};
+    json j = {
+        {"correction", Vec(Eigen::Map<const Eigen::Matrix<double, 9, 1>>(R_correction_.data()))},
+        {"dz", dz_m_},
+        {"z0", z0_m_},
+        {"verticals_seen", verticals_seen_},
+        {"mount",
+         Vec(Eigen::Map<const Eigen::Matrix<double, 16, 1>>(T_body_sensor_.matrix().data()))}};
+    if (estimator_) j["estimator"] = estimator_->SaveState();
     return j.dump();
   }
   Status RestoreState(const std::string& state) override {
     try {
       const json j = json::parse(state);
-      estimator_.reset();
-      frames_ = json::array();
-      verticals_seen_ = 0;
+      if (j.contains("frames")) {
+        return Error{
+            "tilt state (gravity): written by an earlier cairn, which replayed every "
+            "frame; start the run afresh"};
+      }
       const Eigen::Matrix<double, 16, 1> mount = VecFrom<16>(j.at("mount"));
       T_body_sensor_.matrix() = Eigen::Map<const Eigen::Matrix4d>(mount.data());
-      for (const json& f : j.at("frames")) {
-        if (!estimator_) {
-          Expected<GravityEstimator> made = GravityEstimator::Create(
-              config_.gravity, Eigen::Matrix3d::Identity(), T_body_sensor_.linear());
-          if (!made) return made.error();
-          estimator_.emplace(std::move(*made));
+      estimator_.reset();
+      if (j.contains("estimator")) {
+        Expected<GravityEstimator> made = GravityEstimator::Create(
+            config_.gravity, Eigen::Matrix3d::Identity(), T_body_sensor_.linear());
+        if (!made) return made.error();
+        if (Status s = made->RestoreState(j.at("estimator").get<std::string>()); !s) {
+          return Error{"tilt state (gravity): " + s.message()};
         }
-        const GravityFrame frame = FrameFrom(f);
-        Expected<GravityEstimate> e = estimator_->AddFrame(frame);
-        if (!e) return Error{"tilt state (gravity): " + e.error().message};
-        verticals_seen_ += static_cast<int>(frame.verticals.size());
-        frames_.push_back(f);
+        estimator_.emplace(std::move(*made));
       }
+      verticals_seen_ = j.at("verticals_seen").get<int>();
       const Eigen::Matrix<double, 9, 1> c = VecFrom<9>(j.at("correction"));
       R_correction_ = Eigen::Map<const Eigen::Matrix3d>(c.data());
       dz_m_ = j.at("dz").get<double>();
@@ -223,8 +192,7 @@ class GravityTilt final : public TiltStep {
   std::optional<GravityEstimator> estimator_;  // made at the first frame (it needs the mount)
   Eigen::Isometry3d T_body_sensor_ = Eigen::Isometry3d::Identity();
   double z0_m_ = 0.0;  // the body's odometry height at the first frame [m]
-  int verticals_seen_ = 0;  // vertical cues given so far
-  json frames_ = json::array();
+  int verticals_seen_ = 0;                                      // vertical cues given so far
   Eigen::Matrix3d R_correction_ = Eigen::Matrix3d::Identity();  // carried to the next prior
   double dz_m_ = 0.0;
 };

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <functional>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "cairn/od/units.hpp"
@@ -32,6 +33,8 @@ struct Cues {
   double attitude_bias_rad = 2.5 * kDegToRad;  // the IMU attitude output's bias (roll and pitch)
   double attitude_sigma_rad = 0.4 * kDegToRad;
   std::uint64_t seed = 1;
+  int resume_at = -1;        // after this frame: save, restore into a new estimator, go on
+  bool state_sizes = false;  // record SaveState()'s size after each frame
 };
 
 struct DriveRun {
@@ -39,6 +42,7 @@ struct DriveRun {
   std::vector<double> body_error_deg;    // angle between true and estimated up (body)
   std::vector<double> sensor_error_deg;  // (sensor)
   std::vector<double> prior_error_deg;   // the IMU attitude output's
+  std::vector<std::size_t> state_bytes;  // with Cues::state_sizes
 };
 
 // Tilt of `est_up` against the true up in the same frame [deg].
@@ -95,6 +99,16 @@ DriveRun Estimate(const GravityEstimatorConfig& config, const Eigen::Matrix3d& R
     Expected<GravityEstimate> est = estimator->AddFrame(frame);
     EXPECT_TRUE(est.ok()) << est.error().message;
     if (!est.ok()) return run;
+    if (cues.state_sizes) run.state_bytes.push_back(estimator->SaveState().size());
+    if (static_cast<int>(k) == cues.resume_at) {
+      const std::string state = estimator->SaveState();
+      estimator =
+          GravityEstimator::Create(config, Eigen::Matrix3d::Identity(), R_body_sensor_nominal);
+      EXPECT_TRUE(estimator.ok());
+      const Status restored = estimator->RestoreState(state);
+      EXPECT_TRUE(restored.ok()) << restored.message();
+      EXPECT_EQ(estimator->frames_added(), static_cast<int>(k) + 1);
+    }
     const Eigen::Vector3d up_body = truth[k].R_world_body.transpose() * Eigen::Vector3d::UnitZ();
     const Eigen::Vector3d up_sensor =
         truth[k].R_world_sensor.transpose() * Eigen::Vector3d::UnitZ();
@@ -253,6 +267,55 @@ TEST(GravityEstimator, AnAccelerometerBiasIsObservedWhenTurningAndFlaggedWhenStr
   ASSERT_TRUE(last.Degenerate(GravityDegeneracy::State::kAccelBias)) << last.BriefReport();
   EXPECT_NE(last.BriefReport().find("straight drive"), std::string::npos);
   EXPECT_GT(std::abs(last.accel_bias_mps2.x() - bias.x()), 0.03);  // not learned
+}
+
+// The resume state: an estimator saved mid-drive (frames marginalised, biases learned) and
+// restored into a new one gives the same estimates, to the last bit, as the one never
+// interrupted; and the state stays the size of the window however long the drive.
+TEST(GravityEstimator, ARestoredStateGivesTheSameEstimatesAndStaysTheSizeOfTheWindow) {
+  GravityEstimatorConfig config;
+  Cues cues;
+  cues.state_sizes = true;
+  const Eigen::Vector3d bias(0.05, -0.04, 0.02);
+  const DriveRun whole = EstimateTurning(config, bias, 30.0, cues, 0);
+  cues.resume_at = 150;
+  const DriveRun resumed = EstimateTurning(config, bias, 30.0, cues, 0);
+  ASSERT_EQ(whole.estimates.size(), 301u);
+  ASSERT_EQ(resumed.estimates.size(), whole.estimates.size());
+  for (std::size_t k = 0; k < whole.estimates.size(); ++k) {
+    const GravityEstimate& a = whole.estimates[k];
+    const GravityEstimate& b = resumed.estimates[k];
+    EXPECT_EQ(a.roll_rad, b.roll_rad) << "frame " << k;
+    EXPECT_EQ(a.pitch_rad, b.pitch_rad) << "frame " << k;
+    EXPECT_EQ(a.height_m, b.height_m) << "frame " << k;
+    EXPECT_TRUE(a.accel_bias_mps2 == b.accel_bias_mps2) << "frame " << k;
+    EXPECT_TRUE(a.gyro_bias_radps == b.gyro_bias_radps) << "frame " << k;
+    EXPECT_TRUE(a.mount_rad == b.mount_rad) << "frame " << k;
+    // The covariance (ceres::Covariance's SVD) differs in its last digits between two runs
+    // that never stopped, as Eigen's vector loops follow where the heap put the matrices.
+    EXPECT_NEAR(a.attitude_covariance(0, 0), b.attitude_covariance(0, 0),
+                1e-9 * std::abs(a.attitude_covariance(0, 0)))
+        << "frame " << k;
+    EXPECT_EQ(a.degeneracies.size(), b.degeneracies.size()) << "frame " << k;
+    EXPECT_EQ(a.cues.heading_change_rad, b.cues.heading_change_rad) << "frame " << k;
+  }
+  // The bias was learned before the save and is carried: the run is not trivially equal.
+  EXPECT_NEAR(whole.estimates.back().accel_bias_mps2.x(), 0.05, 0.02);
+  // Bounded: from frame 50 on (the window of 12 long full) the state grows no more than
+  // the noise of the numbers' digits, while the drive grows sixfold.
+  const std::size_t at_50 = whole.state_bytes[50];
+  const std::size_t most =
+      *std::max_element(whole.state_bytes.begin() + 50, whole.state_bytes.end());
+  EXPECT_LT(most, at_50 + at_50 / 10) << "state " << at_50 << " bytes at frame 50, up to " << most;
+
+  // Text that is not a state is refused, naming what is wrong.
+  Expected<GravityEstimator> fresh =
+      GravityEstimator::Create(config, Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity());
+  ASSERT_TRUE(fresh.ok());
+  const Status garbage = fresh->RestoreState("{\"window\": 3}");
+  ASSERT_FALSE(garbage.ok());
+  EXPECT_NE(garbage.message().find("gravity.state"), std::string::npos) << garbage.message();
+  EXPECT_EQ(fresh->frames_added(), 0);  // unchanged by the failed restore
 }
 
 TEST(GravityEstimator, AMountMisalignmentIsRecoveredFromTrunksAndFlaggedInAnOpenField) {

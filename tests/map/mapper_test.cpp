@@ -241,8 +241,9 @@ TEST(Mapper, ResumedWithTheTiltRefinerGivesTheSameMap) {
   ExpectResumeGivesTheSameMap(TiltMode::kRefineToMap, 1.0 * kDegToRad);
 }
 
-// The gravity step's window and marginalised prior are replayed from the checkpoint: the
-// resumed run fuses at bit-identical poses.
+// The gravity step's estimator state (its window, priors and slow states) comes back from the
+// checkpoint: the resumed run fuses at bit-identical poses. (Saved here before the window
+// fills; GravityEstimator.ARestoredState... saves one that has marginalised frames.)
 TEST(Mapper, ResumedWithTheGravityEstimatorGivesTheSameMap) {
   ExpectResumeGivesTheSameMap(TiltMode::kGravity, 1.0 * kDegToRad);
 }

@@ -189,6 +189,16 @@ class GravityEstimator {
 
   int frames_added() const;
 
+  /// What the estimator carries from frame to frame, as text (JSON): the window's frames
+  /// with their states and IMU samples, the marginalised priors, the slow states and the
+  /// counters. Its size is bounded by the window, not by the length of the drive.
+  std::string SaveState() const;
+  /// Restores a SaveState() on an estimator made with the same config and mounts (its own
+  /// frames are dropped): the frames added next give the estimates, to the last bit, that
+  /// the saving estimator would have given. Fails on text that is not such a state, naming
+  /// what is wrong.
+  Status RestoreState(const std::string& state);
+
  private:
   struct State;
   explicit GravityEstimator(std::unique_ptr<State> state);
