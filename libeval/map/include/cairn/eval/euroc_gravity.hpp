@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <filesystem>
 
 #include "cairn/od/expected.hpp"
@@ -22,8 +23,19 @@ struct EurocGravityResult {
   double tilt_median_deg = 0.0, tilt_p95_deg = 0.0, tilt_max_deg = 0.0;
   double roll_median_deg = 0.0, roll_p95_deg = 0.0;
   double pitch_median_deg = 0.0, pitch_p95_deg = 0.0;
+  // The same over the frames at which the estimator does not flag the accelerometer bias
+  // as unobservable (at rest it cannot tell the bias from a tilt, and says so).
+  int observed_frames = 0;
+  double bias_observed_from_s = -1.0;  ///< stamp of the first such frame [s], -1: none
+  double observed_tilt_median_deg = NAN, observed_tilt_p95_deg = NAN;
   // At rest (before take-off): the mean accelerometer direction against the truth [deg].
   double rest_accel_tilt_deg = 0.0;
+  // The truth against its own IMU (its attitude, velocity and accelerometer bias): the tilt
+  // of gravity in the truth's world frame [deg], the mean over 0.2 s spans, and the spans'
+  // scatter about that mean per world axis [m/s^2]. An estimator of the true gravity is
+  // scored against a truth whose up is this far from it.
+  double truth_gravity_tilt_deg = NAN;
+  Eigen::Vector3d truth_gravity_rms_mps2 = Eigen::Vector3d::Constant(NAN);
   Eigen::Vector3d accel_bias_mps2 = Eigen::Vector3d::Zero();  ///< estimated, at the end
   Eigen::Vector3d gyro_bias_radps = Eigen::Vector3d::Zero();
   Eigen::Vector3d truth_accel_bias_mps2 = Eigen::Vector3d::Zero();  ///< OpenVINS', at the end
