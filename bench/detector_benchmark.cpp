@@ -55,6 +55,8 @@ struct Frame {
   od::RangeImage image;
   od::io::DetectSettings settings;
   std::function<Expected<od::RangeImage>()> make;  // the range image from its file's data
+  // LiDAR: the scan's layout (rings, columns) found from its points, as readers do per scan.
+  std::function<Expected<od::FoundLayout>()> layout;
   // The reference result (region scan or brute force) and its time [ms], made once.
   std::unique_ptr<od::Detection> reference;
   std::string reference_name;
@@ -89,6 +91,7 @@ Expected<Frame> LidarFrame(const std::string& name, const std::string& path,
     return od::RangeImage::FromPoints(points->points, found->model, Eigen::Vector3d::UnitZ(),
                                       found->rows, found->cols);
   };
+  f.layout = [points, options, path] { return od::FindLayout(*points, options, path); };
   Expected<od::RangeImage> image = f.make();
   if (!image) return image.error();
   f.image = std::move(*image);
@@ -406,6 +409,18 @@ void BM_RangeImage(benchmark::State& state, const std::string& name) {
   for (auto _ : state) benchmark::DoNotOptimize(f->make());
 }
 
+// A LiDAR scan's layout from its points (od::FindLayout), which every reader of scans runs
+// before the range image; camera frames have none and skip.
+void BM_Layout(benchmark::State& state, const std::string& name) {
+  Frame* f = FrameOrSkip(state, name);
+  if (f == nullptr) return;
+  if (!f->layout) {
+    state.SkipWithError("no layout to find (a camera frame)");
+    return;
+  }
+  for (auto _ : state) benchmark::DoNotOptimize(f->layout());
+}
+
 void BM_Rules(benchmark::State& state, const std::string& name) {
   Frame* f = FrameOrSkip(state, name);
   if (f == nullptr || !f->reference) return;
@@ -436,6 +451,9 @@ void Register() {
   for (const std::string& name : kFrames) {
     ms(benchmark::RegisterBenchmark(("Floor/" + name).c_str(), BM_Floor, name));
     ms(benchmark::RegisterBenchmark(("RangeImage/" + name).c_str(), BM_RangeImage, name));
+    if (name == "kitti" || name == "rellis") {
+      ms(benchmark::RegisterBenchmark(("Layout/" + name).c_str(), BM_Layout, name));
+    }
     ms(benchmark::RegisterBenchmark(("Detect/" + name).c_str(), BM_Detect, name))
         ->ArgName("threads")
         ->Arg(1)

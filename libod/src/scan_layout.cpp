@@ -124,15 +124,21 @@ Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points,
   if (m < 3 * kMinRingPoints) {
     return Error{"ring breaks: " + std::to_string(m) + " returns are too few"};
   }
-  // The sweep's direction: the median step between neighbours in storage order.
+  // The sweep's direction: the sign of the median step between neighbours in storage
+  // order, from the counts of each sign (the median of s steps, the (s/2)-th smallest, is
+  // positive when at most s/2 steps are not, negative when more than s/2 are).
   std::vector<double> steps(m - 1);
-  for (std::size_t k = 1; k < m; ++k) steps[k - 1] = WrapAngle(azimuth[k] - azimuth[k - 1]);
-  std::vector<double> sorted_steps = steps;
-  std::nth_element(sorted_steps.begin(), sorted_steps.begin() + sorted_steps.size() / 2,
-                   sorted_steps.end());
-  const double median_step = sorted_steps[sorted_steps.size() / 2];
-  if (median_step == 0.0) return Error{"ring breaks: the azimuth does not sweep along the order"};
-  const double sweep = median_step > 0.0 ? 1.0 : -1.0;
+  std::size_t positive = 0, negative = 0;
+  for (std::size_t k = 1; k < m; ++k) {
+    steps[k - 1] = WrapAngle(azimuth[k] - azimuth[k - 1]);
+    positive += steps[k - 1] > 0.0;
+    negative += steps[k - 1] < 0.0;
+  }
+  const std::size_t half = steps.size() / 2;
+  if (steps.size() - positive > half && negative <= half) {
+    return Error{"ring breaks: the azimuth does not sweep along the order"};
+  }
+  const double sweep = steps.size() - positive <= half ? 1.0 : -1.0;
   std::size_t small = 0;
   for (double d : steps) small += sweep * d >= 0.0 && sweep * d <= kSmallStep;
   if (small < 0.9 * steps.size()) {
@@ -177,17 +183,19 @@ Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points,
   // rings is largest holds the seam.
   constexpr int kBins = 3600;  // 0.1 deg
   const double bin_rad = 2.0 * kPi / kBins;
-  auto phase_of = [&](std::size_t k) { return WrapPositive(sweep * (azimuth[k] - first_seam)); };
-  const double last_phase = phase_of(m - 1);
+  std::vector<double> phase(m);  // from the first-pass seam
+  for (std::size_t k = 0; k < m; ++k) phase[k] = WrapPositive(sweep * (azimuth[k] - first_seam));
+  const double last_phase = phase[m - 1];
   const int first_bin = static_cast<int>(std::ceil(last_phase / bin_rad));
   result.seam_rad = first_seam;
   double seam_phase = 0.0;
   if (last_phase > kPi && first_bin < kBins) {
     std::vector<std::vector<float>> steps_in(static_cast<std::size_t>(kBins - first_bin + 1));
     for (std::size_t k = 1; k < m; ++k) {
-      double from = phase_of(k - 1), to = phase_of(k);
+      double from = phase[k - 1], to = phase[k];
       if (to < from - kPi) to += 2.0 * kPi;  // across the first-pass seam
       if (to <= from) continue;              // a step backwards covers nothing
+      if (std::floor(to / bin_rad) < first_bin) continue;  // ends before the first bin
       const float step = static_cast<float>(elevation[k] - elevation[k - 1]);
       const int lo = std::max(first_bin, static_cast<int>(std::ceil(from / bin_rad)));
       const int hi = std::min(kBins, static_cast<int>(std::floor(to / bin_rad)));
@@ -208,7 +216,7 @@ Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points,
   // Refined: the median azimuth between the two returns that straddle that bin.
   std::vector<double> straddle;
   for (std::size_t k = 1; k < m; ++k) {
-    double from = phase_of(k - 1), to = phase_of(k);
+    double from = phase[k - 1], to = phase[k];
     if (to < from - kPi) to += 2.0 * kPi;
     const double target = seam_phase < from ? seam_phase + 2.0 * kPi : seam_phase;
     if (to > from && from <= target && target <= to) {

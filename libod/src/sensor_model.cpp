@@ -123,6 +123,7 @@ Expected<SphericalModel> SphericalModel::Preset(const std::string& given, int wi
 double WrapPositive(double a) {
   constexpr double kTurn = 2.0 * 3.14159265358979323846;
   if (a >= 0.0 && a < kTurn) return a;  // what fmod gives, without its cost
+  if (a < 0.0 && a > -kTurn) return a + kTurn;  // fmod(a) is a itself there
   a = std::fmod(a, kTurn);
   return a < 0.0 ? a + kTurn : a;
 }

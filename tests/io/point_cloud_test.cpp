@@ -608,6 +608,26 @@ TEST(RingFinding, RingAfterRingScanIsCutAtItsSeam) {
   }
 }
 
+// Mirrored (y -> -y), the same rings sweep the other way: the sweep's direction is the sign
+// of the median azimuth step, taken either way; no step at all is no sweep.
+TEST(RingFinding, AScanSweptTheOtherWayIsCutToo) {
+  for (const double seam : {0.0, 2.5}) {
+    std::vector<std::int32_t> truth;
+    PointCloud cloud = RingAfterRingScan(64, 1000, seam, 11, &truth);
+    for (Eigen::Vector3f& p : cloud.points) p.y() = -p.y();
+    Expected<od::RingBreaks> breaks = od::FindRingBreaks(cloud.points);
+    ASSERT_TRUE(breaks.ok()) << breaks.error().message;
+    EXPECT_EQ(breaks->rings, 64);
+    EXPECT_NEAR(std::remainder(breaks->seam_rad + seam, 2.0 * kPi), 0.0, 0.01);
+    EXPECT_EQ(breaks->ring, truth);
+  }
+  PointCloud line;
+  for (int i = 0; i < 100; ++i) line.points.emplace_back(1.0f + 0.01f * i, 0.0f, 0.1f * (i % 7));
+  Expected<od::RingBreaks> none = od::FindRingBreaks(line.points);
+  ASSERT_FALSE(none.ok());
+  EXPECT_TRUE(Contains(none.error().message, "does not sweep")) << none.error().message;
+}
+
 TEST(RingFinding, ShuffledScatteredRingsFallBackToUniformBins) {
   std::vector<std::int32_t> truth;
   PointCloud cloud = RingAfterRingScan(64, 500, 0.3, 12, &truth);
