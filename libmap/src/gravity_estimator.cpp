@@ -12,10 +12,12 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <stdexcept>
 #include <utility>
 
 #include "cairn/od/units.hpp"
 #include "gravity_terms.hpp"
+#include "json_numbers.hpp"
 
 namespace cairn::map {
 namespace {
@@ -744,23 +746,11 @@ namespace {
 
 using nlohmann::json;
 
-// Non-finite numbers (NaN before the first sample) are written as null.
-json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
-double NumberFrom(const json& j) { return j.is_null() ? NAN : j.get<double>(); }
+using internal::Array;
+using internal::ArrayFrom;
+using internal::Number;
+using internal::NumberFrom;
 
-json Array(const double* v, int n) {
-  json a = json::array();
-  for (int i = 0; i < n; ++i) a.push_back(v[i]);
-  return a;
-}
-// Reads n numbers of `j` into v; throws (json's exceptions) on a wrong type or length.
-void ArrayFrom(const json& j, double* v, int n, const char* what) {
-  if (!j.is_array() || static_cast<int>(j.size()) != n) {
-    throw std::runtime_error(std::string("'") + what + "' must be an array of " +
-                             std::to_string(n) + " numbers");
-  }
-  for (int i = 0; i < n; ++i) v[i] = j.at(i).get<double>();
-}
 Eigen::Vector3d Vector3From(const json& j, const char* what) {
   Eigen::Vector3d v;
   ArrayFrom(j, v.data(), 3, what);
@@ -831,6 +821,29 @@ std::unique_ptr<WindowFrame> FrameFrom(const json& j) {
 
 }  // namespace
 
+namespace {
+
+// The settings that shape the window's problem: a state is only restored under the same.
+json ConfigJson(const GravityEstimatorConfig& c) {
+  return {{"window_frames", c.window_frames},
+          {"accel_half_span_frames", c.accel_half_span_frames},
+          {"accel_warmup_spans", c.accel_warmup_spans},
+          {"estimate_accel_bias", c.estimate_accel_bias},
+          {"estimate_gyro_bias", c.estimate_gyro_bias},
+          {"estimate_mount", c.estimate_mount}};
+}
+
+// The frame id after "rpy:" / "h:", the whole rest of the name a non-negative integer.
+int FrameIdOf(const std::string& digits, const std::string& name) {
+  if (digits.empty() || digits.size() > 9 ||
+      digits.find_first_not_of("0123456789") != std::string::npos) {
+    throw std::runtime_error("a prior's block '" + name + "' names no frame id");
+  }
+  return std::stoi(digits);
+}
+
+}  // namespace
+
 // A prior's blocks are named: the slow states by name, a frame's states by its id.
 std::string GravityEstimator::SaveState() const {
   const State& st = *state_;
@@ -856,7 +869,9 @@ std::string GravityEstimator::SaveState() const {
                       {"x0", Array(p.x0.data(), static_cast<int>(p.x0.size()))},
                       {"e0", Array(p.e0.data(), static_cast<int>(p.e0.size()))}});
   }
-  const json j = {{"window", window},
+  const GravityEstimatorConfig& c = st.config;
+  const json j = {{"config", ConfigJson(c)},
+                  {"window", window},
                   {"priors", priors},
                   {"ba", Array(st.ba, 3)},
                   {"bg", Array(st.bg, 3)},
@@ -878,11 +893,34 @@ Status GravityEstimator::RestoreState(const std::string& text) {
   st.R_body_sensor = state_->R_body_sensor;
   try {
     const json j = json::parse(text);
+    if (j.at("config") != ConfigJson(st.config)) {
+      return GravityError("state", "was saved with other settings (" + j.at("config").dump() +
+                                       ", here " + ConfigJson(st.config).dump() + ")");
+    }
     for (const json& f : j.at("window")) st.window.push_back(FrameFrom(f));
     if (static_cast<int>(st.window.size()) > st.config.window_frames) {
       return GravityError("state", "holds " + std::to_string(st.window.size()) +
                                        " frames, more than the window (" +
                                        std::to_string(st.config.window_frames) + ")");
+    }
+    st.added = j.at("added").get<int>();
+    if (st.added < static_cast<int>(st.window.size())) {
+      return GravityError(
+          "state", "'added' (" + std::to_string(st.added) + ") is less than the window's frames");
+    }
+    // The window's frames: consecutive ids ending at the last frame added, stamps rising.
+    for (std::size_t k = 0; k < st.window.size(); ++k) {
+      const WindowFrame& f = *st.window[k];
+      const int want = st.added - static_cast<int>(st.window.size() - k);
+      if (f.id != want) {
+        return GravityError("state", "window frame " + std::to_string(k) + " has id " +
+                                         std::to_string(f.id) + ", expected " +
+                                         std::to_string(want) + " (ids run to added - 1)");
+      }
+      if (k > 0 && !(f.input.stamp_s > st.window[k - 1]->input.stamp_s)) {
+        return GravityError("state",
+                            "window frame " + std::to_string(k) + ": stamps must increase");
+      }
     }
     ArrayFrom(j.at("ba"), st.ba, 3, "ba");
     ArrayFrom(j.at("bg"), st.bg, 3, "bg");
@@ -896,7 +934,7 @@ Status GravityEstimator::RestoreState(const std::string& text) {
       const std::size_t colon = name.find(':');
       if (colon != std::string::npos) {
         const std::string part = name.substr(0, colon);
-        const int id = std::stoi(name.substr(colon + 1));
+        const int id = FrameIdOf(name.substr(colon + 1), name);
         for (const auto& f : st.window) {
           if (f->id != id) continue;
           if (part == "rpy") return size = 3, f->rpy;
@@ -908,12 +946,18 @@ Status GravityEstimator::RestoreState(const std::string& text) {
     for (const json& pj : j.at("priors")) {
       Prior p;
       int n = 0;
+      std::set<double*> seen;
       for (const json& b : pj.at("blocks")) {
         int size = 0;
-        p.blocks.push_back(block(b.get<std::string>(), size));
+        const std::string name = b.get<std::string>();
+        p.blocks.push_back(block(name, size));
+        if (!seen.insert(p.blocks.back()).second) {
+          throw std::runtime_error("a prior names block '" + name + "' twice");
+        }
         p.sizes.push_back(size);
         n += size;
       }
+      if (n == 0) throw std::runtime_error("a prior without blocks");
       p.L.resize(n, n);
       p.x0.resize(n);
       p.e0.resize(n);
@@ -922,7 +966,6 @@ Status GravityEstimator::RestoreState(const std::string& text) {
       ArrayFrom(pj.at("e0"), p.e0.data(), n, "e0");
       st.priors.push_back(std::move(p));
     }
-    st.added = j.at("added").get<int>();
     st.last_sample_stamp_s = NumberFrom(j.at("last_sample_stamp"));
     double heading[3];
     ArrayFrom(j.at("heading"), heading, 3, "heading");

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "gravity_terms.hpp"
+#include "json_numbers.hpp"
 
 namespace cairn::map {
 namespace {
@@ -28,16 +29,16 @@ Attitude AttitudeOf(const Eigen::Matrix3d& R) {
   return a;
 }
 
-json Vec(const Eigen::VectorXd& v) {
-  json a = json::array();
-  for (int i = 0; i < v.size(); ++i) a.push_back(v(i));
-  return a;
+// A fixed-size matrix's entries, in storage order.
+template <int R, int C>
+json Entries(const Eigen::Matrix<double, R, C>& m) {
+  return internal::Array(m.data(), R * C);
 }
-template <int N>
-Eigen::Matrix<double, N, 1> VecFrom(const json& a) {
-  Eigen::Matrix<double, N, 1> v;
-  for (int i = 0; i < N; ++i) v(i) = a.at(i).get<double>();
-  return v;
+template <int R, int C>
+Eigen::Matrix<double, R, C> EntriesFrom(const json& a, const char* what) {
+  Eigen::Matrix<double, R, C> m;
+  internal::ArrayFrom(a, m.data(), R * C, what);
+  return m;
 }
 
 constexpr const char* kNoGround = "no ground overlap";
@@ -146,14 +147,12 @@ class GravityTilt final : public TiltStep {
 
   // The estimator's own state (bounded by its window) and what this step carries.
   std::string SaveState() const override {
-    json j = {
-        {"correction", Vec(Eigen::Map<const Eigen::Matrix<double, 9, 1>>(R_correction_.data()))},
-        {"dz", dz_m_},
-        {"z0", z0_m_},
-        {"verticals_seen", verticals_seen_},
-        {"mount",
-         Vec(Eigen::Map<const Eigen::Matrix<double, 16, 1>>(T_body_sensor_.matrix().data()))}};
-    if (estimator_) j["estimator"] = estimator_->SaveState();
+    json j = {{"correction", Entries(R_correction_)},
+              {"dz", dz_m_},
+              {"z0", z0_m_},
+              {"verticals_seen", verticals_seen_},
+              {"mount", Entries(T_body_sensor_.matrix())}};
+    if (estimator_) j["estimator"] = json::parse(estimator_->SaveState());
     return j.dump();
   }
   Status RestoreState(const std::string& state) override {
@@ -164,23 +163,28 @@ class GravityTilt final : public TiltStep {
             "tilt state (gravity): written by an earlier cairn, which replayed every "
             "frame; start the run afresh"};
       }
-      const Eigen::Matrix<double, 16, 1> mount = VecFrom<16>(j.at("mount"));
-      T_body_sensor_.matrix() = Eigen::Map<const Eigen::Matrix4d>(mount.data());
-      estimator_.reset();
+      // Read whole before anything changes: a state that fails leaves the step as it was.
+      Eigen::Isometry3d mount = Eigen::Isometry3d::Identity();
+      mount.matrix() = EntriesFrom<4, 4>(j.at("mount"), "mount");
+      std::optional<GravityEstimator> estimator;
       if (j.contains("estimator")) {
-        Expected<GravityEstimator> made = GravityEstimator::Create(
-            config_.gravity, Eigen::Matrix3d::Identity(), T_body_sensor_.linear());
+        Expected<GravityEstimator> made =
+            GravityEstimator::Create(config_.gravity, Eigen::Matrix3d::Identity(), mount.linear());
         if (!made) return made.error();
-        if (Status s = made->RestoreState(j.at("estimator").get<std::string>()); !s) {
+        if (Status s = made->RestoreState(j.at("estimator").dump()); !s) {
           return Error{"tilt state (gravity): " + s.message()};
         }
-        estimator_.emplace(std::move(*made));
+        estimator.emplace(std::move(*made));
       }
-      verticals_seen_ = j.at("verticals_seen").get<int>();
-      const Eigen::Matrix<double, 9, 1> c = VecFrom<9>(j.at("correction"));
-      R_correction_ = Eigen::Map<const Eigen::Matrix3d>(c.data());
-      dz_m_ = j.at("dz").get<double>();
-      z0_m_ = j.at("z0").get<double>();
+      const int verticals_seen = j.at("verticals_seen").get<int>();
+      const Eigen::Matrix3d correction = EntriesFrom<3, 3>(j.at("correction"), "correction");
+      const double dz = j.at("dz").get<double>(), z0 = j.at("z0").get<double>();
+      T_body_sensor_ = mount;
+      estimator_ = std::move(estimator);
+      verticals_seen_ = verticals_seen;
+      R_correction_ = correction;
+      dz_m_ = dz;
+      z0_m_ = z0;
     } catch (const std::exception& e) {
       return Error{std::string("tilt state (gravity) unreadable: ") + e.what()};
     }

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 #include <vector>
@@ -35,6 +36,7 @@ struct Cues {
   std::uint64_t seed = 1;
   int resume_at = -1;        // after this frame: save, restore into a new estimator, go on
   bool state_sizes = false;  // record SaveState()'s size after each frame
+  std::function<void(GravityEstimator&, int)> after_frame;  // called after each frame
 };
 
 struct DriveRun {
@@ -100,6 +102,7 @@ DriveRun Estimate(const GravityEstimatorConfig& config, const Eigen::Matrix3d& R
     EXPECT_TRUE(est.ok()) << est.error().message;
     if (!est.ok()) return run;
     if (cues.state_sizes) run.state_bytes.push_back(estimator->SaveState().size());
+    if (cues.after_frame) cues.after_frame(*estimator, static_cast<int>(k));
     if (static_cast<int>(k) == cues.resume_at) {
       const std::string state = estimator->SaveState();
       estimator =
@@ -291,12 +294,12 @@ TEST(GravityEstimator, ARestoredStateGivesTheSameEstimatesAndStaysTheSizeOfTheWi
     EXPECT_TRUE(a.accel_bias_mps2 == b.accel_bias_mps2) << "frame " << k;
     EXPECT_TRUE(a.gyro_bias_radps == b.gyro_bias_radps) << "frame " << k;
     EXPECT_TRUE(a.mount_rad == b.mount_rad) << "frame " << k;
-    // The covariance (ceres::Covariance's SVD) differs in its last digits between two runs
-    // that never stopped, as Eigen's vector loops follow where the heap put the matrices.
+    // The covariance differs in its last digits even between two runs that never stopped:
+    // ceres::Covariance orders the parameter blocks by their addresses. (So may the flags
+    // drawn from it, near their thresholds: they are not compared.)
     EXPECT_NEAR(a.attitude_covariance(0, 0), b.attitude_covariance(0, 0),
                 1e-9 * std::abs(a.attitude_covariance(0, 0)))
         << "frame " << k;
-    EXPECT_EQ(a.degeneracies.size(), b.degeneracies.size()) << "frame " << k;
     EXPECT_EQ(a.cues.heading_change_rad, b.cues.heading_change_rad) << "frame " << k;
   }
   // The bias was learned before the save and is carried: the run is not trivially equal.
@@ -307,15 +310,58 @@ TEST(GravityEstimator, ARestoredStateGivesTheSameEstimatesAndStaysTheSizeOfTheWi
   const std::size_t most =
       *std::max_element(whole.state_bytes.begin() + 50, whole.state_bytes.end());
   EXPECT_LT(most, at_50 + at_50 / 10) << "state " << at_50 << " bytes at frame 50, up to " << most;
+}
 
-  // Text that is not a state is refused, naming what is wrong.
-  Expected<GravityEstimator> fresh =
-      GravityEstimator::Create(config, Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity());
-  ASSERT_TRUE(fresh.ok());
-  const Status garbage = fresh->RestoreState("{\"window\": 3}");
-  ASSERT_FALSE(garbage.ok());
-  EXPECT_NE(garbage.message().find("gravity.state"), std::string::npos) << garbage.message();
-  EXPECT_EQ(fresh->frames_added(), 0);  // unchanged by the failed restore
+// A state that is not one, or not this estimator's, is refused naming what is wrong, and the
+// estimator it was given to is left exactly as it was (its own state text unchanged).
+TEST(GravityEstimator, ABadStateIsRefusedAndChangesNothing) {
+  GravityEstimatorConfig config;
+  Cues cues;
+  int checked = 0;
+  cues.after_frame = [&](GravityEstimator& estimator, int k) {
+    if (k != 100) return;
+    const std::string good = estimator.SaveState();
+    const nlohmann::json state = nlohmann::json::parse(good);
+    const auto refused = [&](const std::string& text, const std::string& why) {
+      const Status s = estimator.RestoreState(text);
+      EXPECT_FALSE(s.ok()) << why;
+      EXPECT_NE(s.message().find("gravity.state"), std::string::npos) << s.message();
+      EXPECT_EQ(estimator.SaveState(), good) << why << ": the estimator changed";
+      ++checked;
+    };
+    refused("{\"window\": 3}", "not a state");
+    refused("not json", "not JSON");
+    nlohmann::json other = state;
+    other["config"]["accel_half_span_frames"] = 2;
+    refused(other.dump(), "other settings");
+    other = state;
+    other["window"][0]["id"] = other["window"][0]["id"].get<int>() - 1;
+    refused(other.dump(), "ids not consecutive");
+    other = state;
+    other["added"] = other["added"].get<int>() + 1;
+    refused(other.dump(), "added does not end the window");
+    other = state;
+    other["window"][1]["stamp"] = other["window"][0]["stamp"];
+    refused(other.dump(), "stamps not increasing");
+    other = state;
+    other["priors"].back()["blocks"][0] = "rpy:99999";
+    refused(other.dump(), "a prior on no frame of the window");
+    other = state;
+    other["priors"].back()["blocks"][0] = "rpy:1x";
+    refused(other.dump(), "a frame id with trailing text");
+    other = state;
+    other["priors"].back()["blocks"][1] = other["priors"].back()["blocks"][0];
+    refused(other.dump(), "a block named twice");
+    other = state;
+    other["priors"].back()["L"].erase(0);
+    refused(other.dump(), "L of the wrong size");
+    // And the good state, restored, gives back the same text.
+    ASSERT_TRUE(estimator.RestoreState(good).ok());
+    EXPECT_EQ(estimator.SaveState(), good);
+  };
+  const DriveRun run = EstimateTurning(config, Eigen::Vector3d(0.05, -0.04, 0.02), 12.0, cues, 0);
+  EXPECT_EQ(checked, 10);
+  EXPECT_EQ(run.estimates.size(), 121u);
 }
 
 TEST(GravityEstimator, AMountMisalignmentIsRecoveredFromTrunksAndFlaggedInAnOpenField) {

@@ -194,9 +194,12 @@ class GravityEstimator {
   /// counters. Its size is bounded by the window, not by the length of the drive.
   std::string SaveState() const;
   /// Restores a SaveState() on an estimator made with the same config and mounts (its own
-  /// frames are dropped): the frames added next give the estimates, to the last bit, that
-  /// the saving estimator would have given. Fails on text that is not such a state, naming
-  /// what is wrong.
+  /// frames are dropped): the frames added next give the estimates (attitude, height,
+  /// biases, mount) to the last bit that the saving estimator would have given; their
+  /// covariance, and the flags drawn from it, may differ in the last digits (ceres orders the
+  /// parameter blocks by address), as between any two runs. Fails, leaving the estimator as
+  /// it was, on text that is not such a state or was saved under other settings, naming what
+  /// is wrong.
   Status RestoreState(const std::string& state);
 
  private:
