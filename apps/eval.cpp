@@ -20,6 +20,7 @@
 // Maps: TerrainMap on gallery worlds from drifting odometry, biased IMUs and each tilt mode,
 // against the worlds' truth (datasets/maps/REPORT.md, from the source tree):
 //   cairn eval --maps --report datasets/maps [--root DIR] [--threads N] [--config FILE]
+//              [--euroc DIR]   (with a section on EuRoC V1_01)
 //
 // The gravity estimator on real data: EuRoC V1_01's IMU against its ground truth:
 //   cairn eval --euroc DIR
@@ -37,11 +38,11 @@ using eval::EvalOptions;
 using eval::Fail;
 
 int RunEval(const EvalOptions& o) {
-  if (!o.euroc.empty()) {
-    if (o.maps || !o.points.empty() || !o.worlds.empty() || !o.worlds_dir.empty() ||
-        !o.depth.empty()) {
+  if (!o.euroc.empty() && !o.maps) {
+    if (!o.points.empty() || !o.worlds.empty() || !o.worlds_dir.empty() || !o.depth.empty()) {
       return Fail(
-          "--euroc runs on its own: give no --maps, --world, --worlds, --depth or --points");
+          "--euroc runs on its own or with --maps (a section of its report): give no "
+          "--world, --worlds, --depth or --points");
     }
     return eval::RunEurocStudy(o);
   }
@@ -121,7 +122,7 @@ Subcommand AddEvalCommand(CLI::App& parent) {
   app->add_option("--euroc", options->euroc,
                   "the gravity estimator's IMU terms on EuRoC V1_01 (the folder holding mav0/ "
                   "and ov_data/), and the up vector of the floor its stereo pairs see at rest, "
-                  "against the truth; prints the figures")
+                  "against the truth; prints the figures (with --maps: a section of its report)")
       ->check(CLI::ExistingDirectory)
       ->type_name("DIR");
   app->add_option("--root", options->root,

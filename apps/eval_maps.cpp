@@ -5,6 +5,7 @@
 //   cairn eval --euroc DIR: the gravity estimator on EuRoC V1_01 (euroc_gravity.hpp), its
 //     figures printed.
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 
 #include "cairn/eval/euroc_gravity.hpp"
@@ -16,6 +17,11 @@
 namespace cairn::apps::eval {
 
 int RunMapStudy(const EvalOptions& o) {
+  // Checked before the drives, which take minutes.
+  if (!o.euroc.empty() && !std::filesystem::is_directory(std::filesystem::path(o.euroc) / "mav0")) {
+    return Fail("--euroc " + o.euroc +
+                ": expected the EuRoC V1_01 folder holding mav0/ and ov_data/");
+  }
   cairn::eval::MapStudyOptions study;
   study.root = o.root;
   Expected<od::io::DetectSettings> settings = LoadDetectSettingsFile(
@@ -26,6 +32,10 @@ int RunMapStudy(const EvalOptions& o) {
   study.threads = o.threads;
   study.command =
       "cmake --build build --target cairn && build/apps/cairn eval --maps --report " + o.report;
+  if (!o.euroc.empty()) {
+    study.euroc = o.euroc;
+    study.command += " --euroc " + o.euroc;
+  }
   std::unique_ptr<Progress> progress;
   study.on_drive = [&](const std::string& line, int done, int total) {
     if (!progress)

@@ -778,12 +778,23 @@ TEST(EvalMapsCli, TheMapStudyTakesNoFramesAndNeedsItsWorlds) {
   EXPECT_NE(output.find((dir.path() / "config" / "default.yaml").string()), std::string::npos)
       << output;
   EXPECT_FALSE(fs::exists(dir.path() / "out" / "REPORT.md"));
-  // --euroc runs on its own, and every other mode needs --report.
+  // --euroc runs on its own or as a section of the map study (checked before any drive),
+  // and every other mode needs --report.
   output.clear();
-  EXPECT_EQ(RunCairn({"eval", "--euroc", dir.path().string(), "--maps"}, &output), 1);
-  EXPECT_NE(output.find("--euroc runs on its own"), std::string::npos) << output;
+  EXPECT_EQ(RunCairn({"eval", "--euroc", dir.path().string(), "--world", "w.yaml"}, &output), 1);
+  EXPECT_NE(output.find("--euroc runs on its own or with --maps"), std::string::npos) << output;
+  output.clear();
+  EXPECT_EQ(RunCairn({"eval", "--maps", "--euroc", dir.path().string(), "--report",
+                      (dir.path() / "out").string()},
+                     &output),
+            1);
+  EXPECT_NE(output.find("expected the EuRoC V1_01 folder"), std::string::npos) << output;
+  EXPECT_FALSE(fs::exists(dir.path() / "out" / "REPORT.md"));
   output.clear();
   EXPECT_EQ(RunCairn({"eval", "--world", "w.yaml"}, &output), 1);
+  EXPECT_NE(output.find("--report is required"), std::string::npos) << output;
+  output.clear();
+  EXPECT_EQ(RunCairn({"eval", "--maps", "--euroc", dir.path().string()}, &output), 1);
   EXPECT_NE(output.find("--report is required"), std::string::npos) << output;
 }
 

@@ -28,6 +28,9 @@ struct MapStudyOptions {
   int threads = 0;
   /// The command that remakes the report, quoted in it.
   std::string command;
+  /// With a folder: the gravity estimator on EuRoC V1_01 there (euroc_gravity.hpp) gets a
+  /// section of the report, real data against its truth. Empty: no such section.
+  std::filesystem::path euroc;
   /// Called after each drive with a line describing it (from one thread at a time); may be
   /// empty. `done` of `total` drives are mapped.
   std::function<void(const std::string& line, int done, int total)> on_drive;
