@@ -394,10 +394,15 @@ Status EurocSection(const std::filesystem::path& dir, std::ostringstream& md) {
      << "| all " << r->frames << " | " << Fixed(r->tilt_median_deg, 3) << " | "
      << Fixed(r->tilt_p95_deg, 3) << " | " << Fixed(r->roll_median_deg, 3) << " / "
      << Fixed(r->roll_p95_deg, 3) << " | " << Fixed(r->pitch_median_deg, 3) << " / "
-     << Fixed(r->pitch_p95_deg, 3) << " |\n"
-     << "| the " << r->observed_frames << " where the accelerometer bias is not flagged (from "
-     << Fixed(r->bias_observed_from_s, 1) << " s) | " << Fixed(r->observed_tilt_median_deg, 3)
-     << " | " << Fixed(r->observed_tilt_p95_deg, 3) << " | | |\n\n"
+     << Fixed(r->pitch_p95_deg, 3) << " |\n";
+  if (r->observed_frames > 0) {
+    md << "| the " << r->observed_frames << " where the accelerometer bias is not flagged (from "
+       << Fixed(r->bias_observed_from_s, 1) << " s) | " << Fixed(r->observed_tilt_median_deg, 3)
+       << " | " << Fixed(r->observed_tilt_p95_deg, 3) << " | | |\n";
+  } else {
+    md << "| none where the accelerometer bias is not flagged | | | | |\n";
+  }
+  md << "\n"
      << "At rest the estimator flags the accelerometer bias (it cannot be told from a tilt "
      << "there). The truth against its own IMU (its attitude, velocity and accelerometer bias, "
      << "0.2 s spans) puts gravity " << Fixed(r->truth_gravity_tilt_deg, 3)
