@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <stdexcept>
+#include <type_traits>
 #include <utility>
 
 #include "cairn/od/units.hpp"
@@ -52,9 +53,18 @@ struct WindowFrame {
   double h[1] = {0.0};
   std::vector<Sample> samples;  // those that arrived with it
   // Its velocity (odometry frame, z 0) from the neighbours' odometry, once the next frame
-  // is in (central difference; one-sided at the start); a known velocity as given.
+  // is in (central difference; one-sided at the start): the mean over the chord
+  // [chord_from_s, chord_to_s]; a known velocity as given, at its stamp (both ends).
   std::optional<Eigen::Vector3d> velocity;
+  double chord_from_s = 0.0, chord_to_s = 0.0;
 };
+
+// The fraction of a velocity's chord [from, to] that lies before t (a step at the stamp
+// for an instantaneous velocity).
+double ChordFractionBefore(const WindowFrame& f, double t) {
+  if (!(f.chord_to_s > f.chord_from_s)) return t > f.chord_from_s ? 1.0 : 0.0;
+  return std::clamp((t - f.chord_from_s) / (f.chord_to_s - f.chord_from_s), 0.0, 1.0);
+}
 
 // A Gaussian prior on parameter blocks (the slow states' start, or what the frames that
 // left the window said about the ones that remain).
@@ -85,6 +95,7 @@ struct GravityEstimator::State {
   double bg[3] = {0.0, 0.0, 0.0};
   double mount[2] = {0.0, 0.0};
   double prior_bias[2] = {0.0, 0.0};
+  double scale[1] = {0.0};
   std::vector<Prior> priors;
   int added = 0;
   double last_sample_stamp_s = NAN;
@@ -104,9 +115,12 @@ namespace {
 
 using gravity::ImuSegment;
 
-// Pieces of the window's samples within [a, b], in time order (forward) or reverse.
+// Pieces of the window's samples within [a, b], in time order (forward) or reverse; each
+// force's weight is weight(stamp), or 1.
+template <typename Weight = std::nullptr_t>
 std::vector<gravity::ImuSegment> SegmentsOf(const std::deque<std::unique_ptr<WindowFrame>>& w,
-                                            double a, double b, bool forward) {
+                                            double a, double b, bool forward,
+                                            Weight weight = nullptr) {
   std::vector<ImuSegment> out;
   for (const auto& frame : w) {
     for (const Sample& s : frame->samples) {
@@ -120,6 +134,7 @@ std::vector<gravity::ImuSegment> SegmentsOf(const std::deque<std::unique_ptr<Win
       seg.before_s = mid - lo;
       seg.after_s = hi - mid;
       seg.use_force = s.raw.stamp_s > a && s.raw.stamp_s <= b;
+      if constexpr (!std::is_same_v<Weight, std::nullptr_t>) seg.weight = weight(s.raw.stamp_s);
       out.push_back(seg);
     }
   }
@@ -145,7 +160,9 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
   double* bg_ = const_cast<double*>(bg);
   double* mount_ = const_cast<double*>(mount);
   double* prior_bias_ = const_cast<double*>(prior_bias);
+  double* scale_ = const_cast<double*>(scale);
   problem.AddParameterBlock(prior_bias_, 2);
+  problem.AddParameterBlock(scale_, 1);
   problem.AddParameterBlock(ba_, 3);
   problem.AddParameterBlock(bg_, 3);
   problem.AddParameterBlock(mount_, 2);
@@ -227,8 +244,8 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
               (g.input.odometry_xy_yaw.head<2>() - in.odometry_xy_yaw.head<2>()).norm();
           step->sigma_m = c.height_step_sigma_m + c.height_step_sigma_per_m * step->distance_m;
         }
-        add(new ceres::AutoDiffCostFunction<gravity::HeightStepTerm, 1, 1, 1, 3, 3>(step), nullptr,
-            {f.h, g.h, f.rpy, g.rpy}, Kind::kHeightStep, i);
+        add(new ceres::AutoDiffCostFunction<gravity::HeightStepTerm, 1, 1, 1, 3, 3, 1>(step),
+            nullptr, {f.h, g.h, f.rpy, g.rpy, scale_}, Kind::kHeightStep, i);
       }
     }
     if (accel_wanted && m > 0 && i - m >= 0 && i + m < n && window[i - m]->velocity &&
@@ -236,12 +253,16 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
       WindowFrame& fa = *window[i - m];
       WindowFrame& fb = *window[i + m];
       const double ta = fa.input.stamp_s, tb = fb.input.stamp_s;
+      // The forces averaged with the kernel of v_b - v_a (AccelTerm).
+      const auto kernel = [&fa, &fb](double t) {
+        return ChordFractionBefore(fa, t) - ChordFractionBefore(fb, t);
+      };
       auto* acc = new gravity::AccelTerm;
-      acc->forward = SegmentsOf(window, in.stamp_s, tb, true);
-      acc->backward = SegmentsOf(window, ta, in.stamp_s, false);
+      acc->forward = SegmentsOf(window, in.stamp_s, std::max(tb, fb.chord_to_s), true, kernel);
+      acc->backward = SegmentsOf(window, std::min(ta, fa.chord_from_s), in.stamp_s, false, kernel);
       acc->R_body_imu = R_body_imu;
       acc->Preintegrate(bg_now);
-      acc->span_s = tb - ta;
+      acc->span_s = 0.5 * (fb.chord_from_s + fb.chord_to_s - fa.chord_from_s - fa.chord_to_s);
       acc->gravity_mps2 = c.gravity_mps2;
       const Eigen::Matrix3d R_level_world =
           Eigen::AngleAxisd(-in.odometry_xy_yaw.z(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
@@ -251,19 +272,17 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
       if (fa.input.velocity_world_mps && fb.input.velocity_world_mps) {
         acc->vertical_from_pitch = false;
       } else {
-        const double dt = acc->span_s / (2.0 * m);
+        const double dt = (tb - ta) / (2.0 * m);
         odometry_part = c.odometry_sigma_m / (dt * acc->span_s);
       }
-      int count = 0;
-      for (const ImuSegment& s : acc->forward) count += s.use_force ? 1 : 0;
-      for (const ImuSegment& s : acc->backward) count += s.use_force ? 1 : 0;
-      if (count > 0) {
-        acc->sigma_mps2 = std::sqrt(c.accel_sigma_mps2 * c.accel_sigma_mps2 / count +
-                                    c.motion_sigma_mps2 * c.motion_sigma_mps2 +
-                                    odometry_part * odometry_part);
-        add(new ceres::AutoDiffCostFunction<gravity::AccelTerm, 3, 3, 3, 3, 3, 3>(acc),
-            new ceres::HuberLoss(c.accel_huber), {fa.rpy, f.rpy, fb.rpy, ba_, bg_}, Kind::kAccel,
-            i);
+      const double samples = acc->effective_samples();
+      if (samples > 0.0 && acc->span_s > 0.0) {
+        acc->sigma_mps2 =
+            std::sqrt(c.accel_sigma_mps2 * c.accel_sigma_mps2 / samples +
+                      c.motion_sigma_mps2 * c.motion_sigma_mps2 + odometry_part * odometry_part);
+        add(new ceres::AutoDiffCostFunction<gravity::AccelTerm, 3, 3, 3, 3, 3, 3, 1>(acc),
+            new ceres::HuberLoss(c.accel_huber), {fa.rpy, f.rpy, fb.rpy, ba_, bg_, scale_},
+            Kind::kAccel, i);
       } else {
         delete acc;
       }
@@ -327,7 +346,8 @@ void GravityEstimator::State::Marginalise() {
     double* block = order[b];
     const bool fixed = (block == ba && !config.estimate_accel_bias) ||
                        (block == bg && !config.estimate_gyro_bias) ||
-                       (block == mount && !config.estimate_mount);
+                       (block == mount && !config.estimate_mount) ||
+                       (block == scale && !config.estimate_odometry_scale);
     if (fixed) continue;
     prior.blocks.push_back(block);
     prior.sizes.push_back(size_of[block]);
@@ -407,6 +427,7 @@ Status GravityEstimatorConfig::Validate() const {
                   {"accel_bias_sigma_mps2", accel_bias_sigma_mps2},
                   {"gyro_bias_sigma_radps", gyro_bias_sigma_radps},
                   {"mount_sigma_rad", mount_sigma_rad},
+                  {"odometry_scale_sigma", odometry_scale_sigma},
                   {"observable_ratio", observable_ratio}};
   for (const auto& p : positive) {
     if (!(std::isfinite(p.value) && p.value > 0.0)) {
@@ -427,16 +448,17 @@ bool GravityEstimate::Degenerate(GravityDegeneracy::State state) const {
 
 std::string GravityEstimate::BriefReport() const {
   char line[512];
-  std::snprintf(
-      line, sizeof(line),
-      "roll %.3f pitch %.3f deg (sigma %.3f %.3f), ba (%.3f %.3f %.3f) m/s^2, "
-      "mount (%.3f %.3f) deg; cues: %d accel (%d out), %d gyro, %d verticals (%d out), "
-      "%d priors; %d iterations, cost %.3g -> %.3g",
-      roll_rad / kDegToRad, pitch_rad / kDegToRad, std::sqrt(attitude_covariance(0, 0)) / kDegToRad,
-      std::sqrt(attitude_covariance(1, 1)) / kDegToRad, accel_bias_mps2.x(), accel_bias_mps2.y(),
-      accel_bias_mps2.z(), mount_rad.x() / kDegToRad, mount_rad.y() / kDegToRad, cues.accel_terms,
-      cues.accel_outliers, cues.gyro_terms, cues.verticals, cues.vertical_outliers,
-      cues.attitude_priors, iterations, initial_cost, final_cost);
+  std::snprintf(line, sizeof(line),
+                "roll %.3f pitch %.3f deg (sigma %.3f %.3f), ba (%.3f %.3f %.3f) m/s^2, "
+                "mount (%.3f %.3f) deg, odometry scale %+.2f%%; cues: %d accel (%d out), %d gyro, "
+                "%d verticals (%d out), %d priors; %d iterations, cost %.3g -> %.3g",
+                roll_rad / kDegToRad, pitch_rad / kDegToRad,
+                std::sqrt(attitude_covariance(0, 0)) / kDegToRad,
+                std::sqrt(attitude_covariance(1, 1)) / kDegToRad, accel_bias_mps2.x(),
+                accel_bias_mps2.y(), accel_bias_mps2.z(), mount_rad.x() / kDegToRad,
+                mount_rad.y() / kDegToRad, 100.0 * odometry_scale, cues.accel_terms,
+                cues.accel_outliers, cues.gyro_terms, cues.verticals, cues.vertical_outliers,
+                cues.attitude_priors, iterations, initial_cost, final_cost);
   std::string out = line;
   for (const GravityDegeneracy& d : degeneracies) out += "; not observable: " + d.reason;
   return out;
@@ -477,6 +499,11 @@ Expected<GravityEstimator> GravityEstimator::Create(const GravityEstimatorConfig
     prior.blocks.push_back(state->mount);
     prior.sizes.push_back(2);
     info.insert(info.end(), 2, 1.0 / config.mount_sigma_rad);
+  }
+  if (config.estimate_odometry_scale) {
+    prior.blocks.push_back(state->scale);
+    prior.sizes.push_back(1);
+    info.push_back(1.0 / config.odometry_scale_sigma);
   }
   if (!info.empty()) {
     const int n = static_cast<int>(info.size());
@@ -584,7 +611,10 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
   st.heading_max = std::max(st.heading_max, st.heading_unwrapped);
   st.verticals_seen += static_cast<int>(frame.verticals.size());
 
-  if (frame.velocity_world_mps) wf->velocity = *frame.velocity_world_mps;
+  if (frame.velocity_world_mps) {
+    wf->velocity = *frame.velocity_world_mps;
+    wf->chord_from_s = wf->chord_to_s = frame.stamp_s;
+  }
   st.window.push_back(std::move(wf));
   ++st.added;
   if (st.window.size() >= 2) {
@@ -597,6 +627,8 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
       v.head<2>() = (after.odometry_xy_yaw.head<2>() - before.odometry_xy_yaw.head<2>()) /
                     (after.stamp_s - before.stamp_s);
       middle.velocity = v;
+      middle.chord_from_s = before.stamp_s;
+      middle.chord_to_s = after.stamp_s;
     }
   }
   while (static_cast<int>(st.window.size()) > c.window_frames) st.Marginalise();
@@ -608,6 +640,12 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
   if (!c.estimate_accel_bias) problem.SetParameterBlockConstant(st.ba);
   if (!c.estimate_gyro_bias) problem.SetParameterBlockConstant(st.bg);
   if (!c.estimate_mount) problem.SetParameterBlockConstant(st.mount);
+  if (c.estimate_odometry_scale) {
+    problem.SetParameterLowerBound(st.scale, 0, -0.5);  // the terms divide by 1 + s
+    problem.SetParameterUpperBound(st.scale, 0, 0.5);
+  } else {
+    problem.SetParameterBlockConstant(st.scale);
+  }
   ceres::Solver::Options options;
   options.linear_solver_type = ceres::DENSE_QR;
   options.max_num_iterations = c.max_iterations;
@@ -626,6 +664,7 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
   est.gyro_bias_radps = Eigen::Vector3d(st.bg[0], st.bg[1], st.bg[2]);
   est.mount_rad = Eigen::Vector2d(st.mount[0], st.mount[1]);
   est.attitude_bias_rad = Eigen::Vector2d(st.prior_bias[0], st.prior_bias[1]);
+  est.odometry_scale = st.scale[0];
   const Eigen::Matrix3d R_level_body = gravity::LevelFromBody(newest.rpy);
   est.up_body = R_level_body.transpose() * Eigen::Vector3d::UnitZ();
   const Eigen::Matrix3d R_mount = gravity::RotY(st.mount[1]) * gravity::RotX(st.mount[0]);
@@ -777,7 +816,10 @@ json FrameJson(const WindowFrame& f) {
             {"verticals", verticals},
             {"ground_sigma", in.ground_height_sigma_m},
             {"samples", samples}};
-  if (f.velocity) j["velocity"] = Array(f.velocity->data(), 3);
+  if (f.velocity) {
+    j["velocity"] = Array(f.velocity->data(), 3);
+    j["chord"] = {f.chord_from_s, f.chord_to_s};
+  }
   if (in.velocity_world_mps) j["velocity_world"] = Array(in.velocity_world_mps->data(), 3);
   if (in.attitude_prior_rad) j["attitude"] = Array(in.attitude_prior_rad->data(), 2);
   if (in.ground_height_m) j["ground"] = *in.ground_height_m;
@@ -806,7 +848,14 @@ std::unique_ptr<WindowFrame> FrameFrom(const json& j) {
     sample.raw.angular_rate_radps = Eigen::Vector3d(v[5], v[6], v[7]);
     f->samples.push_back(sample);
   }
-  if (j.contains("velocity")) f->velocity = Vector3From(j.at("velocity"), "velocity");
+  if (j.contains("velocity")) {
+    f->velocity = Vector3From(j.at("velocity"), "velocity");
+    double chord[2];
+    ArrayFrom(j.at("chord"), chord, 2, "chord");
+    if (!(chord[0] <= chord[1])) throw std::runtime_error("chord: its ends are not in order");
+    f->chord_from_s = chord[0];
+    f->chord_to_s = chord[1];
+  }
   if (j.contains("velocity_world")) {
     in.velocity_world_mps = Vector3From(j.at("velocity_world"), "velocity_world");
   }
@@ -830,7 +879,8 @@ json ConfigJson(const GravityEstimatorConfig& c) {
           {"accel_warmup_spans", c.accel_warmup_spans},
           {"estimate_accel_bias", c.estimate_accel_bias},
           {"estimate_gyro_bias", c.estimate_gyro_bias},
-          {"estimate_mount", c.estimate_mount}};
+          {"estimate_mount", c.estimate_mount},
+          {"estimate_odometry_scale", c.estimate_odometry_scale}};
 }
 
 // The frame id after "rpy:" / "h:", the whole rest of the name a non-negative integer.
@@ -852,6 +902,7 @@ std::string GravityEstimator::SaveState() const {
     if (block == st.bg) return "bg";
     if (block == st.mount) return "mount";
     if (block == st.prior_bias) return "attitude_bias";
+    if (block == st.scale) return "odometry_scale";
     for (const auto& f : st.window) {
       if (block == f->rpy) return "rpy:" + std::to_string(f->id);
       if (block == f->h) return "h:" + std::to_string(f->id);
@@ -877,6 +928,7 @@ std::string GravityEstimator::SaveState() const {
                   {"bg", Array(st.bg, 3)},
                   {"mount", Array(st.mount, 2)},
                   {"attitude_bias", Array(st.prior_bias, 2)},
+                  {"odometry_scale", st.scale[0]},
                   {"added", st.added},
                   {"last_sample_stamp", Number(st.last_sample_stamp_s)},
                   {"heading", {st.heading_unwrapped, st.heading_min, st.heading_max}},
@@ -926,11 +978,13 @@ Status GravityEstimator::RestoreState(const std::string& text) {
     ArrayFrom(j.at("bg"), st.bg, 3, "bg");
     ArrayFrom(j.at("mount"), st.mount, 2, "mount");
     ArrayFrom(j.at("attitude_bias"), st.prior_bias, 2, "attitude_bias");
+    st.scale[0] = j.at("odometry_scale").get<double>();
     const auto block = [&](const std::string& name, int& size) -> double* {
       if (name == "ba") return size = 3, st.ba;
       if (name == "bg") return size = 3, st.bg;
       if (name == "mount") return size = 2, st.mount;
       if (name == "attitude_bias") return size = 2, st.prior_bias;
+      if (name == "odometry_scale") return size = 1, st.scale;
       const std::size_t colon = name.find(':');
       if (colon != std::string::npos) {
         const std::string part = name.substr(0, colon);

@@ -1,17 +1,20 @@
 // Gravity observed, not assumed: a Ceres estimator over a sliding window of frames that
 // recovers each frame's roll, pitch (and height) from cues that see gravity, with the slowly
-// varying states they need (accelerometer and gyro biases, the sensor mount's tilt).
+// varying states they need (accelerometer and gyro biases, the sensor mount's tilt, the
+// odometry's scale).
 //
 // Cues, each a residual weighted by its stated noise (gravity_terms.hpp has the formulas):
-//   - accelerometer: the specific force averaged around each frame against gravity plus the
-//     motion acceleration the odometry implies (along-track from the change of speed,
-//     lateral from speed x yaw rate, vertical from the pitch along the way) or a known
-//     velocity gives; Huber-robust (bumps);
+//   - accelerometer: the specific force averaged around each frame (with the kernel of the
+//     odometry's velocity differences) against gravity plus the motion acceleration the
+//     odometry implies (along-track from the change of speed, lateral from speed x yaw rate,
+//     vertical from the pitch along the way) or a known velocity gives; Huber-robust
+//     (bumps);
 //   - gyro: the rotation integrated between consecutive frames;
 //   - vertical structure: tall segments' axes are vertical, walls' normals horizontal
 //     (measured in the sensor frame; Cauchy-robust, because trees lean);
-//   - heights: the height step implied by the pitch over the distance driven, and an
-//     optional frame-to-map ground height; Huber-robust;
+//   - heights: the height step implied by the pitch over the distance driven (the
+//     odometry's, its scale error a slow state), and an optional frame-to-map ground
+//     height; Huber-robust;
 //   - priors: the IMU's attitude output (roll, pitch), the measured heading (yaw).
 // Frames that leave the window are marginalised into a Gaussian prior on what remains
 // (Schur complement), so the biases and the mount learned earlier are kept.
@@ -75,9 +78,14 @@ struct GravityEstimatorConfig {
   double accel_bias_sigma_mps2 = 0.1;    ///< [m/s^2]
   double gyro_bias_sigma_radps = 0.01;   ///< [rad/s]
   double mount_sigma_rad = 0.05;         ///< the mount's roll and pitch (3 deg) [rad]
+  /// The wheel odometry's distance scale error (a wheel radius off), a priori [1]: it adds
+  /// as much to every climb the height steps integrate, which the frame-to-map ground
+  /// heights then see.
+  double odometry_scale_sigma = 0.02;
   bool estimate_accel_bias = true;
   bool estimate_gyro_bias = true;
   bool estimate_mount = true;
+  bool estimate_odometry_scale = true;
   /// A slow state whose posterior sigma stays above this fraction of its prior sigma is
   /// flagged as not observable.
   double observable_ratio = 0.5;
@@ -156,6 +164,7 @@ struct GravityEstimate {
   Eigen::Matrix3d gyro_bias_covariance = Eigen::Matrix3d::Constant(NAN);
   Eigen::Vector2d attitude_bias_rad = Eigen::Vector2d::Zero();  ///< the IMU output's bias
   Eigen::Vector2d mount_rad = Eigen::Vector2d::Zero();  ///< roll, pitch of the mount's tilt
+  double odometry_scale = 0.0;                          ///< odometry distance / true distance - 1
   Eigen::Matrix2d mount_covariance = Eigen::Matrix2d::Constant(NAN);
   Eigen::Vector3d up_body = Eigen::Vector3d::UnitZ();    ///< gravity's up in the body frame
   Eigen::Vector3d up_sensor = Eigen::Vector3d::UnitZ();  ///< and in the sensor frame
