@@ -168,11 +168,11 @@ TEST(TerrainMapDrift, TheGravityEstimatorFindsAConstantImuBiasOnASlope) {
 // terrain each frame fuses is within 5 cm RMS of the true terrain under it, and the grid's
 // elevation against the truth at the same x, y is near what the odometry's horizontal
 // drift leaves with a perfect tilt (the floor: true roll, pitch and height, odometry x, y
-// and heading). What it leaves above the floor is mostly the odometry's scale error (0.7%
-// long here: 9 cm over the 12.5 m climb), which the estimator learns only in part (0.5% by
-// the end): on a climb a scale error s and a pitch error of s sin(slope) look alike to the
-// map. (The estimator before the accelerometer's kernel was matched came within 2 cm of
-// the floor by bending the pitch 0.1-0.3 deg, its accelerometer bias taking up the rest.)
+// and heading). What it leaves above the floor (2.7 cm) is mostly the odometry's scale
+// error (0.7% long on this drive: 9 cm over the 12.5 m climb), which the estimator learns
+// only in part: on a climb a scale error s and a pitch error of s sin(slope) look alike to
+// the map. (The estimator before the accelerometer's kernel was matched came within 2 cm
+// of the floor by bending the pitch 0.1-0.3 deg, its accelerometer bias taking up the rest.)
 TEST(TerrainMapDrift, OnA60mDriveWithOnePercentOdometryTheGravityEstimatorReachesTheFloor) {
   DriftRunSpec spec = Spec("uphill_tilted");
   spec.waypoints = {{0.0, 0.0}, {20.0, 1.0}, {40.0, -2.0}, {60.0, 0.0}};
@@ -197,7 +197,7 @@ TEST(TerrainMapDrift, OnA60mDriveWithOnePercentOdometryTheGravityEstimatorReache
   EXPECT_LT(MedianTiltDeg(gravity, 0.95), 0.5);
   EXPECT_LT(gravity.ground_height_rms_m, 0.05);
   EXPECT_LT(floor.ground_height_rms_m, 0.005);  // the floor's poses are true but for x, y, yaw
-  EXPECT_LT(gravity.score.elevation_rms_m, floor.score.elevation_rms_m + 0.05);
+  EXPECT_LT(gravity.score.elevation_rms_m, floor.score.elevation_rms_m + 0.035);
 }
 
 }  // namespace
