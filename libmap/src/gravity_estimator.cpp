@@ -979,6 +979,10 @@ Status GravityEstimator::RestoreState(const std::string& text) {
     ArrayFrom(j.at("mount"), st.mount, 2, "mount");
     ArrayFrom(j.at("attitude_bias"), st.prior_bias, 2, "attitude_bias");
     st.scale[0] = j.at("odometry_scale").get<double>();
+    if (!(std::abs(st.scale[0]) < 0.5)) {
+      return GravityError(
+          "state", "odometry_scale " + std::to_string(st.scale[0]) + " is outside (-0.5, 0.5)");
+    }
     const auto block = [&](const std::string& name, int& size) -> double* {
       if (name == "ba") return size = 3, st.ba;
       if (name == "bg") return size = 3, st.bg;

@@ -109,14 +109,13 @@ Eigen::Matrix<S, 3, 3> IntegrateRotation(const std::vector<ImuSegment>& segments
 
 /// The specific forces rotated into frame k's body axes, forward from t_k and backward to
 /// it: sum_j w_j dR_kj(bg) R_body_imu f_j (sum_force), sum_j w_j dR_kj(bg) (sum_rotation),
-/// over the n samples whose force is used, w_j their weights (sum_weight, and
-/// sum_weight_sq of their squares). The measured mean is (sum_force - sum_rotation
+/// over the samples whose force is used, w_j their weights (sum_weight, and sum_weight_sq
+/// of their squares). The measured mean is (sum_force - sum_rotation
 /// R_body_imu ba) / sum_weight: the accelerometer bias enters linearly.
 template <typename S>
 struct ForceSums {
   Eigen::Matrix<S, 3, 1> sum_force = Eigen::Matrix<S, 3, 1>::Zero();
   Eigen::Matrix<S, 3, 3> sum_rotation = Eigen::Matrix<S, 3, 3>::Zero();
-  int n = 0;
   double sum_weight = 0.0, sum_weight_sq = 0.0;
 };
 template <typename S>
@@ -134,7 +133,6 @@ ForceSums<S> IntegrateForces(const std::vector<ImuSegment>& forward,
     if (s.use_force) {
       out.sum_force += S(s.weight) * (R * (R_body_imu * s.force_imu).cast<S>());
       out.sum_rotation += S(s.weight) * R;
-      ++out.n;
       out.sum_weight += s.weight;
       out.sum_weight_sq += s.weight * s.weight;
     }
@@ -147,7 +145,6 @@ ForceSums<S> IntegrateForces(const std::vector<ImuSegment>& forward,
     if (s.use_force) {
       out.sum_force += S(s.weight) * (R * (R_body_imu * s.force_imu).cast<S>());
       out.sum_rotation += S(s.weight) * R;
-      ++out.n;
       out.sum_weight += s.weight;
       out.sum_weight_sq += s.weight * s.weight;
     }
@@ -239,8 +236,8 @@ struct GyroTerm {
 /// sigma_mps2 = sqrt(accel_sigma^2 sum w^2 / (sum w)^2 + motion_sigma^2 + odometry
 /// part^2); used with a robust loss.
 struct AccelTerm {
-  std::vector<ImuSegment> forward;   ///< from t_k to t_b, in time order
-  std::vector<ImuSegment> backward;  ///< from t_k back to t_a, in reverse time order
+  std::vector<ImuSegment> forward;   ///< from t_k to the kernel's end, in time order
+  std::vector<ImuSegment> backward;  ///< from t_k back to its start, in reverse time order
   Eigen::Matrix3d R_body_imu = Eigen::Matrix3d::Identity();
   Eigen::Vector3d v_minus = Eigen::Vector3d::Zero();  ///< v_a [m/s], level frame of k
   Eigen::Vector3d v_plus = Eigen::Vector3d::Zero();   ///< v_b
@@ -261,7 +258,6 @@ struct AccelTerm {
         for (int k = 0; k < 3; ++k) rotation_J_[k](i, j) = sums.sum_rotation(i, j).v[k];
       }
     }
-    n_ = sums.n;
     weight_sum_ = sums.sum_weight;
     weight_sq_sum_ = sums.sum_weight_sq;
     bg0_ = bg0;
@@ -309,7 +305,6 @@ struct AccelTerm {
   Eigen::Matrix3d rotation_J_[3] = {Eigen::Matrix3d::Zero(), Eigen::Matrix3d::Zero(),
                                     Eigen::Matrix3d::Zero()};
   Eigen::Vector3d bg0_ = Eigen::Vector3d::Zero();
-  int n_ = 0;
   double weight_sum_ = 0.0, weight_sq_sum_ = 0.0;
   bool ready_ = false;
 };

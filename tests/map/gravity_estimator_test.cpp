@@ -435,12 +435,21 @@ TEST(GravityEstimator, ABadStateIsRefusedAndChangesNothing) {
     other = state;
     other["priors"].back()["L"].erase(0);
     refused(other.dump(), "L of the wrong size");
+    other = state;
+    other["odometry_scale"] = 0.7;
+    refused(other.dump(), "an odometry scale out of its bounds");
+    other = state;
+    other.erase("odometry_scale");
+    refused(other.dump(), "no odometry scale (a state of an earlier cairn)");
+    other = state;
+    other["window"][2]["chord"] = {2.0, 1.0};
+    refused(other.dump(), "a velocity's chord backwards");
     // And the good state, restored, gives back the same text.
     ASSERT_TRUE(estimator.RestoreState(good).ok());
     EXPECT_EQ(estimator.SaveState(), good);
   };
   const DriveRun run = EstimateTurning(config, Eigen::Vector3d(0.05, -0.04, 0.02), 12.0, cues, 0);
-  EXPECT_EQ(checked, 10);
+  EXPECT_EQ(checked, 13);
   EXPECT_EQ(run.estimates.size(), 121u);
 }
 
