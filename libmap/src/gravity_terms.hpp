@@ -226,10 +226,10 @@ struct GyroTerm {
 /// each chord before t: a trapezoid from t_a- to t_b+ (a triangle when the chords meet),
 /// of integral span = mid_b - mid_a. The measured force is averaged with the same kernel,
 /// w_j = K(t_j) (for known instantaneous velocities K is 1 on [t_a, t_b]): averaged
-/// uniformly over [t_a, t_b] instead, a weave or a change of speed at the frame rate left
-/// residuals of 2.5 sigma at the true attitude on the 1.6 Hz demo drive, which the
-/// accelerometer bias then absorbed. dR_kj: the gyro-integrated rotation from t_k to
-/// sample j (backwards for the samples before t_k). The sums over the samples
+/// uniformly over [t_a, t_b] instead, a weave or a change of speed at the frame rate
+/// biased the term, and the accelerometer bias absorbed it (the test
+/// GravityEstimator.AWeaveBetweenSlowFramesIsNotTakenForATilt). dR_kj: the gyro-integrated rotation
+/// from t_k to sample j (backwards for the samples before t_k). The sums over the samples
 /// (IntegrateForces) are pre-integrated once at bg0 and moved to bg to first order (their
 /// derivatives with respect to bg), as GyroTerm's rotation; exact in ba. A span of several
 /// frames averages the odometry's displacement noise down (it enters divided by the span).

@@ -172,7 +172,7 @@ TEST(TerrainMapDrift, TheGravityEstimatorFindsAConstantImuBiasOnASlope) {
 // error (0.7% long on this drive: 9 cm over the 12.5 m climb), which the estimator learns
 // only in part: on a climb a scale error s and a pitch error of s sin(slope) look alike to
 // the map. (The estimator before the accelerometer's kernel was matched came within 2 cm
-// of the floor by bending the pitch 0.1-0.3 deg, its accelerometer bias taking up the rest.)
+// of the floor by bending the pitch, its accelerometer bias taking up the rest.)
 TEST(TerrainMapDrift, OnA60mDriveWithOnePercentOdometryTheGravityEstimatorReachesTheFloor) {
   DriftRunSpec spec = Spec("uphill_tilted");
   spec.waypoints = {{0.0, 0.0}, {20.0, 1.0}, {40.0, -2.0}, {60.0, 0.0}};

@@ -298,8 +298,8 @@ TEST(GravityEstimator, AnAccelerometerBiasIsObservedWhenTurningAndFlaggedWhenStr
 // acceleration with a trapezoid reaching a frame beyond each end of the span, and the
 // accelerometer is averaged with the same kernel. With the tilt held at the truth (a
 // reference attitude), the accelerometer bias takes whatever the term gets wrong: averaged
-// uniformly over the span instead (motion noise 0.05), it reached 0.30 m/s^2 (median 0.0055), and
-// on the demo drive the lateral residual at the true attitude reached 2.5 sigma.
+// uniformly over the span instead (motion noise 0.05), it reached 0.30 m/s^2 (median
+// 0.0055).
 TEST(GravityEstimator, AWeaveBetweenSlowFramesIsNotTakenForATilt) {
   const auto heading = [](double t) { return 0.4 * std::sin(2.0 * kPi * t / 4.0); };
   Cues cues;
