@@ -4,7 +4,9 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <thread>
+#include <type_traits>
 
 #include "cairn/od/parallel.hpp"
 
@@ -235,18 +237,108 @@ enum NodeFlag : std::uint8_t { kFull = 1, kUnified = 2 };
 
 using Node = PointTree::Node;
 
-// One worker's state over the image's pixels (flags, counts, sets) and the two trees' nodes.
-// kFull on a lower-tree node: every point has a partner; on an upper-tree node: every point
-// is raised. kUnified: every point of the node is in one set.
-class Search {
+// An array of findings. Shared by workers (kAtomic), it is read and written with relaxed
+// atomics: everything the search writes only grows (a mark is set, two sets are joined), and
+// a worker that reads a fact late does more work, never wrong work; the result is read after
+// the workers join. One worker alone keeps plain values, which the compiler keeps in
+// registers and reorders freely.
+template <class T, bool kAtomic>
+class Cells {
  public:
-  Search(const PointTree& lower, const PointTree& upper, int pixels, const PairTest& test,
-         const PairSearchOptions& options)
-      : lo_(lower), up_(upper), test_(test), unions_(options.unions),
-        parent_(options.unions ? pixels : 0), lower_(pixels, 0), raised_(pixels, 0),
-        flags_lo_(lower.nodes.size(), 0), flags_up_(upper.nodes.size(), 0) {
-    for (int i = 0; i < static_cast<int>(parent_.size()); ++i) parent_[i] = i;
+  explicit Cells(std::size_t n) : size_(n) {
+    if constexpr (kAtomic) {
+      v_ = std::make_unique<std::atomic<T>[]>(n);  // value-initialised: zeros
+    } else {
+      v_.assign(n, T{});
+    }
   }
+  std::size_t size() const { return size_; }
+  T operator[](std::size_t i) const {
+    if constexpr (kAtomic) {
+      return v_[i].load(std::memory_order_relaxed);
+    } else {
+      return v_[i];
+    }
+  }
+  void Set(std::size_t i, T value) {
+    if constexpr (kAtomic) {
+      v_[i].store(value, std::memory_order_relaxed);
+    } else {
+      v_[i] = value;
+    }
+  }
+  // Adds `bits` to element i.
+  void Add(std::size_t i, T bits) {
+    if ((operator[](i) & bits) == bits) return;
+    if constexpr (kAtomic) {
+      v_[i].fetch_or(bits, std::memory_order_relaxed);
+    } else {
+      v_[i] |= bits;
+    }
+  }
+  // Sets element i to `desired` if it is `expected`; returns whether it did.
+  bool CompareExchange(std::size_t i, T expected, T desired) {
+    if constexpr (kAtomic) {
+      return v_[i].compare_exchange_strong(expected, desired, std::memory_order_relaxed);
+    } else {
+      if (v_[i] != expected) return false;
+      v_[i] = desired;
+      return true;
+    }
+  }
+  // The values, once no worker writes any more; the cells are left empty.
+  std::vector<T> Take() {
+    if constexpr (kAtomic) {
+      std::vector<T> out(size_);
+      for (std::size_t i = 0; i < size_; ++i) out[i] = operator[](i);
+      return out;
+    } else {
+      return std::move(v_);
+    }
+  }
+
+ private:
+  std::size_t size_;
+  std::conditional_t<kAtomic, std::unique_ptr<std::atomic<T>[]>, std::vector<T>> v_;
+};
+
+// What the workers find, over the image's pixels (marks, sets) and the two trees' nodes.
+// kFull on a lower-tree node: every point has a partner; on an upper-tree node: every point
+// is raised. kUnified: every point of the node is in one set. A flag is set before the
+// worker that sets it has finished the marks or unions it stands for; until then others may
+// skip work that those will do.
+template <bool kAtomic>
+struct Findings {
+  Findings(int pixels, std::size_t lower_nodes, std::size_t upper_nodes, bool unions)
+      : parent(unions ? pixels : 0),
+        lower(pixels),
+        raised(pixels),
+        flags_lo(lower_nodes),
+        flags_up(upper_nodes) {
+    for (std::size_t i = 0; i < parent.size(); ++i) parent.Set(i, static_cast<std::int32_t>(i));
+  }
+  Cells<std::int32_t, kAtomic> parent;  ///< union-find; a parent's index is below its child's
+  Cells<std::uint8_t, kAtomic> lower, raised;
+  Cells<std::uint8_t, kAtomic> flags_lo, flags_up;
+};
+
+// One worker over the findings (shared with others when kAtomic); its own statistics.
+template <bool kAtomic>
+class Search {
+  using Flags = Cells<std::uint8_t, kAtomic>;
+
+ public:
+  Search(const PointTree& lower, const PointTree& upper, const PairTest& test,
+         const PairSearchOptions& options, Findings<kAtomic>& found)
+      : lo_(lower),
+        up_(upper),
+        test_(test),
+        unions_(options.unions),
+        parent_(found.parent),
+        lower_(found.lower),
+        raised_(found.raised),
+        flags_lo_(found.flags_lo),
+        flags_up_(found.flags_up) {}
 
   void Visit(int a, int b) {
     const Node& A = lo_.nodes[a];
@@ -273,36 +365,7 @@ class Search {
     }
   }
 
-  // Adds `other`'s findings (another worker over the same trees) to this one.
-  void Merge(Search& other) {
-    const int n = static_cast<int>(lower_.size());
-    for (int i = 0; i < n; ++i) {
-      lower_[i] |= other.lower_[i];
-      raised_[i] |= other.raised_[i];
-    }
-    if (unions_) {
-      for (int i = 0; i < n; ++i) {
-        const int root = other.Find(i);
-        if (root != i) Union(i, root);
-      }
-    }
-    stats_.pairs_tested += other.stats_.pairs_tested;
-    stats_.pairs_compatible += other.stats_.pairs_compatible;
-    stats_.node_pairs += other.stats_.node_pairs;
-    stats_.blocks_accepted += other.stats_.blocks_accepted;
-  }
-
-  PairSearchResult Result() {
-    PairSearchResult r;
-    if (unions_) {
-      r.set.resize(parent_.size());
-      for (int i = 0; i < static_cast<int>(parent_.size()); ++i) r.set[i] = Find(i);
-    }
-    r.lower = std::move(lower_);
-    r.raised = std::move(raised_);
-    r.stats = stats_;
-    return r;
-  }
+  const DetectionStats& stats() const { return stats_; }
 
  private:
   static int Size(const Node& n) { return n.end - n.begin; }
@@ -314,21 +377,26 @@ class Search {
     return Size(A) >= Size(B);
   }
 
+  // Path halving: a node is pointed to its grandparent, still one of its ancestors however
+  // the workers interleave (only roots are ever linked).
   int Find(int i) {
-    while (parent_[i] != i) {
-      parent_[i] = parent_[parent_[i]];
-      i = parent_[i];
+    for (int p = parent_[i]; p != i; p = parent_[i]) {
+      const int grand = parent_[p];
+      if (grand != p) parent_.Set(i, grand);
+      i = grand;
     }
     return i;
   }
-  // Joins the sets of i and j; returns the root of the joined set.
+  // Joins the sets of i and j; returns the root of the joined set (as it was when joined).
+  // The larger root is linked under the smaller, and only while it is still a root.
   int Union(int i, int j) {
-    i = Find(i);
-    j = Find(j);
-    if (i == j) return i;
-    if (i < j) std::swap(i, j);
-    parent_[i] = j;
-    return j;
+    for (;;) {
+      i = Find(i);
+      j = Find(j);
+      if (i == j) return i;
+      if (i < j) std::swap(i, j);
+      if (parent_.CompareExchange(i, i, j)) return j;
+    }
   }
 
   bool Settled(int a, int b) {
@@ -373,7 +441,6 @@ class Search {
     const float* uy = up_.y.data();
     const float* uz = up_.z.data();
     const std::int32_t* upix = up_.pixel.data();
-    std::uint8_t* raised = raised_.data();
     const float hmax = test_.max_height, tan2 = test_.tan2_theta;
     const bool b_done = (flags_up_[b] & kFull) && (!unions_ || (flags_up_[b] & kUnified));
     const int b_first = upix[B.begin];
@@ -384,7 +451,7 @@ class Search {
       const Verdict v = Classify(p, p, B.lo, B.hi, test_);
       if (v == kReject) continue;
       if (v == kAccept) {
-        lower_[pi] = 1;
+        lower_.Set(pi, 1);
         stats_.pairs_compatible += Size(B);
         Mark(up_, flags_up_, b, raised_);
         if (unions_) {
@@ -403,7 +470,7 @@ class Search {
         ++stats_.pairs_compatible;
         any = true;
         const int pj = upix[j];
-        raised[pj] = 1;
+        raised_.Set(pj, 1);
         if (unions_) {
           const int rj = Find(pj);
           if (rj != root) root = Union(root, rj);
@@ -414,7 +481,7 @@ class Search {
         }
       }
       stats_.pairs_tested += j - first;
-      if (any) lower_[pi] = 1;
+      if (any) lower_.Set(pi, 1);
     }
     UpdateLeaf(lo_, flags_lo_, a, lower_);
     UpdateLeaf(up_, flags_up_, b, raised_);
@@ -422,14 +489,13 @@ class Search {
 
   // Sets kFull on a leaf when every point has `point_flag`, and then tries to see the leaf
   // as one set.
-  void UpdateLeaf(const PointTree& t, std::vector<std::uint8_t>& flags, int n,
-                  const std::vector<std::uint8_t>& point_flag) {
+  void UpdateLeaf(const PointTree& t, Flags& flags, int n, const Flags& point_flag) {
     const Node& node = t.nodes[n];
     if (!(flags[n] & kFull)) {
       for (int i = node.begin; i < node.end; ++i) {
         if (!point_flag[t.pixel[i]]) return;
       }
-      flags[n] |= kFull;
+      flags.Add(n, kFull);
       PropagateUp(t, flags, node.parent, kFull);
     }
     if (unions_ && !(flags[n] & kUnified)) {
@@ -437,13 +503,13 @@ class Search {
       for (int i = node.begin + 1; i < node.end; ++i) {
         if (Find(t.pixel[i]) != root) return;
       }
-      flags[n] |= kUnified;
+      flags.Add(n, kUnified);
       PropagateUp(t, flags, node.parent, kUnified);
     }
   }
 
   // A node gets `flag` when both children have it (kUnified: and are in one set).
-  void PropagateUp(const PointTree& t, std::vector<std::uint8_t>& flags, int n, NodeFlag flag) {
+  void PropagateUp(const PointTree& t, Flags& flags, int n, NodeFlag flag) {
     for (; n >= 0 && !(flags[n] & flag); n = t.nodes[n].parent) {
       const Node& node = t.nodes[n];
       if (!(flags[node.child[0]] & flag) || !(flags[node.child[1]] & flag)) return;
@@ -451,24 +517,22 @@ class Search {
                                   Find(t.pixel[t.nodes[node.child[1]].begin])) {
         return;
       }
-      flags[n] |= flag;
+      flags.Add(n, flag);
     }
   }
 
   // Every point of node n gets `point_flag` (lower or raised).
-  void Mark(const PointTree& t, std::vector<std::uint8_t>& flags, int n,
-            std::vector<std::uint8_t>& point_flag) {
+  void Mark(const PointTree& t, Flags& flags, int n, Flags& point_flag) {
     if (flags[n] & kFull) return;
     MarkDown(t, flags, n, point_flag);
     PropagateUp(t, flags, t.nodes[n].parent, kFull);
   }
-  void MarkDown(const PointTree& t, std::vector<std::uint8_t>& flags, int n,
-                std::vector<std::uint8_t>& point_flag) {
+  void MarkDown(const PointTree& t, Flags& flags, int n, Flags& point_flag) {
     if (flags[n] & kFull) return;
-    flags[n] |= kFull;
+    flags.Add(n, kFull);
     const Node& node = t.nodes[n];
     if (Leaf(node)) {
-      for (int i = node.begin; i < node.end; ++i) point_flag[t.pixel[i]] = 1;
+      for (int i = node.begin; i < node.end; ++i) point_flag.Set(t.pixel[i], 1);
       return;
     }
     MarkDown(t, flags, node.child[0], point_flag);
@@ -476,14 +540,14 @@ class Search {
   }
 
   // Every point of node n in one set.
-  void Unify(const PointTree& t, std::vector<std::uint8_t>& flags, int n) {
+  void Unify(const PointTree& t, Flags& flags, int n) {
     if (flags[n] & kUnified) return;
     UnifyDown(t, flags, n);
     PropagateUp(t, flags, t.nodes[n].parent, kUnified);
   }
-  void UnifyDown(const PointTree& t, std::vector<std::uint8_t>& flags, int n) {
+  void UnifyDown(const PointTree& t, Flags& flags, int n) {
     if (flags[n] & kUnified) return;
-    flags[n] |= kUnified;
+    flags.Add(n, kUnified);
     const Node& node = t.nodes[n];
     if (Leaf(node)) {
       int root = Find(t.pixel[node.begin]);
@@ -499,9 +563,11 @@ class Search {
   const PointTree& up_;
   const PairTest& test_;
   const bool unions_;
-  std::vector<std::int32_t> parent_;
-  std::vector<std::uint8_t> lower_, raised_;
-  std::vector<std::uint8_t> flags_lo_, flags_up_;
+  Cells<std::int32_t, kAtomic>& parent_;
+  Flags& lower_;
+  Flags& raised_;
+  Flags& flags_lo_;
+  Flags& flags_up_;
   DetectionStats stats_;
 };
 
@@ -510,29 +576,67 @@ struct Task {
 };
 
 // Lower nodes that split the work, each with its tree's upper root: every lower point lies
-// in exactly one, so each ordered pair is searched by exactly one task.
+// in exactly one, so each ordered pair is searched by exactly one task. The node with the
+// most points is split until there are `wanted`; the largest come first, so that the
+// workers, taking them in turn, end together.
 std::vector<Task> Tasks(const PointTree& lower, const PointTree& upper, std::size_t wanted) {
-  std::vector<Task> tasks;
+  const auto points = [&](const Task& t) {
+    const Node& n = lower.nodes[t.lower];
+    return n.end - n.begin;
+  };
+  const auto fewer = [&](const Task& a, const Task& b) { return points(a) < points(b); };
+  std::vector<Task> tasks, leaves;  // tasks: a heap by points
   for (std::size_t t = 0; t < lower.roots.size(); ++t) {
     if (lower.roots[t] >= 0 && upper.roots[t] >= 0) tasks.push_back({lower.roots[t], upper.roots[t]});
   }
-  while (tasks.size() < wanted) {
-    std::vector<Task> next;
-    bool split = false;
-    for (const Task& t : tasks) {
-      const Node& n = lower.nodes[t.lower];
-      if (n.child[0] < 0) {
-        next.push_back(t);
-      } else {
-        next.push_back({n.child[0], t.upper});
-        next.push_back({n.child[1], t.upper});
-        split = true;
-      }
+  std::make_heap(tasks.begin(), tasks.end(), fewer);
+  while (!tasks.empty() && tasks.size() + leaves.size() < wanted) {
+    std::pop_heap(tasks.begin(), tasks.end(), fewer);
+    const Task t = tasks.back();
+    tasks.pop_back();
+    const Node& n = lower.nodes[t.lower];
+    if (n.child[0] < 0) {
+      leaves.push_back(t);
+      continue;
     }
-    tasks.swap(next);
-    if (!split) break;
+    for (const std::int32_t child : n.child) {
+      tasks.push_back({child, t.upper});
+      std::push_heap(tasks.begin(), tasks.end(), fewer);
+    }
   }
+  tasks.insert(tasks.end(), leaves.begin(), leaves.end());
+  std::sort(tasks.begin(), tasks.end(),
+            [&](const Task& a, const Task& b) { return points(a) > points(b); });
   return tasks;
+}
+
+template <bool kAtomic>
+PairSearchResult Run(const PointTree& lower, const PointTree& upper, int pixels,
+                     const PairTest& test, const PairSearchOptions& options,
+                     const std::vector<Task>& tasks, int threads) {
+  Findings<kAtomic> found(pixels, lower.nodes.size(), upper.nodes.size(), options.unions);
+  std::vector<Search<kAtomic>> workers;
+  workers.reserve(threads);
+  for (int t = 0; t < threads; ++t) workers.emplace_back(lower, upper, test, options, found);
+  ParallelFor(
+      static_cast<int>(tasks.size()), threads,
+      [&](int worker, int k) { workers[worker].Visit(tasks[k].lower, tasks[k].upper); }, 1);
+  // The workers have joined: the findings are final. Each set's root is its smallest pixel,
+  // and a parent's index is below its child's, so one pass in index order finds them.
+  PairSearchResult r;
+  r.lower = found.lower.Take();
+  r.raised = found.raised.Take();
+  if (options.unions) {
+    r.set = found.parent.Take();
+    for (int i = 0; i < pixels; ++i) r.set[i] = r.set[r.set[i]];
+  }
+  for (const Search<kAtomic>& w : workers) {
+    r.stats.pairs_tested += w.stats().pairs_tested;
+    r.stats.pairs_compatible += w.stats().pairs_compatible;
+    r.stats.node_pairs += w.stats().node_pairs;
+    r.stats.blocks_accepted += w.stats().blocks_accepted;
+  }
+  return r;
 }
 
 }  // namespace
@@ -542,14 +646,9 @@ PairSearchResult SearchPairs(const PointTree& lower, const PointTree& upper, int
   const int threads = std::max(1, options.threads);
   const std::vector<Task> tasks =
       Tasks(lower, upper, threads == 1 ? 0 : 32 * static_cast<std::size_t>(threads));
-  std::vector<Search> workers;
-  workers.reserve(threads);
-  for (int t = 0; t < threads; ++t) workers.emplace_back(lower, upper, pixels, test, options);
-  ParallelFor(
-      static_cast<int>(tasks.size()), threads,
-      [&](int worker, int k) { workers[worker].Visit(tasks[k].lower, tasks[k].upper); }, 1);
-  for (int t = 1; t < threads; ++t) workers[0].Merge(workers[t]);
-  return workers[0].Result();
+  if (threads == 1 || tasks.size() == 1)
+    return Run<false>(lower, upper, pixels, test, options, tasks, 1);
+  return Run<true>(lower, upper, pixels, test, options, tasks, threads);
 }
 
 }  // namespace cairn::od::internal

@@ -18,6 +18,12 @@
 //    partner, every upper point is raised, both nodes are one segment already); else split,
 //    down to leaves, where each lower point meets the height-sorted upper points between
 //    HT and Hmax above it, one by one.
+// 4. Threads. The lower tree is cut into tasks (its largest nodes first), each searched
+//    against the whole upper tree; the workers share one set of marks, flags and sets
+//    (relaxed atomics, a lock-free union-find that links the larger root under the smaller),
+//    so that what one settles the others skip. Every fact only grows, so a worker that reads
+//    one late does more work, not wrong work, and the result does not depend on the
+//    interleaving.
 // The box bounds use the pair test's own float operations, which are monotonic in each
 // coordinate, so a rejected pair holds no compatible pair and an accepted one holds only
 // compatible pairs: the obstacle points, the raised points and the sets equal the O(N^2)
