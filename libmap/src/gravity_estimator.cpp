@@ -52,11 +52,14 @@ struct WindowFrame {
   double rpy[3] = {0.0, 0.0, 0.0};
   double h[1] = {0.0};
   std::vector<Sample> samples;  // those that arrived with it
-  // Its velocity (odometry frame, z 0) from the neighbours' odometry, once the next frame
-  // is in (central difference; one-sided at the start): the mean over the chord
-  // [chord_from_s, chord_to_s]; a known velocity as given, at its stamp (both ends).
+  // Its velocity (odometry frame, z 0) from the neighbours' odometry: the mean over the
+  // chord [chord_from_s, chord_to_s]; a central difference once the next frame is in
+  // (one-sided at the start), until then (provisional) the backward one, so that the
+  // accelerometer term ending at the newest frame is there a frame sooner; a known velocity
+  // as given, at its stamp (both ends).
   std::optional<Eigen::Vector3d> velocity;
   double chord_from_s = 0.0, chord_to_s = 0.0;
+  bool provisional = false;
 };
 
 // The fraction of a velocity's chord [from, to] that lies before t (a step at the stamp
@@ -617,18 +620,28 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
   }
   st.window.push_back(std::move(wf));
   ++st.added;
+  // The mean velocity over the odometry's chord from frame a to frame b of the window.
+  const auto chord = [&st](std::size_t a, std::size_t b, WindowFrame& to) {
+    const GravityFrame& before = st.window[a]->input;
+    const GravityFrame& after = st.window[b]->input;
+    Eigen::Vector3d v = Eigen::Vector3d::Zero();
+    v.head<2>() = (after.odometry_xy_yaw.head<2>() - before.odometry_xy_yaw.head<2>()) /
+                  (after.stamp_s - before.stamp_s);
+    to.velocity = v;
+    to.chord_from_s = before.stamp_s;
+    to.chord_to_s = after.stamp_s;
+  };
   if (st.window.size() >= 2) {
     const std::size_t j = st.window.size() - 2;
     WindowFrame& middle = *st.window[j];
-    if (!middle.velocity) {
-      const GravityFrame& before = st.window[j > 0 ? j - 1 : j]->input;
-      const GravityFrame& after = st.window[j + 1]->input;
-      Eigen::Vector3d v = Eigen::Vector3d::Zero();
-      v.head<2>() = (after.odometry_xy_yaw.head<2>() - before.odometry_xy_yaw.head<2>()) /
-                    (after.stamp_s - before.stamp_s);
-      middle.velocity = v;
-      middle.chord_from_s = before.stamp_s;
-      middle.chord_to_s = after.stamp_s;
+    if (!middle.velocity || middle.provisional) {
+      chord(j > 0 ? j - 1 : j, j + 1, middle);
+      middle.provisional = false;
+    }
+    WindowFrame& newest = *st.window.back();
+    if (!newest.velocity) {
+      chord(j, j + 1, newest);
+      newest.provisional = true;
     }
   }
   while (static_cast<int>(st.window.size()) > c.window_frames) st.Marginalise();
@@ -819,6 +832,7 @@ json FrameJson(const WindowFrame& f) {
   if (f.velocity) {
     j["velocity"] = Array(f.velocity->data(), 3);
     j["chord"] = {f.chord_from_s, f.chord_to_s};
+    if (f.provisional) j["provisional"] = true;
   }
   if (in.velocity_world_mps) j["velocity_world"] = Array(in.velocity_world_mps->data(), 3);
   if (in.attitude_prior_rad) j["attitude"] = Array(in.attitude_prior_rad->data(), 2);
@@ -855,6 +869,7 @@ std::unique_ptr<WindowFrame> FrameFrom(const json& j) {
     if (!(chord[0] <= chord[1])) throw std::runtime_error("chord: its ends are not in order");
     f->chord_from_s = chord[0];
     f->chord_to_s = chord[1];
+    f->provisional = j.value("provisional", false);
   }
   if (j.contains("velocity_world")) {
     in.velocity_world_mps = Vector3From(j.at("velocity_world"), "velocity_world");

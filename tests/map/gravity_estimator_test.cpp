@@ -264,6 +264,29 @@ TEST(GravityEstimator, RecoversAKnownTiltOnASideSlopeFromABiasedPrior) {
   EXPECT_LT(std::sqrt(last.attitude_covariance(0, 0)), 0.3 * kDegToRad);
 }
 
+// The accelerometer sees the body's up from the third frame on: the newest frame's velocity
+// is the backward difference of the odometry until the next frame brings the central one,
+// so the accelerometer term that ends at the newest frame is there when it arrives. No
+// trunks: only the accelerometer can tell the 2.5 deg bias of the attitude output from the
+// tilt. (With no velocity for the newest frame, the third frame's estimate was the biased
+// prior's: the term came a frame later.)
+TEST(GravityEstimator, TheAccelerometerSeesTheUpFromTheThirdFrame) {
+  const sim::Terrain terrain = sim::Terrain::Slope(0.0, 8.0 * kDegToRad, 90.0 * kDegToRad);
+  sim::DriveSpec spec = SideSlopeDrive(10.0);
+  spec.frame_rate_hz = 2.0;
+  Cues cues;
+  cues.trunks = false;
+  GravityEstimatorConfig config;
+  config.estimate_mount = false;
+  const DriveRun run = EstimateDrive(config, terrain, spec, sim::ImuSpec{}, cues, 0);
+  ASSERT_GE(run.body_error_deg.size(), 6u);
+  for (std::size_t k = 2; k < 6; ++k) {
+    EXPECT_GT(run.prior_error_deg[k], 2.5) << "frame " << k;
+    EXPECT_LT(run.body_error_deg[k], 0.75) << "frame " << k;  // 0.2-0.6 deg here
+    EXPECT_GE(run.estimates[k].cues.accel_terms, 1) << "frame " << k;
+  }
+}
+
 TEST(GravityEstimator, AnAccelerometerBiasIsObservedWhenTurningAndFlaggedWhenStraight) {
   const Eigen::Vector3d bias(0.08, -0.06, 0.03);
   Cues cues;
