@@ -147,7 +147,8 @@ class GravityTilt final : public TiltStep {
     Expected<TiltEstimate> fit = RefineTilt(frame.ground_points_sensor, frame.T_world_sensor_prior, patch, c);
     if (!fit) return fit.error();
     if (!fit->usable) return Error{kNoGround};
-    const Eigen::Isometry3d body = frame.T_world_sensor_prior * frame.T_body_sensor.inverse();
+    // The prior's body: its sensor sits on it by the mount as estimated (Prior()).
+    const Eigen::Isometry3d body = frame.T_world_sensor_prior * T_body_sensor_estimated_.inverse();
     return body.translation().z() + fit->dz_m;
   }
 
@@ -169,6 +170,11 @@ class GravityTilt final : public TiltStep {
         return Error{
             "tilt state (gravity): written by an earlier cairn, which replayed every "
             "frame; start the run afresh"};
+      }
+      if (!j.contains("mount_estimated")) {
+        return Error{
+            "tilt state (gravity): written by an earlier cairn, whose prior turned the sensor "
+            "rather than the body; start the run afresh"};
       }
       // Read whole before anything changes: a state that fails leaves the step as it was.
       Eigen::Isometry3d mount = Eigen::Isometry3d::Identity();

@@ -203,7 +203,8 @@ Expected<MapperRecord> Mapper::Process(od::RangeImage image,
   Clock::time_point t = Clock::now();
   // --- level: the detector measures heights along the prior's up vector; detect ---
   // The look-ahead's result when it is this frame (Expect): the prior it was levelled with
-  // is this one (the tilt step has estimated nothing since; the mount does not enter it).
+  // is this one (the tilt step has estimated nothing since; SetSensorMount does not enter
+  // it: the step keeps the mount of its first frame, and its own estimate of the tilt).
   const Eigen::Isometry3d prior = s.tilt->Prior(T_world_sensor);
   std::optional<Lookahead> ahead = std::move(s.started);
   s.started.reset();

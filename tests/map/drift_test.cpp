@@ -173,9 +173,9 @@ TEST(TerrainMapDrift, TheGravityEstimatorFindsAConstantImuBiasOnASlope) {
 // terrain each frame fuses is within 5 cm RMS of the true terrain under it (1.5 cm here),
 // and the grid's elevation against the truth at the same x, y is near what the odometry's
 // horizontal drift leaves with a perfect tilt (the floor: true roll, pitch and height,
-// odometry x, y and heading): 1 cm above it here. (Before the prior turned the body rather
-// than the sensor, the frame-to-map height saw the sensor 8 cm off sideways on the slope
-// and the map came 2.7 cm above the floor.)
+// odometry x, y and heading): 1 cm above it here. (Before the gravity step's prior turned
+// the body rather than the sensor and the newest frame had a provisional velocity, it came
+// 2.7 cm above the floor.)
 TEST(TerrainMapDrift, OnA60mDriveWithOnePercentOdometryTheGravityEstimatorReachesTheFloor) {
   DriftRunSpec spec = Spec("uphill_tilted");
   spec.waypoints = {{0.0, 0.0}, {20.0, 1.0}, {40.0, -2.0}, {60.0, 0.0}};

@@ -237,8 +237,8 @@ TEST(Mapper, FramesToldAheadGiveTheSameMapInEveryTiltMode) {
 // body (its tilt and height) with the mount as estimated: the prior of the pose just fused
 // is the pose the estimate fused it at, the sensor's position included. (Turning the sensor
 // about itself instead left the sensor 1.5 m above the body where the odometry's tilt put
-// it: 8 cm sideways with a 3 deg bias, which on a slope the frame-to-map ground height took
-// for a height error.)
+// it: 8 cm sideways for each 3 deg of tilt, which on a slope the frame-to-map ground height
+// took for a height error.)
 TEST(Mapper, TheGravityPriorPutsTheSensorWhereTheEstimateDid) {
   const std::vector<InputFrame> frames = Drive(3.0 * kDegToRad);
   ASSERT_EQ(frames.size(), 12u);
