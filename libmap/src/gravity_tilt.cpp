@@ -88,7 +88,7 @@ class GravityTilt final : public TiltStep {
     g.verticals = FindVerticalCues(frame.image, frame.detection, frame.classification,
                                    frame.image.up(), config_.verticals);
     // The frame-to-map ground height: the frame's ground points against the terrain fused
-    // so far, the prior's tilt held (RefineTilt with a tight tilt prior), give the body's
+    // so far, the prior's tilt held (RefineHeight), give the body's
     // height; it keeps the height consistent with the map, as refine_to_map does, while
     // the tilt comes from gravity. Only once vertical structure anchors the tilt: without
     // it the map, built at the earlier frames' tilts, would pull the tilt back to theirs
@@ -140,11 +140,11 @@ class GravityTilt final : public TiltStep {
   // the prior has it), or Error{kNoGround} when too few overlap it.
   Expected<double> GroundHeight(const TiltFrame& frame, const TerrainMap& map) const {
     if (frame.index == 0) return Error{kNoGround};
-    TiltRefinerConfig c = config_.refiner;
-    c.prior_sigma_rad = 1e-5;  // the tilt is the estimator's business
+    // The tilt is the estimator's business: held at the prior's.
     const ElevationPatch patch = ElevationPatchAround(
-        map, frame.T_world_sensor_prior.translation().head<2>(), c.max_range_m);
-    Expected<TiltEstimate> fit = RefineTilt(frame.ground_points_sensor, frame.T_world_sensor_prior, patch, c);
+        map, frame.T_world_sensor_prior.translation().head<2>(), config_.refiner.max_range_m);
+    Expected<TiltEstimate> fit = RefineHeight(frame.ground_points_sensor,
+                                              frame.T_world_sensor_prior, patch, config_.refiner);
     if (!fit) return fit.error();
     if (!fit->usable) return Error{kNoGround};
     // The prior's body: its sensor sits on it by the mount as estimated (Prior()).

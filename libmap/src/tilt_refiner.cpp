@@ -172,23 +172,15 @@ Status TiltRefinerConfig::Validate() const {
   return {};
 }
 
-Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_points_sensor,
-                                  const Eigen::Isometry3d& T_world_sensor_prior,
-                                  const ElevationPatch& terrain, const TiltRefinerConfig& config) {
-  if (Status s = config.Validate(); !s) return s.error();
-  TiltEstimate estimate;
-  estimate.T_world_sensor = T_world_sensor_prior;
-  if (!(terrain.resolution_m > 0.0) || terrain.z.rows() < 4 || terrain.z.cols() < 4) {
-    estimate.report = "terrain patch too small (needs 4x4 cells and a positive resolution)";
-    return estimate;
-  }
+namespace {
 
-  const FilledPatch filled(terrain.z);
-  const ceres::Grid2D<double> grid(filled.z.data(), 0, filled.rows, 0, filled.cols);
-  const Interpolator interpolator(grid);
+// Ground points in range, evenly thinned by index, over known terrain: relative to the
+// prior's sensor origin, in the world frame.
+std::vector<Eigen::Vector3d> UsedPoints(const std::vector<Eigen::Vector3f>& ground_points_sensor,
+                                        const Eigen::Isometry3d& T_world_sensor_prior,
+                                        const ElevationPatch& terrain, const FilledPatch& filled,
+                                        const TiltRefinerConfig& config) {
   const Eigen::Vector3d origin = T_world_sensor_prior.translation();
-
-  // Ground points in range, evenly thinned by index, over known terrain.
   std::vector<Eigen::Vector3d> used_rel;
   const double max_range2 = config.max_range_m * config.max_range_m;
   std::vector<int> in_range;
@@ -206,6 +198,33 @@ Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_poi
     PatchCoordinates(terrain, p.x(), p.y(), &row, &col);
     if (filled.StencilKnown(row, col)) used_rel.push_back(p - origin);
   }
+  return used_rel;
+}
+
+bool PatchUsable(const ElevationPatch& terrain, TiltEstimate& estimate) {
+  if (!(terrain.resolution_m > 0.0) || terrain.z.rows() < 4 || terrain.z.cols() < 4) {
+    estimate.report = "terrain patch too small (needs 4x4 cells and a positive resolution)";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_points_sensor,
+                                  const Eigen::Isometry3d& T_world_sensor_prior,
+                                  const ElevationPatch& terrain, const TiltRefinerConfig& config) {
+  if (Status s = config.Validate(); !s) return s.error();
+  TiltEstimate estimate;
+  estimate.T_world_sensor = T_world_sensor_prior;
+  if (!PatchUsable(terrain, estimate)) return estimate;
+
+  const FilledPatch filled(terrain.z);
+  const ceres::Grid2D<double> grid(filled.z.data(), 0, filled.rows, 0, filled.cols);
+  const Interpolator interpolator(grid);
+  const Eigen::Vector3d origin = T_world_sensor_prior.translation();
+  const std::vector<Eigen::Vector3d> used_rel =
+      UsedPoints(ground_points_sensor, T_world_sensor_prior, terrain, filled, config);
   estimate.points_used = static_cast<int>(used_rel.size());
   if (estimate.points_used < config.min_points) {
     std::ostringstream why;
@@ -265,6 +284,75 @@ Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_poi
   estimate.rms_after_m = rms(correction);
   estimate.T_world_sensor =
       ApplyTiltCorrection(T_world_sensor_prior, correction[0], correction[1], correction[2]);
+  return estimate;
+}
+
+Expected<TiltEstimate> RefineHeight(const std::vector<Eigen::Vector3f>& ground_points_sensor,
+                                    const Eigen::Isometry3d& T_world_sensor_prior,
+                                    const ElevationPatch& terrain,
+                                    const TiltRefinerConfig& config) {
+  if (Status s = config.Validate(); !s) return s.error();
+  TiltEstimate estimate;
+  estimate.T_world_sensor = T_world_sensor_prior;
+  if (!PatchUsable(terrain, estimate)) return estimate;
+  const FilledPatch filled(terrain.z);
+  const ceres::Grid2D<double> grid(filled.z.data(), 0, filled.rows, 0, filled.cols);
+  const Interpolator interpolator(grid);
+  const Eigen::Vector3d origin = T_world_sensor_prior.translation();
+  const std::vector<Eigen::Vector3d> used_rel =
+      UsedPoints(ground_points_sensor, T_world_sensor_prior, terrain, filled, config);
+  estimate.points_used = static_cast<int>(used_rel.size());
+  if (estimate.points_used < config.min_points) {
+    std::ostringstream why;
+    why << "prior kept: " << estimate.points_used << " ground points over known terrain, "
+        << config.min_points << " needed";
+    estimate.report = why.str();
+    return estimate;
+  }
+  // With the tilt held, a point's height over the terrain is a_i + dz: the Huber cost
+  // sum rho(((a_i + dz) / h)^2) + (dz / sigma_z)^2 has one unknown. Iteratively reweighted
+  // least squares (weight 1 within the Huber scale, h / |a_i + dz| beyond) descends it to
+  // its minimum.
+  std::vector<double> a(used_rel.size());
+  for (std::size_t i = 0; i < used_rel.size(); ++i) {
+    const Eigen::Vector3d p = used_rel[i] + origin;
+    double row = 0.0, col = 0.0, ground = 0.0;
+    PatchCoordinates(terrain, p.x(), p.y(), &row, &col);
+    interpolator.Evaluate(row, col, &ground);
+    a[i] = p.z() - ground;
+  }
+  const double h = config.huber_m;
+  auto rms = [&](double dz) {
+    double sum = 0.0;
+    for (const double ai : a) sum += (ai + dz) * (ai + dz);
+    return std::sqrt(sum / static_cast<double>(a.size()));
+  };
+  estimate.rms_before_m = rms(0.0);
+  // Its stationary point: dz = -sum w_i a_i / (sum w_i + h^2 / sigma_z^2).
+  const double prior = h * h / (config.prior_sigma_z_m * config.prior_sigma_z_m);
+  double dz = 0.0;
+  int iterations = 0;
+  for (; iterations < config.max_iterations; ++iterations) {
+    double num = 0.0, den = prior;
+    for (const double ai : a) {
+      const double e = std::abs(ai + dz);
+      const double w = e <= h ? 1.0 : h / e;
+      num += w * ai;
+      den += w;
+    }
+    const double next = -num / den;
+    const bool done = std::abs(next - dz) < 1e-9;
+    dz = next;
+    if (done) break;
+  }
+  estimate.usable = true;
+  estimate.dz_m = dz;
+  estimate.rms_after_m = rms(dz);
+  estimate.T_world_sensor = ApplyTiltCorrection(T_world_sensor_prior, 0.0, 0.0, dz);
+  std::ostringstream report;
+  report << "height alone (tilt held): " << iterations + 1 << " reweighting iterations, dz " << dz
+         << " m over " << a.size() << " points";
+  estimate.report = report.str();
   return estimate;
 }
 

@@ -82,4 +82,13 @@ Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_poi
                                   const Eigen::Isometry3d& T_world_sensor_prior,
                                   const ElevationPatch& terrain, const TiltRefinerConfig& config);
 
+/// RefineTilt with the tilt held at the prior's: the same ground points, terrain, Huber loss
+/// and height prior, the height correction dz the only unknown. A point's height over the
+/// terrain is then linear in dz, and the fit is solved directly (iteratively reweighted
+/// least squares on the one unknown, to 1e-9 m or config.max_iterations) instead of by
+/// Ceres over three unknowns. roll_rad and pitch_rad are 0.
+Expected<TiltEstimate> RefineHeight(const std::vector<Eigen::Vector3f>& ground_points_sensor,
+                                    const Eigen::Isometry3d& T_world_sensor_prior,
+                                    const ElevationPatch& terrain, const TiltRefinerConfig& config);
+
 }  // namespace cairn::map

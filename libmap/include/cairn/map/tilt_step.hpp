@@ -24,7 +24,7 @@
 //              attitude in the odometry pose as a prior, the vertical structure the
 //              detector found (gravity_cues.hpp), and, once vertical cues anchor the tilt,
 //              the body height at which its ground fits the terrain fused so far
-//              (RefineTilt's height with the tilt held). The
+//              (RefineHeight: RefineTilt's height with the tilt held). The
 //              frame is fused at the estimated roll, pitch, height and mount tilt, the
 //              odometry's x, y and heading.
 // Mapper::Create also takes a step of the caller's.
