@@ -332,7 +332,8 @@ Expected<TiltEstimate> RefineHeight(const std::vector<Eigen::Vector3f>& ground_p
   const double prior = h * h / (config.prior_sigma_z_m * config.prior_sigma_z_m);
   double dz = 0.0;
   int iterations = 0;
-  for (; iterations < config.max_iterations; ++iterations) {
+  while (iterations < config.max_iterations) {
+    ++iterations;
     double num = 0.0, den = prior;
     for (const double ai : a) {
       const double e = std::abs(ai + dz);
@@ -350,8 +351,8 @@ Expected<TiltEstimate> RefineHeight(const std::vector<Eigen::Vector3f>& ground_p
   estimate.rms_after_m = rms(dz);
   estimate.T_world_sensor = ApplyTiltCorrection(T_world_sensor_prior, 0.0, 0.0, dz);
   std::ostringstream report;
-  report << "height alone (tilt held): " << iterations + 1 << " reweighting iterations, dz " << dz
-         << " m over " << a.size() << " points";
+  report << "height alone (tilt held): " << iterations << " reweightings, dz " << dz << " m over "
+         << a.size() << " points";
   estimate.report = report.str();
   return estimate;
 }

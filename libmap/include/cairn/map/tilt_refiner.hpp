@@ -45,7 +45,7 @@ struct TiltRefinerConfig {
   double max_range_m = 25.0;        ///< ground points farther from the sensor are not used [m]
   int max_points = 1500;            ///< ground points sampled per frame (evenly, by index)
   int min_points = 50;              ///< fewer usable points: the prior is kept (not usable)
-  int max_iterations = 50;          ///< Ceres iterations
+  int max_iterations = 50;          ///< Ceres iterations (RefineHeight: reweightings)
 
   /// Fails naming the first field out of range.
   Status Validate() const;
@@ -61,7 +61,7 @@ struct TiltEstimate {
   double rms_before_m = 0.0;  ///< RMS height residual with the prior pose [m]
   double rms_after_m = 0.0;   ///< with the refined pose [m]
   bool usable = false;     ///< false: too few points or Ceres failed; T_world_sensor = prior
-  std::string report;      ///< Ceres' brief report, or why the prior was kept
+  std::string report;  ///< Ceres' brief report (RefineHeight: its own), or why the prior was kept
 };
 
 /// The patch of `terrain`'s fused elevation within half_size_m of `centre` (world x, y [m]),
@@ -85,8 +85,9 @@ Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_poi
 /// RefineTilt with the tilt held at the prior's: the same ground points, terrain, Huber loss
 /// and height prior, the height correction dz the only unknown. A point's height over the
 /// terrain is then linear in dz, and the fit is solved directly (iteratively reweighted
-/// least squares on the one unknown, to 1e-9 m or config.max_iterations) instead of by
-/// Ceres over three unknowns. roll_rad and pitch_rad are 0.
+/// least squares on the one unknown, until a step is under 1e-9 m or after
+/// config.max_iterations reweightings, each of which lowers the cost) instead of by Ceres
+/// over three unknowns. roll_rad and pitch_rad are 0.
 Expected<TiltEstimate> RefineHeight(const std::vector<Eigen::Vector3f>& ground_points_sensor,
                                     const Eigen::Isometry3d& T_world_sensor_prior,
                                     const ElevationPatch& terrain, const TiltRefinerConfig& config);
