@@ -174,31 +174,54 @@ Status TiltRefinerConfig::Validate() const {
 
 namespace {
 
-// Ground points in range, evenly thinned by index, over known terrain: relative to the
-// prior's sensor origin, in the world frame.
-std::vector<Eigen::Vector3d> UsedPoints(const std::vector<Eigen::Vector3f>& ground_points_sensor,
-                                        const Eigen::Isometry3d& T_world_sensor_prior,
-                                        const ElevationPatch& terrain, const FilledPatch& filled,
-                                        const TiltRefinerConfig& config) {
-  const Eigen::Vector3d origin = T_world_sensor_prior.translation();
-  std::vector<Eigen::Vector3d> used_rel;
-  const double max_range2 = config.max_range_m * config.max_range_m;
-  std::vector<int> in_range;
-  for (int i = 0; i < static_cast<int>(ground_points_sensor.size()); ++i) {
-    const Eigen::Vector3f& q = ground_points_sensor[i];
-    if (q.allFinite() && q.squaredNorm() > 0.0f && q.cast<double>().squaredNorm() <= max_range2) {
-      in_range.push_back(i);
+// What both fits start from: the patch filled for the interpolator, and the ground points in
+// range, evenly thinned by index, over known terrain (relative to the prior's sensor
+// origin, in the world frame). Built in place: the interpolator refers to the grid, the grid
+// to the filled patch.
+class FitInput {
+ public:
+  FitInput(const std::vector<Eigen::Vector3f>& ground_points_sensor,
+           const Eigen::Isometry3d& T_world_sensor_prior, const ElevationPatch& terrain,
+           const TiltRefinerConfig& config)
+      : filled(terrain.z),
+        grid(filled.z.data(), 0, filled.rows, 0, filled.cols),
+        interpolator(grid),
+        origin(T_world_sensor_prior.translation()) {
+    const double max_range2 = config.max_range_m * config.max_range_m;
+    std::vector<int> in_range;
+    for (int i = 0; i < static_cast<int>(ground_points_sensor.size()); ++i) {
+      const Eigen::Vector3f& q = ground_points_sensor[i];
+      if (q.allFinite() && q.squaredNorm() > 0.0f && q.cast<double>().squaredNorm() <= max_range2) {
+        in_range.push_back(i);
+      }
+    }
+    const std::size_t step =
+        std::max<std::size_t>(1, in_range.size() / static_cast<std::size_t>(config.max_points));
+    for (std::size_t k = 0; k < in_range.size(); k += step) {
+      const Eigen::Vector3d p =
+          T_world_sensor_prior * ground_points_sensor[in_range[k]].cast<double>();
+      double row = 0.0, col = 0.0;
+      PatchCoordinates(terrain, p.x(), p.y(), &row, &col);
+      if (filled.StencilKnown(row, col)) used_rel.push_back(p - origin);
     }
   }
-  const std::size_t step =
-      std::max<std::size_t>(1, in_range.size() / static_cast<std::size_t>(config.max_points));
-  for (std::size_t k = 0; k < in_range.size(); k += step) {
-    const Eigen::Vector3d p = T_world_sensor_prior * ground_points_sensor[in_range[k]].cast<double>();
-    double row = 0.0, col = 0.0;
-    PatchCoordinates(terrain, p.x(), p.y(), &row, &col);
-    if (filled.StencilKnown(row, col)) used_rel.push_back(p - origin);
-  }
-  return used_rel;
+  FitInput(const FitInput&) = delete;
+  FitInput& operator=(const FitInput&) = delete;
+
+  const FilledPatch filled;
+  const ceres::Grid2D<double> grid;
+  const Interpolator interpolator;
+  const Eigen::Vector3d origin;
+  std::vector<Eigen::Vector3d> used_rel;
+};
+
+// The estimate both fits start from (the prior kept), or none when the config is invalid.
+Expected<TiltEstimate> PriorKept(const Eigen::Isometry3d& T_world_sensor_prior,
+                                 const TiltRefinerConfig& config) {
+  if (Status s = config.Validate(); !s) return s.error();
+  TiltEstimate estimate;
+  estimate.T_world_sensor = T_world_sensor_prior;
+  return estimate;
 }
 
 bool PatchUsable(const ElevationPatch& terrain, TiltEstimate& estimate) {
@@ -209,30 +232,31 @@ bool PatchUsable(const ElevationPatch& terrain, TiltEstimate& estimate) {
   return true;
 }
 
+// Whether the fit has the points it needs; says why not in the estimate's report.
+bool EnoughPoints(const FitInput& input, const TiltRefinerConfig& config, TiltEstimate& estimate) {
+  estimate.points_used = static_cast<int>(input.used_rel.size());
+  if (estimate.points_used >= config.min_points) return true;
+  std::ostringstream why;
+  why << "prior kept: " << estimate.points_used << " ground points over known terrain, "
+      << config.min_points << " needed";
+  estimate.report = why.str();
+  return false;
+}
+
 }  // namespace
 
 Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_points_sensor,
                                   const Eigen::Isometry3d& T_world_sensor_prior,
                                   const ElevationPatch& terrain, const TiltRefinerConfig& config) {
-  if (Status s = config.Validate(); !s) return s.error();
-  TiltEstimate estimate;
-  estimate.T_world_sensor = T_world_sensor_prior;
+  Expected<TiltEstimate> prior_kept = PriorKept(T_world_sensor_prior, config);
+  if (!prior_kept) return prior_kept;
+  TiltEstimate& estimate = *prior_kept;
   if (!PatchUsable(terrain, estimate)) return estimate;
-
-  const FilledPatch filled(terrain.z);
-  const ceres::Grid2D<double> grid(filled.z.data(), 0, filled.rows, 0, filled.cols);
-  const Interpolator interpolator(grid);
-  const Eigen::Vector3d origin = T_world_sensor_prior.translation();
-  const std::vector<Eigen::Vector3d> used_rel =
-      UsedPoints(ground_points_sensor, T_world_sensor_prior, terrain, filled, config);
-  estimate.points_used = static_cast<int>(used_rel.size());
-  if (estimate.points_used < config.min_points) {
-    std::ostringstream why;
-    why << "prior kept: " << estimate.points_used << " ground points over known terrain, "
-        << config.min_points << " needed";
-    estimate.report = why.str();
-    return estimate;
-  }
+  const FitInput input(ground_points_sensor, T_world_sensor_prior, terrain, config);
+  if (!EnoughPoints(input, config, estimate)) return estimate;
+  const Eigen::Vector3d& origin = input.origin;
+  const Interpolator& interpolator = input.interpolator;
+  const std::vector<Eigen::Vector3d>& used_rel = input.used_rel;
 
   double correction[3] = {0.0, 0.0, 0.0};
   // The residuals, their cost functions and one Huber loss live here, in two arrays, not as
@@ -291,34 +315,23 @@ Expected<TiltEstimate> RefineHeight(const std::vector<Eigen::Vector3f>& ground_p
                                     const Eigen::Isometry3d& T_world_sensor_prior,
                                     const ElevationPatch& terrain,
                                     const TiltRefinerConfig& config) {
-  if (Status s = config.Validate(); !s) return s.error();
-  TiltEstimate estimate;
-  estimate.T_world_sensor = T_world_sensor_prior;
+  Expected<TiltEstimate> prior_kept = PriorKept(T_world_sensor_prior, config);
+  if (!prior_kept) return prior_kept;
+  TiltEstimate& estimate = *prior_kept;
   if (!PatchUsable(terrain, estimate)) return estimate;
-  const FilledPatch filled(terrain.z);
-  const ceres::Grid2D<double> grid(filled.z.data(), 0, filled.rows, 0, filled.cols);
-  const Interpolator interpolator(grid);
-  const Eigen::Vector3d origin = T_world_sensor_prior.translation();
-  const std::vector<Eigen::Vector3d> used_rel =
-      UsedPoints(ground_points_sensor, T_world_sensor_prior, terrain, filled, config);
-  estimate.points_used = static_cast<int>(used_rel.size());
-  if (estimate.points_used < config.min_points) {
-    std::ostringstream why;
-    why << "prior kept: " << estimate.points_used << " ground points over known terrain, "
-        << config.min_points << " needed";
-    estimate.report = why.str();
-    return estimate;
-  }
+  const FitInput input(ground_points_sensor, T_world_sensor_prior, terrain, config);
+  if (!EnoughPoints(input, config, estimate)) return estimate;
+  const std::vector<Eigen::Vector3d>& used_rel = input.used_rel;
   // With the tilt held, a point's height over the terrain is a_i + dz: the Huber cost
   // sum rho(((a_i + dz) / h)^2) + (dz / sigma_z)^2 has one unknown. Iteratively reweighted
   // least squares (weight 1 within the Huber scale, h / |a_i + dz| beyond) descends it to
   // its minimum.
   std::vector<double> a(used_rel.size());
   for (std::size_t i = 0; i < used_rel.size(); ++i) {
-    const Eigen::Vector3d p = used_rel[i] + origin;
+    const Eigen::Vector3d p = used_rel[i] + input.origin;
     double row = 0.0, col = 0.0, ground = 0.0;
     PatchCoordinates(terrain, p.x(), p.y(), &row, &col);
-    interpolator.Evaluate(row, col, &ground);
+    input.interpolator.Evaluate(row, col, &ground);
     a[i] = p.z() - ground;
   }
   const double h = config.huber_m;
