@@ -215,15 +215,6 @@ class FitInput {
   std::vector<Eigen::Vector3d> used_rel;
 };
 
-// The estimate both fits start from (the prior kept), or none when the config is invalid.
-Expected<TiltEstimate> PriorKept(const Eigen::Isometry3d& T_world_sensor_prior,
-                                 const TiltRefinerConfig& config) {
-  if (Status s = config.Validate(); !s) return s.error();
-  TiltEstimate estimate;
-  estimate.T_world_sensor = T_world_sensor_prior;
-  return estimate;
-}
-
 bool PatchUsable(const ElevationPatch& terrain, TiltEstimate& estimate) {
   if (!(terrain.resolution_m > 0.0) || terrain.z.rows() < 4 || terrain.z.cols() < 4) {
     estimate.report = "terrain patch too small (needs 4x4 cells and a positive resolution)";
@@ -243,24 +234,36 @@ bool EnoughPoints(const FitInput& input, const TiltRefinerConfig& config, TiltEs
   return false;
 }
 
-}  // namespace
+// The frame of both fits: the config checked, the prior kept unless the patch and the
+// points over it allow a fit, then `solve` fills in what it found.
+using Solver = void (*)(const FitInput&, const Eigen::Isometry3d&, const ElevationPatch&,
+                        const TiltRefinerConfig&, TiltEstimate&);
 
-Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_points_sensor,
-                                  const Eigen::Isometry3d& T_world_sensor_prior,
-                                  const ElevationPatch& terrain, const TiltRefinerConfig& config) {
-  Expected<TiltEstimate> prior_kept = PriorKept(T_world_sensor_prior, config);
-  if (!prior_kept) return prior_kept;
-  TiltEstimate& estimate = *prior_kept;
+Expected<TiltEstimate> Fit(const std::vector<Eigen::Vector3f>& ground_points_sensor,
+                           const Eigen::Isometry3d& T_world_sensor_prior,
+                           const ElevationPatch& terrain, const TiltRefinerConfig& config,
+                           Solver solve) {
+  if (Status s = config.Validate(); !s) return s.error();
+  TiltEstimate estimate;
+  estimate.T_world_sensor = T_world_sensor_prior;
   if (!PatchUsable(terrain, estimate)) return estimate;
   const FitInput input(ground_points_sensor, T_world_sensor_prior, terrain, config);
   if (!EnoughPoints(input, config, estimate)) return estimate;
+  solve(input, T_world_sensor_prior, terrain, config, estimate);
+  return estimate;
+}
+
+// RefineTilt's fit: Ceres over roll, pitch and height.
+void SolveTilt(const FitInput& input, const Eigen::Isometry3d& T_world_sensor_prior,
+               const ElevationPatch& terrain, const TiltRefinerConfig& config,
+               TiltEstimate& estimate) {
   const Eigen::Vector3d& origin = input.origin;
   const Interpolator& interpolator = input.interpolator;
   const std::vector<Eigen::Vector3d>& used_rel = input.used_rel;
 
   double correction[3] = {0.0, 0.0, 0.0};
-  // The residuals, their cost functions and one Huber loss live here, in two arrays, not as
-  // three allocations per point (the Problem, made after them, goes first).
+  // The residuals, their cost functions and one Huber loss live here, in two arrays,
+  // not as three allocations per point (the Problem, made after them, goes first).
   using HeightCost = ceres::AutoDiffCostFunction<HeightResidual, 1, 3>;
   std::vector<HeightResidual> residuals;
   std::vector<HeightCost> costs;
@@ -299,7 +302,7 @@ Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_poi
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
   estimate.report = summary.BriefReport();
-  if (!summary.IsSolutionUsable()) return estimate;
+  if (!summary.IsSolutionUsable()) return;
 
   estimate.usable = true;
   estimate.roll_rad = correction[0];
@@ -308,24 +311,17 @@ Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_poi
   estimate.rms_after_m = rms(correction);
   estimate.T_world_sensor =
       ApplyTiltCorrection(T_world_sensor_prior, correction[0], correction[1], correction[2]);
-  return estimate;
 }
 
-Expected<TiltEstimate> RefineHeight(const std::vector<Eigen::Vector3f>& ground_points_sensor,
-                                    const Eigen::Isometry3d& T_world_sensor_prior,
-                                    const ElevationPatch& terrain,
-                                    const TiltRefinerConfig& config) {
-  Expected<TiltEstimate> prior_kept = PriorKept(T_world_sensor_prior, config);
-  if (!prior_kept) return prior_kept;
-  TiltEstimate& estimate = *prior_kept;
-  if (!PatchUsable(terrain, estimate)) return estimate;
-  const FitInput input(ground_points_sensor, T_world_sensor_prior, terrain, config);
-  if (!EnoughPoints(input, config, estimate)) return estimate;
+// RefineHeight's fit: the height alone, the tilt held.
+void SolveHeight(const FitInput& input, const Eigen::Isometry3d& T_world_sensor_prior,
+                 const ElevationPatch& terrain, const TiltRefinerConfig& config,
+                 TiltEstimate& estimate) {
   const std::vector<Eigen::Vector3d>& used_rel = input.used_rel;
   // With the tilt held, a point's height over the terrain is a_i + dz: the Huber cost
-  // sum rho(((a_i + dz) / h)^2) + (dz / sigma_z)^2 has one unknown. Iteratively reweighted
-  // least squares (weight 1 within the Huber scale, h / |a_i + dz| beyond) descends it to
-  // its minimum.
+  // sum rho(((a_i + dz) / h)^2) + (dz / sigma_z)^2 has one unknown. Iteratively
+  // reweighted least squares (weight 1 within the Huber scale, h / |a_i + dz| beyond)
+  // descends it to its minimum.
   std::vector<double> a(used_rel.size());
   for (std::size_t i = 0; i < used_rel.size(); ++i) {
     const Eigen::Vector3d p = used_rel[i] + input.origin;
@@ -367,7 +363,21 @@ Expected<TiltEstimate> RefineHeight(const std::vector<Eigen::Vector3f>& ground_p
   report << "height alone (tilt held): " << iterations << " reweightings, dz " << dz << " m over "
          << a.size() << " points";
   estimate.report = report.str();
-  return estimate;
+}
+
+}  // namespace
+
+Expected<TiltEstimate> RefineTilt(const std::vector<Eigen::Vector3f>& ground_points_sensor,
+                                  const Eigen::Isometry3d& T_world_sensor_prior,
+                                  const ElevationPatch& terrain, const TiltRefinerConfig& config) {
+  return Fit(ground_points_sensor, T_world_sensor_prior, terrain, config, SolveTilt);
+}
+
+Expected<TiltEstimate> RefineHeight(const std::vector<Eigen::Vector3f>& ground_points_sensor,
+                                    const Eigen::Isometry3d& T_world_sensor_prior,
+                                    const ElevationPatch& terrain,
+                                    const TiltRefinerConfig& config) {
+  return Fit(ground_points_sensor, T_world_sensor_prior, terrain, config, SolveHeight);
 }
 
 ElevationPatch ElevationPatchAround(const TerrainMap& terrain, const Eigen::Vector2d& centre,
