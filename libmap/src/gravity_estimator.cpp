@@ -243,9 +243,15 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
               0.5 * (in.velocity_world_mps->z() + g.input.velocity_world_mps->z()) * (t1 - t0);
           step->sigma_m = c.height_step_sigma_m;
         } else {
-          step->distance_m =
-              (g.input.odometry_xy_yaw.head<2>() - in.odometry_xy_yaw.head<2>()).norm();
-          step->sigma_m = c.height_step_sigma_m + c.height_step_sigma_per_m * step->distance_m;
+          // The step in the mean heading of the two frames (a chord along an arc is
+          // straight ahead in it).
+          const Eigen::Vector2d d =
+              g.input.odometry_xy_yaw.head<2>() - in.odometry_xy_yaw.head<2>();
+          const double heading = in.odometry_xy_yaw.z() +
+                                 0.5 * Wrap(g.input.odometry_xy_yaw.z() - in.odometry_xy_yaw.z());
+          step->distance_m = std::cos(heading) * d.x() + std::sin(heading) * d.y();
+          step->lateral_m = -std::sin(heading) * d.x() + std::cos(heading) * d.y();
+          step->sigma_m = c.height_step_sigma_m + c.height_step_sigma_per_m * d.norm();
         }
         add(new ceres::AutoDiffCostFunction<gravity::HeightStepTerm, 1, 1, 1, 3, 3, 1>(step),
             nullptr, {f.h, g.h, f.rpy, g.rpy, scale_}, Kind::kHeightStep, i);
@@ -272,11 +278,19 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
       double odometry_part = 0.0;
       acc->v_minus = R_level_world * *fa.velocity;
       acc->v_plus = R_level_world * *fb.velocity;
+      acc->yaw_minus_rad = Wrap(fa.input.odometry_xy_yaw.z() - in.odometry_xy_yaw.z());
+      acc->yaw_plus_rad = Wrap(fb.input.odometry_xy_yaw.z() - in.odometry_xy_yaw.z());
       if (fa.input.velocity_world_mps && fb.input.velocity_world_mps) {
         acc->vertical_from_pitch = false;
       } else {
         const double dt = (tb - ta) / (2.0 * m);
-        odometry_part = c.odometry_sigma_m / (dt * acc->span_s);
+        // A frame's step: the mean over the term's frames.
+        const double step_m =
+            (fb.input.odometry_xy_yaw.head<2>() - fa.input.odometry_xy_yaw.head<2>()).norm() /
+            (2.0 * m);
+        const double sigma_m = std::sqrt(c.odometry_sigma_m * c.odometry_sigma_m +
+                                         c.odometry_walk_sigma * c.odometry_walk_sigma * step_m);
+        odometry_part = sigma_m / (dt * acc->span_s);
       }
       const double samples = acc->effective_samples();
       if (samples > 0.0 && acc->span_s > 0.0) {
@@ -409,6 +423,9 @@ Status GravityEstimatorConfig::Validate() const {
   }
   if (!(std::isfinite(odometry_sigma_m) && odometry_sigma_m >= 0.0)) {
     return GravityError("odometry_sigma_m", "must be a finite number >= 0");
+  }
+  if (!(std::isfinite(odometry_walk_sigma) && odometry_walk_sigma >= 0.0)) {
+    return GravityError("odometry_walk_sigma", "must be a finite number >= 0");
   }
   const struct {
     const char* name;

@@ -60,6 +60,17 @@ Eigen::Matrix<T, 3, 3> LevelFromBody(const T* rpy) {
   return RotY(rpy[1]) * RotX(rpy[0]);
 }
 
+/// The rise of a step (dx, dy) on the plane that a ground vehicle's wheels stand on, given
+/// in the level frame of the vehicle's own heading (x forward, y left) and its roll and
+/// pitch: the plane's normal is R_level_body e_z = (sin p cos r, -sin r, cos p cos r), so
+///   dz = -(n_x dx + n_y dy) / n_z = -dx tan(p) + dy tan(r) / cos(p).
+/// Along the nose (dy = 0) it is -dx tan(p); a step to the side (a slip, a chord across a
+/// corner) rises by the roll.
+template <typename T>
+T RiseOnWheelPlane(const T* rpy, const T& dx, const T& dy) {
+  return -dx * tan(rpy[1]) + dy * tan(rpy[0]) / cos(rpy[1]);
+}
+
 template <typename T>
 Eigen::Matrix<T, 3, 3> Exp(const Eigen::Matrix<T, 3, 1>& w) {
   Eigen::Matrix<T, 3, 3> R;
@@ -219,10 +230,10 @@ struct GyroTerm {
 /// measured heading): horizontal parts given (odometry displacements, so along-track
 /// changes of speed and the lateral speed x yaw rate both appear; divided by 1 + s, the
 /// odometry's scale), vertical parts given too (a known velocity, which s leaves alone),
-/// or, for a ground vehicle whose velocity lies along its nose, -|v_xy| tan(pitch) of
-/// frames a and b. A velocity from the odometry is the mean over a
-/// chord [t-, t+] (the displacement between the neighbouring frames over their time), so
-/// v_b - v_a is the acceleration weighted by K(t) = F_a(t) - F_b(t), F the fraction of
+/// or, for a ground vehicle, the rise of v_xy on the plane of its wheels at frames a and b
+/// (RiseOnWheelPlane, with v_xy turned into each one's own heading). A velocity from the odometry
+/// is the mean over a chord [t-, t+] (the displacement between the neighbouring frames over their
+/// time), so v_b - v_a is the acceleration weighted by K(t) = F_a(t) - F_b(t), F the fraction of
 /// each chord before t: a trapezoid from t_a- to t_b+ (a triangle when the chords meet),
 /// of integral span = mid_b - mid_a. The measured force is averaged with the same kernel,
 /// w_j = K(t_j) (for known instantaneous velocities K is 1 on [t_a, t_b]): averaged
@@ -241,7 +252,10 @@ struct AccelTerm {
   Eigen::Matrix3d R_body_imu = Eigen::Matrix3d::Identity();
   Eigen::Vector3d v_minus = Eigen::Vector3d::Zero();  ///< v_a [m/s], level frame of k
   Eigen::Vector3d v_plus = Eigen::Vector3d::Zero();   ///< v_b
-  bool vertical_from_pitch = true;  ///< v.z from the pitch (ground vehicle) or as given
+  bool vertical_from_pitch = true;  ///< v.z from the wheels' plane (ground vehicle) or as given
+  /// The measured headings of frames a and b less frame k's [rad]: v_a, v_b turned into
+  /// a's and b's own heading.
+  double yaw_minus_rad = 0.0, yaw_plus_rad = 0.0;
   double span_s = 0.1;              ///< integral of the kernel [s]
   double gravity_mps2 = 9.80665;
   double sigma_mps2 = 0.05;
@@ -289,8 +303,8 @@ struct AccelTerm {
       const T inv = T(1.0) / (T(1.0) + scale[0]);
       vm.template head<2>() *= inv;
       vp.template head<2>() *= inv;
-      vm[2] = -T(v_minus.head<2>().norm()) * inv * tan(rpy_prev[1]);
-      vp[2] = -T(v_plus.head<2>().norm()) * inv * tan(rpy_next[1]);
+      vm[2] = RiseInOwnHeading(rpy_prev, yaw_minus_rad, vm);
+      vp[2] = RiseInOwnHeading(rpy_next, yaw_plus_rad, vp);
     }
     const V3 accel_level = (vp - vm) / T(span_s) + V3(T(0.0), T(0.0), T(gravity_mps2));
     const V3 expected = LevelFromBody(rpy_k).transpose() * accel_level;
@@ -299,6 +313,13 @@ struct AccelTerm {
   }
 
  private:
+  // v (frame k's level frame) climbing the wheels' plane of a frame heading yaw from k's.
+  template <typename T>
+  static T RiseInOwnHeading(const T* rpy, double yaw, const Eigen::Matrix<T, 3, 1>& v) {
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    return RiseOnWheelPlane(rpy, T(c) * v[0] + T(s) * v[1], T(-s) * v[0] + T(c) * v[1]);
+  }
+
   Eigen::Vector3d force0_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d force_J_ = Eigen::Matrix3d::Zero();  // column k: d sum_force / d bg_k
   Eigen::Matrix3d rotation0_ = Eigen::Matrix3d::Zero();
@@ -368,21 +389,24 @@ struct VerticalTerm {
 
 /// Height between consecutive frames:
 ///   r = (h_k+1 - h_k - dh) / sigma_m                                       [1, m / m]
-/// dh = -d / (1 + s) tan((pitch_k + pitch_k+1) / 2) for a ground vehicle whose odometry
-/// measured d metres (planar) along its nose, s its scale error; or the known vertical
-/// displacement. (An odometry 1% long adds 1% to every climb: 13 cm over the 60 m uphill
-/// drive, as much as a 0.12 deg pitch error, unless s is estimated.)
+/// dh = RiseOnWheelPlane(mean roll and pitch of k and k+1, d / (1 + s)) for a ground
+/// vehicle whose odometry measured the planar step d = (forward, left) in the mean heading
+/// of k and k+1, s its scale error (-|d| / (1 + s) tan(mean pitch) along the nose); or the
+/// known vertical displacement. (An odometry 1% long adds 1% to every climb: 13 cm over the 60 m
+/// uphill drive, as much as a 0.12 deg pitch error, unless s is estimated.)
 struct HeightStepTerm {
-  double distance_m = 0.0;
+  double distance_m = 0.0;  ///< the step forward, in the mean heading [m]
+  double lateral_m = 0.0;   ///< and to the left [m]
   bool from_pitch = true;
   double known_dh_m = 0.0;
   double sigma_m = 0.02;
   template <typename T>
   bool operator()(const T* h_k, const T* h_k1, const T* rpy_k, const T* rpy_k1, const T* scale,
                   T* residual) const {
-    const T dh = from_pitch
-                     ? -T(distance_m) / (T(1.0) + scale[0]) * tan((rpy_k[1] + rpy_k1[1]) * T(0.5))
-                     : T(known_dh_m);
+    const T mean[2] = {(rpy_k[0] + rpy_k1[0]) * T(0.5), (rpy_k[1] + rpy_k1[1]) * T(0.5)};
+    const T inv = T(1.0) / (T(1.0) + scale[0]);
+    const T dh = from_pitch ? RiseOnWheelPlane(mean, T(distance_m) * inv, T(lateral_m) * inv)
+                            : T(known_dh_m);
     residual[0] = (h_k1[0] - h_k[0] - dh) / T(sigma_m);
     return true;
   }

@@ -264,6 +264,28 @@ TEST(GravityEstimator, RecoversAKnownTiltOnASideSlopeFromABiasedPrior) {
   EXPECT_LT(std::sqrt(last.attitude_covariance(0, 0)), 0.3 * kDegToRad);
 }
 
+// A wheel odometry that drifts 3 % of the distance (its random walk 3 cm a metre) reads
+// the speed 3 cm/s off on each 1 m step, and its accelerometer term's motion as much as
+// 0.1 m/s^2 off: 0.6 deg of tilt. Stated (odometry_walk_sigma), the terms weigh as little
+// as that noise says, and the trunks and the gyro hold the tilt.
+TEST(GravityEstimator, AnOdometryRandomWalkStatedAsSuchDoesNotTiltTheEstimate) {
+  const sim::Terrain terrain = sim::Terrain::Slope(0.0, 8.0 * kDegToRad, 90.0 * kDegToRad);
+  sim::DriveSpec spec = SideSlopeDrive(60.0);
+  spec.frame_rate_hz = 2.0;
+  spec.speed_wave_mps = 0.5;
+  spec.odom_sigma_per_m = 0.03;
+  GravityEstimatorConfig config;
+  config.estimate_mount = false;
+  const DriveRun unstated = EstimateDrive(config, terrain, spec, sim::ImuSpec{}, Cues{}, 4);
+  config.odometry_walk_sigma = 0.03;
+  const DriveRun stated = EstimateDrive(config, terrain, spec, sim::ImuSpec{}, Cues{}, 4);
+  Print("odometry 3 %, walk unstated, estimated body tilt", unstated.body_error_deg);
+  Print("odometry 3 %, walk stated, estimated body tilt", stated.body_error_deg);
+  EXPECT_LT(Percentile(stated.body_error_deg, 0.5), 0.2);
+  EXPECT_LT(Percentile(stated.body_error_deg, 0.95), 0.5);
+  EXPECT_LT(Percentile(stated.body_error_deg, 0.95), Percentile(unstated.body_error_deg, 0.95));
+}
+
 // The accelerometer sees the body's up from the third frame on: the newest frame's velocity
 // is the backward difference of the odometry until the next frame brings the central one,
 // so the accelerometer term that ends at the newest frame is there when it arrives. No
@@ -552,6 +574,8 @@ TEST(GravityTerms, DerivativesMatchNumericOnes) {
     acc->v_minus << 1.9, 0.1, 0.05;
     acc->v_plus << 2.1, 0.3, -0.02;
     acc->vertical_from_pitch = from_pitch;
+    acc->yaw_minus_rad = -0.08;
+    acc->yaw_plus_rad = 0.05;
     acc->Preintegrate(bg0);
     ceres::AutoDiffCostFunction<gravity::AccelTerm, 3, 3, 3, 3, 3, 3, 1> acc_cost(acc);
     ExpectDerivativesMatchNumeric(acc_cost, {rpy0, rpy1, rpy2, bias3, gyro3, {0.013}});
@@ -578,7 +602,7 @@ TEST(GravityTerms, DerivativesMatchNumericOnes) {
   }
 
   ceres::AutoDiffCostFunction<gravity::HeightStepTerm, 1, 1, 1, 3, 3, 1> step(
-      new gravity::HeightStepTerm{0.2, true, 0.0, 0.02});
+      new gravity::HeightStepTerm{0.2, -0.03, true, 0.0, 0.02});
   ExpectDerivativesMatchNumeric(step, {{0.1}, {0.12}, rpy0, rpy1, {0.013}});
 
   // The marginal prior's Jacobian is written by hand.
@@ -587,6 +611,21 @@ TEST(GravityTerms, DerivativesMatchNumericOnes) {
   gravity::LinearPrior linear(L, Eigen::Vector4d(0.1, 0.2, 0.3, 0.4),
                               Eigen::Vector4d(0.01, 0.0, -0.02, 0.0), {2, 2});
   ExpectDerivativesMatchNumeric(linear, {{0.5, 0.1}, {-0.2, 0.7}});
+}
+
+// A step on the plane of the wheels, written in the body frame as (u, v, 0) and turned into
+// the world: its horizontal part, in the vehicle's heading, rises by its vertical part.
+TEST(GravityTerms, AStepOnTheWheelsPlaneRisesAsTheBodysAttitudeSays) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> angle(-0.3, 0.3), step(-1.5, 1.5), yaw(-kPi, kPi);
+  for (int i = 0; i < 200; ++i) {
+    const double rpy[3] = {angle(rng), angle(rng), yaw(rng)};
+    const Eigen::Matrix3d R = sim::RotationFromAttitude({rpy[0], rpy[1], rpy[2]});
+    const Eigen::Vector3d world = R * Eigen::Vector3d(step(rng), step(rng), 0.0);
+    // The horizontal part in the level frame of the heading (x forward, y left).
+    const Eigen::Vector2d level = Eigen::Rotation2Dd(-rpy[2]).toRotationMatrix() * world.head<2>();
+    EXPECT_NEAR(gravity::RiseOnWheelPlane(rpy, level.x(), level.y()), world.z(), 1e-12);
+  }
 }
 
 // The IMU terms are pre-integrated at one gyro bias and moved to another to first order:
@@ -663,13 +702,18 @@ TEST(GravityTerms, PreintegratedTermsMatchTheSamplesIntegratedAtTheBias) {
       R = R * exp(-w * s.before_s);
     }
     // Expected: R_level_body^T ((v_b - v_a) / span + g e_z), the odometry's velocities
-    // divided by 1 + scale, the vertical speeds from the pitches of the span's ends (the
-    // term's defaults: span 0.1 s, sigma 0.05 m/s^2).
+    // divided by 1 + scale, the vertical speeds on the plane of the wheels at the span's
+    // ends, whose normal is their attitude's z (the term's defaults: the same heading,
+    // span 0.1 s, sigma 0.05 m/s^2).
     Eigen::Vector3d vm(1.9, 0.1, 0.05), vp(2.1, 0.3, -0.02);
     vm.head<2>() /= 1.0 + scale;
     vp.head<2>() /= 1.0 + scale;
-    vm.z() = -vm.head<2>().norm() * std::tan(rpy0[1]);
-    vp.z() = -vp.head<2>().norm() * std::tan(rpy2[1]);
+    const auto on_plane = [](const double* rpy, Eigen::Vector3d& v) {
+      const Eigen::Vector3d normal = gravity::LevelFromBody(rpy).col(2);
+      v.z() = -(normal.x() * v.x() + normal.y() * v.y()) / normal.z();
+    };
+    on_plane(rpy0, vm);
+    on_plane(rpy2, vp);
     const Eigen::Vector3d expected =
         gravity::LevelFromBody(rpy1).transpose() *
         Eigen::Vector3d((vp - vm) / 0.1 + Eigen::Vector3d(0.0, 0.0, 9.80665));

@@ -86,6 +86,9 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
                      : spec.gravity     ? map::TiltMode::kGravity
                      : spec.refine_tilt ? map::TiltMode::kRefineToMap
                                         : map::TiltMode::kPrior;
+  // The gravity estimator is told the odometry's random walk, as a user states it from the
+  // odometry's drift per metre (tilt.gravity.odometry_walk_sigma).
+  config.tilt.gravity.odometry_walk_sigma = spec.odom_sigma_per_m;
   if (spec.configure) spec.configure(config);
   // truth_tilt_height: the true pose of the frame being fused.
   const auto truth_now = std::make_shared<Eigen::Isometry3d>(Eigen::Isometry3d::Identity());
