@@ -1,6 +1,7 @@
 #include "cairn/map/mapper_config_file.hpp"
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "cairn/map/map_config_file.hpp"
@@ -16,6 +17,118 @@ using util::DoubleField;
 using util::IntField;
 using util::ReadFields;
 
+// `true` or `false` into each of `fields` present in `section` (named `name`).
+struct BoolField {
+  const char* key;
+  bool* target;
+};
+Status ReadBools(const yaml::FieldReader& reader, const YAML::Node& section,
+                 const std::string& name, const std::vector<BoolField>& fields) {
+  for (const BoolField& f : fields) {
+    const YAML::Node v = section[f.key];
+    if (!v) continue;
+    bool ok = v.IsScalar();
+    if (ok) {
+      try {
+        *f.target = v.as<bool>();
+      } catch (const YAML::Exception&) {
+        ok = false;
+      }
+    }
+    if (!ok) {
+      return reader.Fail(name + "." + f.key, "expected true or false, got " + yaml::Describe(v));
+    }
+  }
+  return {};
+}
+
+std::vector<std::string> KeysOf(const std::vector<BoolField>& fields) {
+  std::vector<std::string> keys;
+  for (const BoolField& f : fields) keys.emplace_back(f.key);
+  return keys;
+}
+
+// tilt.gravity: the estimator's stated noises, priors and switches, under its own field
+// names (units in the suffix: _rad, _radps, _mps2, _m), and the frame-to-map ground height's.
+Status ParseGravity(const yaml::FieldReader& reader, const YAML::Node& section, TiltConfig& tilt) {
+  if (!section || section.IsNull()) return {};
+  GravityEstimatorConfig& g = tilt.gravity;
+  const std::vector<DoubleField> doubles = {
+      {"gravity_mps2", &g.gravity_mps2},
+      {"accel_sigma_mps2", &g.accel_sigma_mps2},
+      {"motion_sigma_mps2", &g.motion_sigma_mps2},
+      {"odometry_sigma_m", &g.odometry_sigma_m},
+      {"odometry_walk_sigma", &g.odometry_walk_sigma},
+      {"accel_huber", &g.accel_huber},
+      {"gyro_sigma_radps", &g.gyro_sigma_radps},
+      {"rotation_floor_rad", &g.rotation_floor_rad},
+      {"attitude_prior_sigma_rad", &g.attitude_prior_sigma_rad},
+      {"attitude_bias_sigma_rad", &g.attitude_bias_sigma_rad},
+      {"yaw_sigma_rad", &g.yaw_sigma_rad},
+      {"vertical_sigma_rad", &g.vertical_sigma_rad},
+      {"vertical_cauchy", &g.vertical_cauchy},
+      {"wall_sigma_rad", &g.wall_sigma_rad},
+      {"height_step_sigma_m", &g.height_step_sigma_m},
+      {"height_step_sigma_per_m", &g.height_step_sigma_per_m},
+      {"ground_height_huber", &g.ground_height_huber},
+      {"accel_bias_sigma_mps2", &g.accel_bias_sigma_mps2},
+      {"gyro_bias_sigma_radps", &g.gyro_bias_sigma_radps},
+      {"mount_sigma_rad", &g.mount_sigma_rad},
+      {"odometry_scale_sigma", &g.odometry_scale_sigma},
+      {"observable_ratio", &g.observable_ratio},
+      {"ground_sigma_m", &tilt.gravity_ground_sigma_m}};
+  const std::vector<IntField> ints = {
+      {"window_frames", &g.window_frames, 2, 10000},
+      {"accel_half_span_frames", &g.accel_half_span_frames, 1, 10000},
+      {"accel_warmup_spans", &g.accel_warmup_spans, 0, 10000},
+      {"max_iterations", &g.max_iterations, 1, 100000000},
+      {"ground_min_verticals", &tilt.gravity_ground_min_verticals, 0, 1000000000}};
+  const std::vector<BoolField> bools = {{"estimate_accel_bias", &g.estimate_accel_bias},
+                                        {"estimate_gyro_bias", &g.estimate_gyro_bias},
+                                        {"estimate_mount", &g.estimate_mount},
+                                        {"estimate_odometry_scale", &g.estimate_odometry_scale},
+                                        {"covariance", &g.covariance}};
+  if (Status s = ReadFields(reader, section, "tilt.gravity", doubles, ints, KeysOf(bools)); !s) {
+    return s;
+  }
+  if (Status s = ReadBools(reader, section, "tilt.gravity", bools); !s) return s;
+  // Its messages name the field as "gravity.<field>: ...".
+  if (Status s = g.Validate(); !s) {
+    const std::string& m = s.message();
+    const std::size_t colon = m.find(": ");
+    if (m.rfind("gravity.", 0) == 0 && colon != std::string::npos) {
+      return reader.Fail("tilt." + m.substr(0, colon), m.substr(colon + 2));
+    }
+    return reader.Fail("tilt.gravity", m);
+  }
+  return {};
+}
+
+// tilt.verticals: which segments are vertical cues.
+Status ParseVerticals(const yaml::FieldReader& reader, const YAML::Node& section,
+                      VerticalCueConfig& v) {
+  if (!section || section.IsNull()) return {};
+  const std::vector<DoubleField> doubles = {
+      {"min_height", &v.min_height_m},   {"min_elongation", &v.min_elongation},
+      {"max_radius", &v.max_radius_m},   {"min_wall_width", &v.min_wall_width_m},
+      {"min_flatness", &v.min_flatness}, {"max_angle", &v.max_angle_rad, kDegToRad},
+      {"max_range", &v.max_range_m}};
+  const std::vector<IntField> ints = {{"min_points", &v.min_points, 3, 1000000000}};
+  const std::vector<BoolField> bools = {{"walls", &v.walls}};
+  if (Status s = ReadFields(reader, section, "tilt.verticals", doubles, ints, KeysOf(bools)); !s) {
+    return s;
+  }
+  if (Status s = ReadBools(reader, section, "tilt.verticals", bools); !s) return s;
+  // Its messages name the field as "tilt.verticals.<field>: ...".
+  if (Status s = v.Validate(); !s) {
+    const std::string& m = s.message();
+    const std::size_t colon = m.find(": ");
+    if (colon != std::string::npos) return reader.Fail(m.substr(0, colon), m.substr(colon + 2));
+    return reader.Fail("tilt.verticals", m);
+  }
+  return {};
+}
+
 Status ParseTilt(const yaml::FieldReader& reader, const YAML::Node& root, TiltConfig& tilt) {
   const YAML::Node section = root["tilt"];
   if (!section || section.IsNull()) return {};
@@ -27,9 +140,13 @@ Status ParseTilt(const yaml::FieldReader& reader, const YAML::Node& root, TiltCo
   const std::vector<IntField> ints = {{"max_points", &c.max_points, 0, 100000000},
                                       {"min_points", &c.min_points, 0, 100000000},
                                       {"max_iterations", &c.max_iterations, 0, 100000000}};
-  if (Status s = ReadFields(reader, section, "tilt", doubles, ints, {"refine", "mode"}); !s) {
+  if (Status s = ReadFields(reader, section, "tilt", doubles, ints,
+                            {"refine", "mode", "gravity", "verticals"});
+      !s) {
     return s;
   }
+  if (Status s = ParseGravity(reader, section["gravity"], tilt); !s) return s;
+  if (Status s = ParseVerticals(reader, section["verticals"], tilt.verticals); !s) return s;
   if (section["refine"] && section["mode"]) {
     return reader.Fail("tilt.refine", "give tilt.mode or tilt.refine, not both");
   }

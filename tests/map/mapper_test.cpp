@@ -414,5 +414,50 @@ TEST(MapperSettings, EverySectionOfTheFileIsReadStrictly) {
   fails_naming("tlit:\n  refine: true\n", "tlit");
 }
 
+TEST(MapperSettings, TheGravityEstimatorsNoisesAndTheVerticalCuesAreSetInTheFile) {
+  const Expected<MapperSettings> s = ParseMapperSettings(
+      "tilt:\n  mode: gravity\n  gravity:\n    window_frames: 16\n    accel_sigma_mps2: 0.05\n"
+      "    odometry_walk_sigma: 0.03\n    gyro_sigma_radps: 0.004\n"
+      "    attitude_prior_sigma_rad: 0.02\n    estimate_mount: false\n    covariance: false\n"
+      "    ground_sigma_m: 0.2\n    ground_min_verticals: 3\n"
+      "  verticals:\n    min_height: 1.5\n    max_angle: 10\n    min_points: 60\n"
+      "    walls: false\n",
+      "test.yaml");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  const TiltConfig& t = s->mapper.tilt;
+  EXPECT_EQ(t.mode, TiltMode::kGravity);
+  EXPECT_EQ(t.gravity.window_frames, 16);
+  EXPECT_DOUBLE_EQ(t.gravity.accel_sigma_mps2, 0.05);
+  EXPECT_DOUBLE_EQ(t.gravity.odometry_walk_sigma, 0.03);
+  EXPECT_DOUBLE_EQ(t.gravity.gyro_sigma_radps, 0.004);
+  EXPECT_DOUBLE_EQ(t.gravity.attitude_prior_sigma_rad, 0.02);
+  EXPECT_FALSE(t.gravity.estimate_mount);
+  EXPECT_TRUE(t.gravity.estimate_accel_bias);  // not given: the default
+  EXPECT_FALSE(t.gravity.covariance);
+  EXPECT_DOUBLE_EQ(t.gravity_ground_sigma_m, 0.2);
+  EXPECT_EQ(t.gravity_ground_min_verticals, 3);
+  EXPECT_DOUBLE_EQ(t.verticals.min_height_m, 1.5);
+  EXPECT_DOUBLE_EQ(t.verticals.max_angle_rad, 10.0 * kDegToRad);
+  EXPECT_EQ(t.verticals.min_points, 60);
+  EXPECT_FALSE(t.verticals.walls);
+  EXPECT_TRUE(ParseMapperSettings("tilt:\n  gravity:\n  verticals:\n", "empty.yaml").ok());
+  const auto fails_naming = [](const std::string& text, const std::string& field) {
+    const Expected<MapperSettings> bad = ParseMapperSettings(text, "bad.yaml");
+    ASSERT_FALSE(bad.ok()) << text;
+    EXPECT_NE(bad.error().message.find("bad.yaml: " + field), std::string::npos)
+        << bad.error().message;
+  };
+  fails_naming("tilt:\n  gravity:\n    accel_sigma: 0.05\n", "tilt.gravity.accel_sigma");
+  fails_naming("tilt:\n  gravity:\n    accel_sigma_mps2: -1\n", "tilt.gravity.accel_sigma_mps2");
+  fails_naming("tilt:\n  gravity:\n    odometry_walk_sigma: nan\n",
+               "tilt.gravity.odometry_walk_sigma");
+  fails_naming("tilt:\n  gravity:\n    estimate_mount: sometimes\n", "tilt.gravity.estimate_mount");
+  fails_naming("tilt:\n  gravity:\n    window_frames: 1\n", "tilt.gravity.window_frames");
+  fails_naming("tilt:\n  gravity: 3\n", "tilt.gravity");
+  fails_naming("tilt:\n  verticals:\n    min_height: -1\n", "tilt.verticals.min_height");
+  fails_naming("tilt:\n  verticals:\n    walls: 2\n", "tilt.verticals.walls");
+  fails_naming("tilt:\n  verticals:\n    max_radius: 0\n", "tilt.verticals.max_radius");
+}
+
 }  // namespace
 }  // namespace cairn::map

@@ -22,6 +22,7 @@
 #include "cairn/od/expected.hpp"
 #include "cairn/od/range_image.hpp"
 #include "cairn/od/rules.hpp"
+#include "cairn/od/units.hpp"
 
 namespace cairn::map {
 
@@ -32,7 +33,7 @@ struct VerticalCueConfig {
   double max_radius_m = 0.35;     ///< trunk: sqrt(l2) [m]
   double min_wall_width_m = 0.4;  ///< wall: sqrt(l2) [m]
   double min_flatness = 6.0;      ///< wall: sqrt(l2 / l3)
-  double max_angle_rad = 0.21;    ///< from the prior's vertical (12 deg) [rad]
+  double max_angle_rad = 12.0 * kDegToRad;  ///< from the prior's vertical [rad]
   double max_range_m = 25.0;      ///< segments farther (mean range) are left out [m]
   bool walls = true;              ///< use wall normals
   /// Names the first bad field ("tilt.verticals.min_height: ...").
