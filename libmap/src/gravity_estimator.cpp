@@ -283,14 +283,20 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
       if (fa.input.velocity_world_mps && fb.input.velocity_world_mps) {
         acc->vertical_from_pitch = false;
       } else {
-        const double dt = (tb - ta) / (2.0 * m);
-        // A frame's step: the mean over the term's frames.
-        const double step_m =
-            (fb.input.odometry_xy_yaw.head<2>() - fa.input.odometry_xy_yaw.head<2>()).norm() /
-            (2.0 * m);
-        const double sigma_m = std::sqrt(c.odometry_sigma_m * c.odometry_sigma_m +
-                                         c.odometry_walk_sigma * c.odometry_walk_sigma * step_m);
-        odometry_part = sigma_m / (dt * acc->span_s);
+        // Each velocity is a chord's displacement over its time T: its ends' noise
+        // (odometry_sigma_m each) and the random walk over its length L, so that its
+        // variance is (2 sigma^2 + walk^2 L) / T^2. A provisional (backward) chord is half
+        // a central one's length and twice as noisy.
+        double variance = 0.0;
+        for (const WindowFrame* e : {&fa, &fb}) {
+          const double T = e->chord_to_s - e->chord_from_s;
+          if (!(T > 0.0)) continue;  // a known velocity
+          const double L = e->velocity->head<2>().norm() * T;
+          variance += (2.0 * c.odometry_sigma_m * c.odometry_sigma_m +
+                       c.odometry_walk_sigma * c.odometry_walk_sigma * L) /
+                      (T * T);
+        }
+        odometry_part = std::sqrt(variance) / acc->span_s;
       }
       const double samples = acc->effective_samples();
       if (samples > 0.0 && acc->span_s > 0.0) {
