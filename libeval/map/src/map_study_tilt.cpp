@@ -2,8 +2,8 @@
 // frame-to-map refiner or the gravity estimator, per error source, on three worlds.
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <optional>
-#include <set>
 
 #include "cairn/od/units.hpp"
 #include "cairn/util/format.hpp"
@@ -209,7 +209,9 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
           "[m] "
           "| ground RMS [m] | cost err | lethal+ | flagged |\n"
        << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
-    std::set<std::string> flags;
+    // The states flagged at a gravity drive's end: by name, in how many drives.
+    std::map<std::string, int> flags;
+    int gravity_drives = 0;
     for (const TiltSource& source : sources) {
       for (const char* mode : kTiltModes) {
         if (std::string(mode) == "floor" && source.spec.odom_sigma_per_m == 0.0) continue;
@@ -225,7 +227,10 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
           lethal_more += o.lethal_more;
           flagged += o.degenerate_frames;
           frames += o.frames;
-          for (const std::string& f : o.last_flags) flags.insert(f.substr(0, f.find(':')));
+          if (std::string(mode) == "gravity") ++gravity_drives;
+          for (const std::string& f : o.last_flags) {
+            ++flags[f.substr(0, std::min(f.find(" ("), f.find(':')))];
+          }
           std::string last;
           for (const std::string& f : o.last_flags) last += (last.empty() ? "" : " | ") + f;
           csv << world.world << "," << source.label << "," << mode << "," << k + 1 << ","
@@ -247,13 +252,14 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
     }
     md << "\n";
     if (!flags.empty()) {
-      md << "States the estimator flagged at the end of some drive here: ";
+      md << "States the estimator flagged as not observable at the end of a drive here: ";
       bool first = true;
-      for (const std::string& f : flags) {
-        md << (first ? "" : "; ") << f;
+      for (const auto& [state, drives_flagged] : flags) {
+        md << (first ? "" : "; ") << state << " (" << drives_flagged << " of " << gravity_drives
+           << " gravity drives)";
         first = false;
       }
-      md << ".\n\n";
+      md << "; `tilt.csv` gives each drive's reasons.\n\n";
     }
   }
   return Status::Ok();
