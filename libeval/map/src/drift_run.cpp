@@ -86,9 +86,13 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
                      : spec.gravity     ? map::TiltMode::kGravity
                      : spec.refine_tilt ? map::TiltMode::kRefineToMap
                                         : map::TiltMode::kPrior;
-  // The gravity estimator is told the odometry's random walk, as a user states it from the
-  // odometry's drift per metre (tilt.gravity.odometry_walk_sigma).
+  // The gravity estimator is told the odometry's random walk and, where it is wider than the
+  // default prior, its scale error, as a user states them from the odometry's drift per
+  // metre (tilt.gravity.odometry_walk_sigma, odometry_scale_sigma; libsim draws both with
+  // odom_sigma_per_m).
   config.tilt.gravity.odometry_walk_sigma = spec.odom_sigma_per_m;
+  config.tilt.gravity.odometry_scale_sigma =
+      std::max(config.tilt.gravity.odometry_scale_sigma, spec.odom_sigma_per_m);
   if (spec.configure) spec.configure(config);
   // truth_tilt_height: the true pose of the frame being fused.
   const auto truth_now = std::make_shared<Eigen::Isometry3d>(Eigen::Isometry3d::Identity());
