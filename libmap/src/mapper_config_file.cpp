@@ -48,6 +48,16 @@ std::vector<std::string> KeysOf(const std::vector<BoolField>& fields) {
   return keys;
 }
 
+// A Validate() failure, "<path>: what", as the file's error: prefix + path names the field
+// (`section` when the message names none).
+Status FailAtField(const yaml::FieldReader& reader, const Status& failed, const std::string& prefix,
+                   const std::string& section) {
+  const std::string& m = failed.message();
+  const std::size_t colon = m.find(": ");
+  if (colon == std::string::npos) return reader.Fail(section, m);
+  return reader.Fail(prefix + m.substr(0, colon), m.substr(colon + 2));
+}
+
 // tilt.gravity: the estimator's stated noises, priors and switches, under its own field
 // names (units in the suffix: _rad, _radps, _mps2, _m), and the frame-to-map ground height's.
 Status ParseGravity(const yaml::FieldReader& reader, const YAML::Node& section, TiltConfig& tilt) {
@@ -93,14 +103,7 @@ Status ParseGravity(const yaml::FieldReader& reader, const YAML::Node& section, 
   }
   if (Status s = ReadBools(reader, section, "tilt.gravity", bools); !s) return s;
   // Its messages name the field as "gravity.<field>: ...".
-  if (Status s = g.Validate(); !s) {
-    const std::string& m = s.message();
-    const std::size_t colon = m.find(": ");
-    if (m.rfind("gravity.", 0) == 0 && colon != std::string::npos) {
-      return reader.Fail("tilt." + m.substr(0, colon), m.substr(colon + 2));
-    }
-    return reader.Fail("tilt.gravity", m);
-  }
+  if (Status s = g.Validate(); !s) return FailAtField(reader, s, "tilt.", "tilt.gravity");
   return {};
 }
 
@@ -120,12 +123,7 @@ Status ParseVerticals(const yaml::FieldReader& reader, const YAML::Node& section
   }
   if (Status s = ReadBools(reader, section, "tilt.verticals", bools); !s) return s;
   // Its messages name the field as "tilt.verticals.<field>: ...".
-  if (Status s = v.Validate(); !s) {
-    const std::string& m = s.message();
-    const std::size_t colon = m.find(": ");
-    if (colon != std::string::npos) return reader.Fail(m.substr(0, colon), m.substr(colon + 2));
-    return reader.Fail("tilt.verticals", m);
-  }
+  if (Status s = v.Validate(); !s) return FailAtField(reader, s, "", "tilt.verticals");
   return {};
 }
 
