@@ -1,5 +1,6 @@
 #include "cairn/map/mapper_config_file.hpp"
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -104,6 +105,9 @@ Status ParseGravity(const yaml::FieldReader& reader, const YAML::Node& section, 
   if (Status s = ReadBools(reader, section, "tilt.gravity", bools); !s) return s;
   // Its messages name the field as "gravity.<field>: ...".
   if (Status s = g.Validate(); !s) return FailAtField(reader, s, "tilt.", "tilt.gravity");
+  if (!(tilt.gravity_ground_sigma_m > 0.0 && std::isfinite(tilt.gravity_ground_sigma_m))) {
+    return reader.Fail("tilt.gravity.ground_sigma_m", "must be > 0 m");
+  }
   return {};
 }
 
@@ -156,16 +160,9 @@ Status ParseTilt(const yaml::FieldReader& reader, const YAML::Node& root, TiltCo
     }
     tilt.mode = *mode;
   }
-  if (const YAML::Node v = section["refine"]) {
-    bool refine = false, ok = v.IsScalar();
-    if (ok) {
-      try {
-        refine = v.as<bool>();
-      } catch (const YAML::Exception&) {
-        ok = false;
-      }
-    }
-    if (!ok) return reader.Fail("tilt.refine", "expected true or false, got " + yaml::Describe(v));
+  if (section["refine"]) {
+    bool refine = false;
+    if (Status s = ReadBools(reader, section, "tilt", {{"refine", &refine}}); !s) return s;
     tilt.mode = refine ? TiltMode::kRefineToMap : TiltMode::kPrior;
   }
   if (Status s = c.Validate(); !s) return reader.Fail("tilt", s.message());

@@ -444,10 +444,13 @@ TEST(MapperSettings, TheGravityEstimatorsNoisesAndTheVerticalCuesAreSetInTheFile
   const auto fails_naming = [](const std::string& text, const std::string& field) {
     const Expected<MapperSettings> bad = ParseMapperSettings(text, "bad.yaml");
     ASSERT_FALSE(bad.ok()) << text;
-    EXPECT_NE(bad.error().message.find("bad.yaml: " + field), std::string::npos)
+    EXPECT_NE(bad.error().message.find("bad.yaml: " + field + ":"), std::string::npos)
         << bad.error().message;
   };
   fails_naming("tilt:\n  gravity:\n    accel_sigma: 0.05\n", "tilt.gravity.accel_sigma");
+  fails_naming("tilt:\n  gravity:\n    odometry_walk_sigma: -0.01\n",
+               "tilt.gravity.odometry_walk_sigma");
+  fails_naming("tilt:\n  gravity:\n    ground_sigma_m: 0\n", "tilt.gravity.ground_sigma_m");
   fails_naming("tilt:\n  gravity:\n    accel_sigma_mps2: -1\n", "tilt.gravity.accel_sigma_mps2");
   fails_naming("tilt:\n  gravity:\n    odometry_walk_sigma: nan\n",
                "tilt.gravity.odometry_walk_sigma");
