@@ -657,6 +657,8 @@ TEST(GravityTerms, PreintegratedTermsMatchTheSamplesIntegratedAtTheBias) {
     t.R_body_imu = R_bi;
     t.v_minus << 1.9, 0.1, 0.05;
     t.v_plus << 2.1, 0.3, -0.02;
+    t.yaw_minus_rad = 0.3;  // frame a heads 0.3 rad left of frame k, frame b 0.2 right
+    t.yaw_plus_rad = -0.2;
     t.Preintegrate(at);
     Eigen::Vector3d r;
     EXPECT_TRUE(t(rpy0, rpy1, rpy2, ba, bg.data(), &scale, r.data()));
@@ -703,17 +705,18 @@ TEST(GravityTerms, PreintegratedTermsMatchTheSamplesIntegratedAtTheBias) {
     }
     // Expected: R_level_body^T ((v_b - v_a) / span + g e_z), the odometry's velocities
     // divided by 1 + scale, the vertical speeds on the plane of the wheels at the span's
-    // ends, whose normal is their attitude's z (the term's defaults: the same heading,
-    // span 0.1 s, sigma 0.05 m/s^2).
+    // ends: its normal is their attitude's z, turned by their heading from frame k's (the
+    // term's defaults: span 0.1 s, sigma 0.05 m/s^2).
     Eigen::Vector3d vm(1.9, 0.1, 0.05), vp(2.1, 0.3, -0.02);
     vm.head<2>() /= 1.0 + scale;
     vp.head<2>() /= 1.0 + scale;
-    const auto on_plane = [](const double* rpy, Eigen::Vector3d& v) {
-      const Eigen::Vector3d normal = gravity::LevelFromBody(rpy).col(2);
+    const auto on_plane = [](const double* rpy, double yaw, Eigen::Vector3d& v) {
+      const Eigen::Vector3d normal =
+          Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * gravity::LevelFromBody(rpy).col(2);
       v.z() = -(normal.x() * v.x() + normal.y() * v.y()) / normal.z();
     };
-    on_plane(rpy0, vm);
-    on_plane(rpy2, vp);
+    on_plane(rpy0, 0.3, vm);
+    on_plane(rpy2, -0.2, vp);
     const Eigen::Vector3d expected =
         gravity::LevelFromBody(rpy1).transpose() *
         Eigen::Vector3d((vp - vm) / 0.1 + Eigen::Vector3d(0.0, 0.0, 9.80665));
