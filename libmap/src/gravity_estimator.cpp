@@ -4,6 +4,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <deque>
@@ -283,18 +284,29 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
       if (fa.input.velocity_world_mps && fb.input.velocity_world_mps) {
         acc->vertical_from_pitch = false;
       } else {
-        // Each velocity is a chord's displacement over its time T: its ends' noise
-        // (odometry_sigma_m each) and the random walk over its length L, so that its
-        // variance is (2 sigma^2 + walk^2 L) / T^2. A provisional (backward) chord is half
-        // a central one's length and twice as noisy.
+        // v_b - v_a, each velocity a chord's displacement over its time T: every frame's
+        // position is off by odometry_sigma_m (white) and weighs -+1/T at a chord's ends (a
+        // frame that ends chord a and starts chord b once, with both weights); each chord's
+        // length L adds the random walk, walk^2 L / T^2. A provisional (backward) chord is
+        // half a central one's time and twice as noisy.
+        const double walk2 = c.odometry_walk_sigma * c.odometry_walk_sigma;
         double variance = 0.0;
-        for (const WindowFrame* e : {&fa, &fb}) {
+        std::array<std::pair<double, double>, 4> ends{};  // (stamp, weight)
+        int n_ends = 0;
+        for (const auto& [e, sign] : {std::pair{&fa, -1.0}, std::pair{&fb, 1.0}}) {
           const double T = e->chord_to_s - e->chord_from_s;
           if (!(T > 0.0)) continue;  // a known velocity
-          const double L = e->velocity->head<2>().norm() * T;
-          variance += (2.0 * c.odometry_sigma_m * c.odometry_sigma_m +
-                       c.odometry_walk_sigma * c.odometry_walk_sigma * L) /
-                      (T * T);
+          for (const auto& [t, w] :
+               {std::pair{e->chord_from_s, -sign / T}, std::pair{e->chord_to_s, sign / T}}) {
+            int k = 0;
+            while (k < n_ends && ends[k].first != t) ++k;
+            if (k == n_ends) ends[n_ends++] = {t, 0.0};
+            ends[k].second += w;
+          }
+          variance += walk2 * e->velocity->head<2>().norm() / T;
+        }
+        for (int k = 0; k < n_ends; ++k) {
+          variance += c.odometry_sigma_m * c.odometry_sigma_m * ends[k].second * ends[k].second;
         }
         odometry_part = std::sqrt(variance) / acc->span_s;
       }

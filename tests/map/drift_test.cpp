@@ -170,12 +170,15 @@ TEST(TerrainMapDrift, TheGravityEstimatorFindsAConstantImuBiasOnASlope) {
 }
 
 // The goal, on the 60 m uphill drive with a 2 deg IMU bias and 1% odometry: the
-// terrain each frame fuses is within 5 cm RMS of the true terrain under it (1.5 cm here),
+// terrain each frame fuses is within 5 cm RMS of the true terrain under it (2.0 cm here),
 // and the grid's elevation against the truth at the same x, y is near what the odometry's
 // horizontal drift leaves with a perfect tilt (the floor: true roll, pitch and height,
-// odometry x, y and heading): 1 cm above it here. (Before the gravity step's prior turned
+// odometry x, y and heading): 1.8 cm above it here. (Before the gravity step's prior turned
 // the body rather than the sensor and the newest frame had a provisional velocity, it came
-// 2.7 cm above the floor.)
+// 2.7 cm above the floor; 1.0 cm before the odometry's random walk was stated, which weakens
+// the accelerometer terms as much as that noise says: in datasets/maps/REPORT.md the tilt's
+// 95th percentile over the hill with 3 % odometry goes 0.59 -> 0.39 deg, the height over
+// this climb a little the other way. Hence 3 cm, not 2.)
 TEST(TerrainMapDrift, OnA60mDriveWithOnePercentOdometryTheGravityEstimatorReachesTheFloor) {
   DriftRunSpec spec = Spec("uphill_tilted");
   spec.waypoints = {{0.0, 0.0}, {20.0, 1.0}, {40.0, -2.0}, {60.0, 0.0}};
@@ -200,7 +203,7 @@ TEST(TerrainMapDrift, OnA60mDriveWithOnePercentOdometryTheGravityEstimatorReache
   EXPECT_LT(MedianTiltDeg(gravity, 0.95), 0.5);
   EXPECT_LT(gravity.ground_height_rms_m, 0.03);
   EXPECT_LT(floor.ground_height_rms_m, 0.005);  // the floor's poses are true but for x, y, yaw
-  EXPECT_LT(gravity.score.elevation_rms_m, floor.score.elevation_rms_m + 0.02);
+  EXPECT_LT(gravity.score.elevation_rms_m, floor.score.elevation_rms_m + 0.03);
 }
 
 // Over the hill (hill_drive's world: up 1.6 m and down 2.9 m in 36 m) the fused ground is

@@ -54,7 +54,7 @@ struct GravityEstimatorConfig {
   /// The accelerometer term spans this many frames on each side of its centre (m): one
   /// term per 2m frames, spans end to end (the forces' kernels reach a frame beyond each
   /// end, so neighbours share it). Longer spans average the odometry's displacement noise
-  /// down (it enters as odometry_sigma_m / (dt * span)); short ones observe the body's up
+  /// down (its noise enters divided by the span); short ones observe the body's up
   /// (not only the sensor's) sooner and more often. On the 60 m uphill drive with a 2 deg
   /// IMU bias and 1% odometry (seeds 1-3), before the kernel was matched, the fused
   /// ground's height RMS was 0.050-0.066 m with m = 3 and 0.015-0.021 m with m = 1.
@@ -64,13 +64,16 @@ struct GravityEstimatorConfig {
   /// instead of 2m + 1 (before, the first frames knew only the sensor's up from vertical
   /// cues and the height was integrated from a body pitch 1.5 deg off).
   int accel_warmup_spans = 3;
-  double odometry_sigma_m = 0.005;  ///< odometry displacement noise per frame and axis [m]
+  /// Each frame's odometry position noise, white, per axis [m] (a velocity from a chord of
+  /// time T is off by it times sqrt(2) / T).
+  double odometry_sigma_m = 0.005;
   /// The odometry's random walk [m/sqrt(m)]: a step of d metres is off by this x sqrt(d) per
-  /// axis, on top of odometry_sigma_m (a wheel odometry drifting "1 % of the distance" has
-  /// 0.01). The accelerometer term's odometry part grows with it; unstated (0), a 3 %
+  /// axis, on top of odometry_sigma_m (0.01: a 1 m step off by 1 cm; the part that grows in
+  /// proportion to the distance is odometry_scale_sigma's). The accelerometer term's
+  /// odometry part grows with it; unstated (0), a 3 %
   /// odometry's velocities pass for better than they are and tilt the estimate (in
-  /// datasets/maps/REPORT.md, the hill drive's with 3 % odometry went 0.26 / 0.59 -> 0.20 /
-  /// 0.41 deg, median / 95th percentile, with it stated).
+  /// datasets/maps/REPORT.md, the hill drive's with 3 % odometry went 0.26 / 0.59 -> 0.19 /
+  /// 0.39 deg, median / 95th percentile, with it stated).
   double odometry_walk_sigma = 0.0;
   double accel_huber = 3.0;         ///< Huber threshold of the accelerometer term [sigma]
   double gyro_sigma_radps = 0.002;  ///< gyro white noise per sample [rad/s]
