@@ -71,6 +71,10 @@ struct FrameRecord {
   double d_roll_rad = 0.0, d_pitch_rad = 0.0, dz_m = 0.0;  ///< total correction fused
   double rms_before_m = 0.0, rms_after_m = 0.0;
   int refine_points = 0;
+  /// tilt.mode gravity: the states the estimator could not observe at this frame (their
+  /// names, "; "-separated, "" for none) and the vertical cues the frame brought.
+  std::string not_observable;
+  int verticals = 0;
   double read_s = 0.0, detect_s = 0.0, refine_s = 0.0, fuse_s = 0.0;
   double rss_mb = 0.0;   ///< the process's resident memory once the frame was fused [MiB]
   double heap_mb = 0.0;  ///< of which malloc'd and not freed (ProcessMemory::heap_mb) [MiB]

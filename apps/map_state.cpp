@@ -88,6 +88,8 @@ std::string ResumeStateJson(const RunState& state) {
     CAIRN_SUMMARY_FIELDS(CAIRN_PUT)
 #undef CAIRN_PUT
     j["fused"] = fused;
+    j["not_observable"] = r.not_observable;
+    j["verticals"] = r.verticals;
     j["T_world_body"] = IsometryJson(r.T_world_body);
     j["T_world_sensor"] = IsometryJson(r.T_world_sensor);
     records.push_back(std::move(j));
@@ -139,6 +141,9 @@ Expected<RunState> ResumeStateFromJson(const std::string& text, const std::strin
 #define CAIRN_GET(f) fused.at(#f).get_to(r.fused.f);
       CAIRN_SUMMARY_FIELDS(CAIRN_GET)
 #undef CAIRN_GET
+      // Written since 2026-12-04; a checkpoint from before has none.
+      r.not_observable = rj.value("not_observable", std::string());
+      r.verticals = rj.value("verticals", 0);
       r.T_world_body = IsometryFromJson(rj.at("T_world_body"));
       r.T_world_sensor = IsometryFromJson(rj.at("T_world_sensor"));
       state.records.push_back(r);
@@ -196,6 +201,13 @@ FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecor
     r.rms_after_m = m.tilt.estimate.rms_after_m;
     r.refine_points = m.tilt.estimate.points_used;
     r.refine_s = m.tilt_s;
+    if (m.tilt.gravity) {
+      for (const map::GravityDegeneracy& d : m.tilt.gravity->degeneracies) {
+        r.not_observable +=
+            (r.not_observable.empty() ? "" : "; ") + std::string(StateName(d.state));
+      }
+      r.verticals = m.tilt.gravity->cues.frame_verticals;
+    }
   }
   r.read_s = read_s;
   r.detect_s = m.detect_s;

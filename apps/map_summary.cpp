@@ -130,7 +130,7 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
   std::ostringstream csv;
   csv << "frame,stamp_s,valid_points,segments,kept,obstacle_points,obstacles_created,"
          "lethal_cells,tilt_refined,d_roll_deg,d_pitch_deg,dz_m,rms_before_m,rms_after_m,"
-         "read_ms,detect_ms,refine_ms,fuse_ms,rss_mb,heap_mb\n";
+         "read_ms,detect_ms,refine_ms,fuse_ms,rss_mb,heap_mb,verticals,not_observable\n";
   double distance_m = 0.0;
   for (std::size_t k = 0; k < records.size(); ++k) {
     const FrameRecord& r = records[k];
@@ -147,7 +147,8 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
         << util::Fixed(r.rms_before_m, 4) << "," << util::Fixed(r.rms_after_m, 4) << ","
         << util::Fixed(r.read_s * 1e3, 1) << "," << util::Fixed(r.detect_s * 1e3, 1) << ","
         << util::Fixed(r.refine_s * 1e3, 1) << "," << util::Fixed(r.fuse_s * 1e3, 1) << ","
-        << util::Fixed(r.rss_mb, 1) << "," << util::Fixed(r.heap_mb, 1) << "\n";
+        << util::Fixed(r.rss_mb, 1) << "," << util::Fixed(r.heap_mb, 1) << "," << r.verticals << ","
+        << r.not_observable << "\n";
   }
   if (Status s = util::WriteFileAtomic(dir / "poses.tum", tum); !s) return s.error();
   if (Status s = util::WriteFileAtomic(dir / "frames.csv", csv.str()); !s) return s.error();
@@ -208,6 +209,16 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
         {"final_dz_m", records.back().dz_m},
         {"mean_rms_before_m", counted ? sum_before / counted : 0.0},
         {"mean_rms_after_m", counted ? sum_after / counted : 0.0}};
+    if (config.tilt.mode == map::TiltMode::kGravity) {
+      int flagged = 0, verticals = 0;
+      for (const FrameRecord& r : records) {
+        flagged += r.not_observable.empty() ? 0 : 1;
+        verticals += r.verticals;
+      }
+      summary["tilt"]["vertical_cues"] = verticals;
+      summary["tilt"]["frames_not_observable"] = flagged;
+      summary["tilt"]["not_observable_at_end"] = records.back().not_observable;
+    }
   } else {
     summary["tilt"] = {{"refine", false}, {"mode", map::TiltModeName(config.tilt.mode)}};
   }
@@ -273,6 +284,14 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
          << util::Fixed(records.back().d_roll_rad / kDegToRad, 2) << " deg roll, "
          << util::Fixed(records.back().d_pitch_rad / kDegToRad, 2) << " deg pitch, "
          << util::Fixed(records.back().dz_m, 3) << " m height";
+    if (config.tilt.mode == map::TiltMode::kGravity) {
+      const std::string& last = records.back().not_observable;
+      text << "; " << summary["tilt"]["vertical_cues"].get<int>() << " vertical cues; "
+           << (last.empty() ? std::string("every state observed at the end")
+                            : "not observable at the end: " + last)
+           << " (" << summary["tilt"]["frames_not_observable"].get<int>() << "/" << n
+           << " frames flagged)";
+    }
     if (config.tilt.mode == map::TiltMode::kRefineToMap) {
       text << "; ground RMS " << util::Fixed(summary["tilt"]["mean_rms_before_m"].get<double>(), 3)
            << " -> " << util::Fixed(summary["tilt"]["mean_rms_after_m"].get<double>(), 3) << " m";

@@ -479,6 +479,20 @@ Status GravityEstimatorConfig::Validate() const {
   return {};
 }
 
+const char* StateName(GravityDegeneracy::State state) {
+  switch (state) {
+    case GravityDegeneracy::State::kAccelBias:
+      return "accelerometer bias";
+    case GravityDegeneracy::State::kGyroBias:
+      return "gyro bias";
+    case GravityDegeneracy::State::kMount:
+      return "sensor mount tilt";
+    case GravityDegeneracy::State::kCovariance:
+      return "covariance";
+  }
+  return "?";
+}
+
 bool GravityEstimate::Degenerate(GravityDegeneracy::State state) const {
   return std::any_of(degeneracies.begin(), degeneracies.end(),
                      [&](const GravityDegeneracy& d) { return d.state == state; });

@@ -524,6 +524,32 @@ TEST_F(MapCli, TheGravityEstimatorObservesTheIMUBias) {
     EXPECT_GT(summary.at("input").at("imu_raw_samples").get<int>(), 400);  // 100 Hz
     tilt[m] = summary.at("truth_poses");
     EXPECT_NE(run.out.find("poses against"), std::string::npos) << run.out;
+    if (m == 1) {
+      // What the estimator could not observe: per frame in frames.csv (its last column), at
+      // the end and counted in the summary.
+      const json& t = summary.at("tilt");
+      const int frames = summary.at("frames").get<int>();
+      EXPECT_GE(t.at("vertical_cues").get<int>(), 0);
+      EXPECT_LE(t.at("frames_not_observable").get<int>(), frames);
+      std::istringstream csv(ReadFile(out / "frames.csv"));
+      std::string line, last, header;
+      std::getline(csv, header);
+      const std::string columns = ",verticals,not_observable";
+      EXPECT_EQ(header.rfind(columns), header.size() - columns.size()) << header;
+      int rows = 0, flagged = 0;
+      while (std::getline(csv, line)) {
+        last = line.substr(line.rfind(',') + 1);
+        flagged += last.empty() ? 0 : 1;
+        ++rows;
+      }
+      EXPECT_EQ(rows, frames);
+      EXPECT_EQ(flagged, t.at("frames_not_observable").get<int>());
+      EXPECT_EQ(last, t.at("not_observable_at_end").get<std::string>());
+      EXPECT_NE(run.out.find(last.empty() ? "every state observed at the end"
+                                          : "not observable at the end: " + last),
+                std::string::npos)
+          << run.out;
+    }
   }
   EXPECT_GT(tilt[0].at("tilt_error_median_deg").get<double>(), 1.5);
   EXPECT_LT(tilt[1].at("tilt_error_median_deg").get<double>(), 0.5);

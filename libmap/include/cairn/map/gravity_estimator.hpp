@@ -146,8 +146,11 @@ struct GravityFrame {
 struct GravityDegeneracy {
   enum class State { kAccelBias, kGyroBias, kMount, kCovariance };
   State state = State::kAccelBias;
-  std::string reason;
+  std::string reason;  ///< starts with the state's name (StateName), then the figures
 };
+
+/// "accelerometer bias", "gyro bias", "sensor mount tilt", "covariance".
+const char* StateName(GravityDegeneracy::State state);
 
 /// Which cues the window used (the newest frame's own in the last fields).
 struct GravityCues {
