@@ -204,7 +204,7 @@ FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecor
     if (m.tilt.gravity) {
       for (const map::GravityDegeneracy& d : m.tilt.gravity->degeneracies) {
         r.not_observable +=
-            (r.not_observable.empty() ? "" : "; ") + std::string(StateName(d.state));
+            (r.not_observable.empty() ? "" : "; ") + std::string(map::StateName(d.state));
       }
       r.verticals = m.tilt.gravity->cues.frame_verticals;
     }

@@ -332,6 +332,11 @@ TEST(GravityEstimator, AnAccelerometerBiasIsObservedWhenTurningAndFlaggedWhenStr
   Print("straight, accelerometer bias (flagged), estimated body tilt", straight.body_error_deg);
   ASSERT_TRUE(last.Degenerate(GravityDegeneracy::State::kAccelBias)) << last.BriefReport();
   EXPECT_NE(last.BriefReport().find("straight drive"), std::string::npos);
+  // Each reason starts with its state's name (what cairn map's frames.csv lists).
+  for (const GravityDegeneracy& d : last.degeneracies) {
+    EXPECT_EQ(d.reason.rfind(StateName(d.state), 0), 0u) << d.reason;
+  }
+  EXPECT_STREQ(StateName(GravityDegeneracy::State::kAccelBias), "accelerometer bias");
   EXPECT_GT(std::abs(last.accel_bias_mps2.x() - bias.x()), 0.03);  // not learned
 }
 
