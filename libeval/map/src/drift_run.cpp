@@ -124,7 +124,7 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   std::vector<PoseError> pose_errors;
   std::vector<double> cue_errors_rad;
   int degenerate_frames = 0;
-  std::vector<std::string> last_degeneracies;
+  std::vector<map::GravityDegeneracy> last_degeneracies;
   int refined_frames = 0;
   double distance_m = 0.0;
   double z_body = 0.0;       // dead reckoning
@@ -198,10 +198,7 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
     refined_frames += record->tilt.applied ? 1 : 0;
     if (record->tilt.gravity) {
       degenerate_frames += record->tilt.gravity->degeneracies.empty() ? 0 : 1;
-      last_degeneracies.clear();
-      for (const map::GravityDegeneracy& d : record->tilt.gravity->degeneracies) {
-        last_degeneracies.push_back(d.reason);
-      }
+      last_degeneracies = record->tilt.gravity->degeneracies;
     }
     std::map<int, int> pixels;
     for (const std::int32_t object : rendered->object_id) {

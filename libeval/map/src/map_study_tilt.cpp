@@ -120,7 +120,7 @@ struct TiltOutcome {
   std::vector<double> tilt_deg;
   double elevation_rms_m = 0.0, ground_rms_m = 0.0, cost_error = 0.0;
   int lethal_more = 0, degenerate_frames = 0, frames = 0;
-  std::vector<std::string> last_flags;
+  std::vector<map::GravityDegeneracy> last_flags;
 };
 
 }  // namespace
@@ -228,11 +228,11 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
           flagged += o.degenerate_frames;
           frames += o.frames;
           if (std::string(mode) == "gravity") ++gravity_drives;
-          for (const std::string& f : o.last_flags) {
-            ++flags[f.substr(0, std::min(f.find(" ("), f.find(':')))];
-          }
+          for (const map::GravityDegeneracy& f : o.last_flags) ++flags[map::StateName(f.state)];
           std::string last;
-          for (const std::string& f : o.last_flags) last += (last.empty() ? "" : " | ") + f;
+          for (const map::GravityDegeneracy& f : o.last_flags) {
+            last += (last.empty() ? "" : " | ") + f.reason;
+          }
           csv << world.world << "," << source.label << "," << mode << "," << k + 1 << ","
               << o.frames << "," << Fixed(Quantile(o.tilt_deg, 0.5), 3) << ","
               << Fixed(Quantile(o.tilt_deg, 0.95), 3) << "," << Fixed(o.elevation_rms_m, 4) << ","

@@ -98,10 +98,10 @@ struct DriftRunResult {
   /// measure_cues: each vertical cue's angle from the true vertical (a wall normal's from
   /// the horizontal) [rad].
   std::vector<double> cue_errors_rad;
-  /// Gravity mode: frames whose estimate flagged a state as not observable, and the reasons
-  /// of the last frame's flags.
+  /// Gravity mode: frames whose estimate flagged a state as not observable, and the last
+  /// frame's flags (state and reason).
   int degenerate_frames = 0;
-  std::vector<std::string> last_degeneracies;
+  std::vector<map::GravityDegeneracy> last_degeneracies;
 };
 
 /// Angle between the up vectors of two world-from-sensor rotations [rad].
