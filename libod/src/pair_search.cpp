@@ -387,6 +387,8 @@ class Search {
     }
     return i;
   }
+  // Whether i and j are in one set; two points with one parent are, without the walks.
+  bool SameSet(int i, int j) { return parent_[i] == parent_[j] || Find(i) == Find(j); }
   // Joins the sets of i and j; returns the root of the joined set (as it was when joined).
   // The larger root is linked under the smaller, and only while it is still a root.
   int Union(int i, int j) {
@@ -403,7 +405,7 @@ class Search {
     if (!(flags_lo_[a] & kFull) || !(flags_up_[b] & kFull)) return false;
     if (!unions_) return true;
     if (!(flags_lo_[a] & kUnified) || !(flags_up_[b] & kUnified)) return false;
-    return Find(lo_.pixel[lo_.nodes[a].begin]) == Find(up_.pixel[up_.nodes[b].begin]);
+    return SameSet(lo_.pixel[lo_.nodes[a].begin], up_.pixel[up_.nodes[b].begin]);
   }
 
   void Accept(int a, int b) {
@@ -423,8 +425,10 @@ class Search {
   // The first point of upper leaf B (sorted by height) more than HT above pz, as the pair
   // test rounds it: the points from there while less than Hmax above are the candidates,
   // on which the pair test reduces to its slope condition.
-  int FirstAbove(const Node& B, float pz) const {
-    int j = B.begin;
+  // Starts at `from`: no point before it is more than HT above pz (true of the first
+  // candidate of any lower point no higher than this one).
+  int FirstAbove(const Node& B, float pz, int from) const {
+    int j = from;
     while (j < B.end && !(up_.z[j] - pz > test_.min_height)) ++j;
     return j;
   }
@@ -444,10 +448,18 @@ class Search {
     const float hmax = test_.max_height, tan2 = test_.tan2_theta;
     const bool b_done = (flags_up_[b] & kFull) && (!unions_ || (flags_up_[b] & kUnified));
     const int b_first = upix[B.begin];
-    for (int i = A.begin; i < A.end; ++i) {
+    // The lower leaf is sorted by height: the points that B's heights reject (Classify's
+    // first test: nothing of B more than HT above, or all of it Hmax above or more) are
+    // its two ends, whose bounds the same float differences find.
+    const float* lz = lo_.z.data();
+    int i_begin = A.begin, i_end = A.end;
+    while (i_begin < i_end && !(B.lo[2] - lz[i_begin] < hmax)) ++i_begin;
+    while (i_end > i_begin && !(B.hi[2] - lz[i_end - 1] > test_.min_height)) --i_end;
+    int first_from = B.begin;  // the lower points come by height: their first candidates too
+    for (int i = i_begin; i < i_end; ++i) {
       const float p[3] = {lo_.x[i], lo_.y[i], lo_.z[i]};
       const int pi = lo_.pixel[i];
-      if (b_done && lower_[pi] && (!unions_ || Find(pi) == Find(b_first))) continue;
+      if (b_done && lower_[pi] && (!unions_ || SameSet(pi, b_first))) continue;
       const Verdict v = Classify(p, p, B.lo, B.hi, test_);
       if (v == kReject) continue;
       if (v == kAccept) {
@@ -461,7 +473,8 @@ class Search {
         continue;
       }
       int root = unions_ ? Find(pi) : 0;
-      const int first = FirstAbove(B, p[2]);
+      const int first = FirstAbove(B, p[2], first_from);
+      first_from = first;
       int j = first;
       bool any = false;
       for (; j < B.end && uz[j] - p[2] < hmax; ++j) {
@@ -471,11 +484,13 @@ class Search {
         any = true;
         const int pj = upix[j];
         raised_.Set(pj, 1);
-        if (unions_) {
+        // A partner whose parent is p's root is in p's set already (sets only grow): most
+        // are, and skip the walk to their root.
+        if (unions_ && parent_[pj] != root) {
           const int rj = Find(pj);
           if (rj != root) root = Union(root, rj);
         }
-        if (b_done && (!unions_ || root == Find(b_first))) {
+        if (b_done && (!unions_ || parent_[b_first] == root || root == Find(b_first))) {
           ++j;
           break;
         }
@@ -501,7 +516,7 @@ class Search {
     if (unions_ && !(flags[n] & kUnified)) {
       const int root = Find(t.pixel[node.begin]);
       for (int i = node.begin + 1; i < node.end; ++i) {
-        if (Find(t.pixel[i]) != root) return;
+        if (parent_[t.pixel[i]] != root && Find(t.pixel[i]) != root) return;
       }
       flags.Add(n, kUnified);
       PropagateUp(t, flags, node.parent, kUnified);
@@ -513,8 +528,8 @@ class Search {
     for (; n >= 0 && !(flags[n] & flag); n = t.nodes[n].parent) {
       const Node& node = t.nodes[n];
       if (!(flags[node.child[0]] & flag) || !(flags[node.child[1]] & flag)) return;
-      if (flag == kUnified && Find(t.pixel[t.nodes[node.child[0]].begin]) !=
-                                  Find(t.pixel[t.nodes[node.child[1]].begin])) {
+      if (flag == kUnified &&
+          !SameSet(t.pixel[t.nodes[node.child[0]].begin], t.pixel[t.nodes[node.child[1]].begin])) {
         return;
       }
       flags.Add(n, flag);
