@@ -8,6 +8,10 @@
 #include <thread>
 #include <type_traits>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "cairn/od/parallel.hpp"
 
 namespace cairn::od::internal {
@@ -433,6 +437,44 @@ class Search {
     return j;
   }
 
+  // Upper leaf B's candidates from `first` (more than HT above p) while less than Hmax above,
+  // each through the pair test's slope condition; partner(j) for each in ascending order,
+  // until it returns true. Returns the index after the last point tested.
+  template <class Partner>
+  int ScanWindow(const Node& B, const float* p, int j, const Partner& partner) const {
+    const float* ux = up_.x.data();
+    const float* uy = up_.y.data();
+    const float* uz = up_.z.data();
+    const float hmax = test_.max_height, tan2 = test_.tan2_theta;
+#if defined(__SSE2__)
+    // Four at a time: the window and the slope test as bit masks, with the pair test's float
+    // operations in its order.
+    const __m128 px = _mm_set1_ps(p[0]), py = _mm_set1_ps(p[1]), pz = _mm_set1_ps(p[2]);
+    const __m128 vh = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
+    for (; j + 4 <= B.end; j += 4) {
+      const __m128 dz = _mm_sub_ps(_mm_loadu_ps(uz + j), pz);
+      const int window = _mm_movemask_ps(_mm_cmplt_ps(dz, vh));
+      if (window == 0) return j;
+      const __m128 dx = _mm_sub_ps(_mm_loadu_ps(ux + j), px);
+      const __m128 dy = _mm_sub_ps(_mm_loadu_ps(uy + j), py);
+      const __m128 reach = _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)));
+      for (int hits = _mm_movemask_ps(_mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach)) & window; hits != 0;
+           hits &= hits - 1) {
+        const int k = __builtin_ctz(static_cast<unsigned>(hits));
+        if (partner(j + k)) return j + k + 1;
+      }
+      // Heights ascend: a window short of four ends in these.
+      if (window != 0xf) return j + __builtin_popcount(static_cast<unsigned>(window));
+    }
+#endif
+    for (; j < B.end && uz[j] - p[2] < hmax; ++j) {
+      const float dx = ux[j] - p[0], dy = uy[j] - p[1], dz = uz[j] - p[2];
+      if (!(dz * dz > tan2 * (dx * dx + dy * dy))) continue;
+      if (partner(j)) return j + 1;
+    }
+    return j;
+  }
+
   // Two leaves, point by point; a lower point whose partners are all or none of the upper
   // leaf is settled by the leaf's box, and once a point has a partner, the rest of a leaf
   // that is raised and in its set already can change nothing.
@@ -441,17 +483,14 @@ class Search {
     const Node& B = up_.nodes[b];
     // Raw pointers: the flag stores below may alias anything, which would reload the
     // vectors' data on every step.
-    const float* ux = up_.x.data();
-    const float* uy = up_.y.data();
-    const float* uz = up_.z.data();
     const std::int32_t* upix = up_.pixel.data();
-    const float hmax = test_.max_height, tan2 = test_.tan2_theta;
+    const float* lz = lo_.z.data();
+    const float hmax = test_.max_height;
     const bool b_done = (flags_up_[b] & kFull) && (!unions_ || (flags_up_[b] & kUnified));
     const int b_first = upix[B.begin];
     // The lower leaf is sorted by height: the points that B's heights reject (Classify's
     // first test: nothing of B more than HT above, or all of it Hmax above or more) are
     // its two ends, whose bounds the same float differences find.
-    const float* lz = lo_.z.data();
     int i_begin = A.begin, i_end = A.end;
     while (i_begin < i_end && !(B.lo[2] - lz[i_begin] < hmax)) ++i_begin;
     while (i_end > i_begin && !(B.hi[2] - lz[i_end - 1] > test_.min_height)) --i_end;
@@ -475,11 +514,10 @@ class Search {
       int root = unions_ ? Find(pi) : 0;
       const int first = FirstAbove(B, p[2], first_from);
       first_from = first;
-      int j = first;
       bool any = false;
-      for (; j < B.end && uz[j] - p[2] < hmax; ++j) {
-        const float dx = ux[j] - p[0], dy = uy[j] - p[1], dz = uz[j] - p[2];
-        if (!(dz * dz > tan2 * (dx * dx + dy * dy))) continue;
+      // One partner (upper point j): raised, joined; true when the rest of B can change
+      // nothing.
+      const auto partner = [&](int j) {
         ++stats_.pairs_compatible;
         any = true;
         const int pj = upix[j];
@@ -490,11 +528,9 @@ class Search {
           const int rj = Find(pj);
           if (rj != root) root = Union(root, rj);
         }
-        if (b_done && (!unions_ || parent_[b_first] == root || root == Find(b_first))) {
-          ++j;
-          break;
-        }
-      }
+        return b_done && (!unions_ || parent_[b_first] == root || root == Find(b_first));
+      };
+      const int j = ScanWindow(B, p, first, partner);
       stats_.pairs_tested += j - first;
       if (any) lower_.Set(pi, 1);
     }
