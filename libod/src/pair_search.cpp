@@ -463,8 +463,8 @@ class Search {
         const int k = __builtin_ctz(static_cast<unsigned>(hits));
         if (partner(j + k)) return j + k + 1;
       }
-      // Heights ascend: a window short of four ends in these.
-      if (window != 0xf) return j + __builtin_popcount(static_cast<unsigned>(window));
+      // Heights ascend: a window short of four ends in these (its bits are the low ones).
+      if (window != 0xf) return j + __builtin_ctz(~static_cast<unsigned>(window));
     }
 #endif
     for (; j < B.end && uz[j] - p[2] < hmax; ++j) {
