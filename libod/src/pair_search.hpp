@@ -63,8 +63,11 @@ struct PointTree {
   std::vector<float> x, y, z;
   std::vector<std::int32_t> pixel;  ///< image index of each stored point
 
-  /// Leaves hold at most leaf_rows x leaf_cols pixels. With `per_column`, one tree per image
-  /// column (leaves of leaf_rows pixels): pairs are then only searched within a column.
+  /// The most points a leaf holds (the search keeps a leaf's points as bits of one word).
+  static constexpr int kMaxLeafPoints = 64;
+  /// Leaves hold at most leaf_rows x leaf_cols pixels, both cut down to kMaxLeafPoints. With
+  /// `per_column`, one tree per image column (leaves of leaf_rows pixels): pairs are then only
+  /// searched within a column.
   PointTree(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width,
             int height, int leaf_rows, int leaf_cols, bool per_column = false);
 
