@@ -137,39 +137,38 @@ std::int32_t PointTree::Build(const LevelPoints& level, const std::vector<std::u
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const int rows = r1 - r0, cols = c1 - c0;
   if (rows <= leaf_rows && cols <= leaf_cols) {
-    const std::int32_t begin = size();
-    Node leaf{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}, begin, begin, {-1, -1}, -1};
+    // The leaf's points by ascending height (insertion: at most kMaxLeafPoints), then stored.
+    struct LeafPoint {
+      float z, x, y;
+      std::int32_t pixel;
+    };
+    LeafPoint points[kMaxLeafPoints];
+    int m = 0;
+    Node leaf{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}, size(), size(), {-1, -1}, -1};
     for (int r = r0; r < r1; ++r) {
       for (int c = c0; c < c1; ++c) {
         const int i = r * width + c;
         if (!mask[i]) continue;
-        const float px = level.x[i], py = level.y[i], pz = level.z[i];
-        // By ascending height (insertion: leaves are small).
-        int at = size();
-        x.push_back(px);
-        y.push_back(py);
-        z.push_back(pz);
-        pixel.push_back(i);
-        for (; at > begin && z[at - 1] > pz; --at) {
-          x[at] = x[at - 1];
-          y[at] = y[at - 1];
-          z[at] = z[at - 1];
-          pixel[at] = pixel[at - 1];
-        }
-        x[at] = px;
-        y[at] = py;
-        z[at] = pz;
-        pixel[at] = i;
-        leaf.lo[0] = std::min(leaf.lo[0], px);
-        leaf.lo[1] = std::min(leaf.lo[1], py);
-        leaf.lo[2] = std::min(leaf.lo[2], pz);
-        leaf.hi[0] = std::max(leaf.hi[0], px);
-        leaf.hi[1] = std::max(leaf.hi[1], py);
-        leaf.hi[2] = std::max(leaf.hi[2], pz);
+        const LeafPoint q{level.z[i], level.x[i], level.y[i], i};
+        int at = m++;
+        for (; at > 0 && points[at - 1].z > q.z; --at) points[at] = points[at - 1];
+        points[at] = q;
+        leaf.lo[0] = std::min(leaf.lo[0], q.x);
+        leaf.lo[1] = std::min(leaf.lo[1], q.y);
+        leaf.lo[2] = std::min(leaf.lo[2], q.z);
+        leaf.hi[0] = std::max(leaf.hi[0], q.x);
+        leaf.hi[1] = std::max(leaf.hi[1], q.y);
+        leaf.hi[2] = std::max(leaf.hi[2], q.z);
       }
     }
+    if (m == 0) return -1;
+    for (int k = 0; k < m; ++k) {
+      x.push_back(points[k].x);
+      y.push_back(points[k].y);
+      z.push_back(points[k].z);
+      pixel.push_back(points[k].pixel);
+    }
     leaf.end = size();
-    if (leaf.end == begin) return -1;
     nodes.push_back(leaf);
     return static_cast<std::int32_t>(nodes.size()) - 1;
   }
