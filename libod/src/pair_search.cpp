@@ -751,8 +751,11 @@ PairSearchResult Run(const PointTree& lower, const PointTree& upper, int pixels,
 PairSearchResult SearchPairs(const PointTree& lower, const PointTree& upper, int pixels,
                              const PairTest& test, const PairSearchOptions& options) {
   const int threads = std::max(1, options.threads);
+  // On one thread too: 256 lower subtrees searched in turn, largest first, visit fewer pairs
+  // of nodes than the two roots searched at once (one thread, callgrind: TUM 1.55 -> 1.19
+  // billion instructions, KITTI 272 -> 262 million; 1,024 and 4,096 were no quicker).
   const std::vector<Task> tasks =
-      Tasks(lower, upper, threads == 1 ? 0 : 32 * static_cast<std::size_t>(threads));
+      Tasks(lower, upper, std::max<std::size_t>(256, 32 * static_cast<std::size_t>(threads)));
   if (threads == 1 || tasks.size() == 1)
     return Run<false>(lower, upper, pixels, test, options, tasks, 1);
   return Run<true>(lower, upper, pixels, test, options, tasks, threads);
