@@ -107,9 +107,9 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   const int n = image.size();
   const internal::LevelPoints level(image);
   const PairTest test(config);
-  // Leaves of 2 x 16 pixels on a LiDAR scan (two rings: its rows lie far apart on the
-  // ground), of 4 x 8 on camera images: the fastest of the shapes tried on the benchmark
-  // frames (with the leaves scanned four points at a time; 1 x 16 before that).
+  // Leaves of 2 x 16 pixels on a LiDAR scan, of 4 x 8 on camera images: the fastest of the
+  // shapes tried on the benchmark frames with the leaves scanned four points at a time
+  // (BENCHMARKS.md; one ring of 16 was the fastest one point at a time).
   const bool lidar = std::holds_alternative<SphericalModel>(image.model());
   const int leaf_rows = lidar ? 2 : 4, leaf_cols = lidar ? 16 : 8;
   const internal::Candidates candidates = internal::FindCandidates(level, test);

@@ -578,8 +578,9 @@ class Search {
         any = true;
         const int pj = upix[j];
         raised_.Set(pj, 1);
-        // A partner whose parent is p's root is in p's set already (sets only grow): most
-        // are, and skip the walk to their root.
+        // A partner whose parent is `root` (p's root when found, in p's set however the
+        // workers link since: sets only grow) is in p's set already: most are, and skip the
+        // walk to their root.
         if (unions_ && parent_[pj] != root) {
           const int rj = Find(pj);
           if (rj != root) root = Union(root, rj);
@@ -752,8 +753,7 @@ PairSearchResult SearchPairs(const PointTree& lower, const PointTree& upper, int
                              const PairTest& test, const PairSearchOptions& options) {
   const int threads = std::max(1, options.threads);
   // On one thread too: 256 lower subtrees searched in turn, largest first, visit fewer pairs
-  // of nodes than the two roots searched at once (one thread, callgrind: TUM 1.55 -> 1.19
-  // billion instructions, KITTI 272 -> 262 million; 1,024 and 4,096 were no quicker).
+  // of nodes than the two roots searched at once (BENCHMARKS.md, 2026-12-04 afternoon).
   const std::vector<Task> tasks =
       Tasks(lower, upper, std::max<std::size_t>(256, 32 * static_cast<std::size_t>(threads)));
   if (threads == 1 || tasks.size() == 1)

@@ -10,15 +10,16 @@
 // 2. Trees. The candidates of each kind are stored in a binary tree over the image grid: a
 //    node is a rectangle of pixels, split along its longer side down to leaves of a few
 //    pixels (sorted by height), with the axis-aligned box of its points in the level frame.
-// 3. Search. Ordered node pairs (lower, upper) are visited from (root, root) down. A pair
+// 3. Search. Ordered node pairs (lower, upper) are visited from (lower subtree, upper root)
+//    down, the lower tree cut into tasks (4. below, on one thread too). A pair
 //    is rejected when no point of the upper box can lie HT..Hmax above, and steeper than
 //    theta from, any point of the lower box; accepted whole when every point of the upper
 //    box does so for every point of the lower one (all its points join one segment, at
 //    once); settled, and skipped, when it can change nothing (every lower point has a
 //    partner, every upper point is raised, both nodes are one segment already); else split,
 //    down to leaves, where each lower point meets the height-sorted upper points between
-//    HT and Hmax above it, one by one.
-// 4. Threads. The lower tree is cut into tasks (its largest nodes first), each searched
+//    HT and Hmax above it, four at a time where the compiler has SSE2.
+// 4. Tasks. The lower tree is cut into 256 or more tasks (its largest nodes first), each searched
 //    against the whole upper tree; the workers share one set of marks, flags and sets
 //    (relaxed atomics, a lock-free union-find that links the larger root under the smaller),
 //    so that what one settles the others skip. Every fact only grows, so a worker that reads
@@ -65,7 +66,8 @@ struct PointTree {
 
   /// The most points a leaf holds (the search keeps a leaf's points as bits of one word).
   static constexpr int kMaxLeafPoints = 64;
-  /// Leaves hold at most leaf_rows x leaf_cols pixels, both cut down to kMaxLeafPoints. With
+  /// Leaves hold at most leaf_rows x leaf_cols pixels, leaf_cols cut down so that the product
+  /// is at most kMaxLeafPoints (a larger shape asked for gets fewer columns). With
   /// `per_column`, one tree per image column (leaves of leaf_rows pixels): pairs are then only
   /// searched within a column.
   PointTree(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width,
