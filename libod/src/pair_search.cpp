@@ -429,9 +429,8 @@ class Search {
 
   // The first point of upper leaf B (sorted by height) more than HT above pz, as the pair
   // test rounds it: the points from there while less than Hmax above are the candidates,
-  // on which the pair test reduces to its slope condition.
-  // Starts at `from`: no point before it is more than HT above pz (true of the first
-  // candidate of any lower point no higher than this one).
+  // on which the pair test reduces to its slope condition. The scan starts at `from`, which
+  // no point before is (the first candidate of a lower point no higher than this one).
   int FirstAbove(const Node& B, float pz, int from) const {
     int j = from;
     while (j < B.end && !(up_.z[j] - pz > test_.min_height)) ++j;
