@@ -1,11 +1,9 @@
 #include "pair_search.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <limits>
-#include <memory>
-#include <thread>
+#include <numeric>
 #include <type_traits>
 
 #if defined(__SSE2__)
@@ -246,37 +244,37 @@ using Node = PointTree::Node;
 // atomics: everything the search writes only grows (a mark is set, two sets are joined), and
 // a worker that reads a fact late does more work, never wrong work; the result is read after
 // the workers join. One worker alone keeps plain values, which the compiler keeps in
-// registers and reorders freely.
+// registers and reorders freely. The values are a plain vector either way, accessed
+// atomically through GCC's and Clang's __atomic built-ins (C++20's std::atomic_ref), so that
+// they are filled and handed over without a copy.
 template <class T, bool kAtomic>
 class Cells {
+  static_assert(std::is_integral_v<T> && __atomic_always_lock_free(sizeof(T), 0));
+
  public:
-  explicit Cells(std::size_t n) : size_(n) {
-    if constexpr (kAtomic) {
-      v_ = std::make_unique<std::atomic<T>[]>(n);  // value-initialised: zeros
-    } else {
-      v_.assign(n, T{});
-    }
-  }
-  std::size_t size() const { return size_; }
+  explicit Cells(std::size_t n) : v_(n, T{}) {}
+  explicit Cells(std::vector<T> values) : v_(std::move(values)) {}
+  std::size_t size() const { return v_.size(); }
   T operator[](std::size_t i) const {
     if constexpr (kAtomic) {
-      return v_[i].load(std::memory_order_relaxed);
+      return __atomic_load_n(&v_[i], __ATOMIC_RELAXED);
     } else {
       return v_[i];
     }
   }
   void Set(std::size_t i, T value) {
     if constexpr (kAtomic) {
-      v_[i].store(value, std::memory_order_relaxed);
+      __atomic_store_n(&v_[i], value, __ATOMIC_RELAXED);
     } else {
       v_[i] = value;
     }
   }
-  // Adds `bits` to element i.
+  // Adds `bits` to element i. A cell that has them already is not written: a store, even of
+  // the same value, would take its cache line from the other workers.
   void Add(std::size_t i, T bits) {
     if ((operator[](i) & bits) == bits) return;
     if constexpr (kAtomic) {
-      v_[i].fetch_or(bits, std::memory_order_relaxed);
+      __atomic_fetch_or(&v_[i], bits, __ATOMIC_RELAXED);
     } else {
       v_[i] |= bits;
     }
@@ -284,7 +282,8 @@ class Cells {
   // Sets element i to `desired` if it is `expected`; returns whether it did.
   bool CompareExchange(std::size_t i, T expected, T desired) {
     if constexpr (kAtomic) {
-      return v_[i].compare_exchange_strong(expected, desired, std::memory_order_relaxed);
+      return __atomic_compare_exchange_n(&v_[i], &expected, desired, false, __ATOMIC_RELAXED,
+                                         __ATOMIC_RELAXED);
     } else {
       if (v_[i] != expected) return false;
       v_[i] = desired;
@@ -292,19 +291,10 @@ class Cells {
     }
   }
   // The values, once no worker writes any more; the cells are left empty.
-  std::vector<T> Take() {
-    if constexpr (kAtomic) {
-      std::vector<T> out(size_);
-      for (std::size_t i = 0; i < size_; ++i) out[i] = operator[](i);
-      return out;
-    } else {
-      return std::move(v_);
-    }
-  }
+  std::vector<T> Take() { return std::move(v_); }
 
  private:
-  std::size_t size_;
-  std::conditional_t<kAtomic, std::unique_ptr<std::atomic<T>[]>, std::vector<T>> v_;
+  std::vector<T> v_;
 };
 
 // What the workers find, over the image's pixels (marks, sets) and the two trees' nodes.
@@ -315,21 +305,26 @@ class Cells {
 template <bool kAtomic>
 struct Findings {
   Findings(int pixels, std::size_t lower_nodes, std::size_t upper_nodes, bool unions)
-      : parent(unions ? pixels : 0),
+      : parent(Singletons(unions ? pixels : 0)),
         lower(pixels),
         raised(pixels),
         flags_lo(lower_nodes),
-        flags_up(upper_nodes) {
-    for (std::size_t i = 0; i < parent.size(); ++i) parent.Set(i, static_cast<std::int32_t>(i));
+        flags_up(upper_nodes) {}
+  static std::vector<std::int32_t> Singletons(int pixels) {
+    std::vector<std::int32_t> parent(pixels);
+    std::iota(parent.begin(), parent.end(), 0);
+    return parent;
   }
   Cells<std::int32_t, kAtomic> parent;  ///< union-find; a parent's index is below its child's
   Cells<std::uint8_t, kAtomic> lower, raised;
   Cells<std::uint8_t, kAtomic> flags_lo, flags_up;
 };
 
-// One worker over the findings (shared with others when kAtomic); its own statistics.
+// One worker over the findings (shared with others when kAtomic); its own statistics, on
+// cache lines of its own (the workers sit side by side in a vector, and counting on a line
+// that another worker writes costs more than the search).
 template <bool kAtomic>
-class Search {
+class alignas(64) Search {
   using Flags = Cells<std::uint8_t, kAtomic>;
 
  public:
@@ -576,7 +571,7 @@ class Search {
         ++stats_.pairs_compatible;
         any = true;
         const int pj = upix[j];
-        raised_.Set(pj, 1);
+        raised_.Add(pj, 1);
         // A partner whose parent is `root` (p's root when found, in p's set however the
         // workers link since: sets only grow) is in p's set already: most are, and skip the
         // walk to their root.
