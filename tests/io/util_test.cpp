@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "cairn/od/parallel.hpp"
@@ -37,6 +39,51 @@ TEST(ParallelFor, CallsEveryItemOnceOnTheThreadsItReports) {
     }
   }
   std::vector<int> squares(100, 0);  // the one-argument form
+  ParallelFor(100, 2, [&](int i) { squares[i] = i * i; });
+  for (int i = 0; i < 100; ++i) EXPECT_EQ(squares[i], i * i);
+}
+
+// The pool's threads serve loops called from several threads at once and from inside a
+// loop's body; each call sees every item once and returns after all of them.
+TEST(ParallelFor, LoopsFromSeveralThreadsAndInsideLoopsEachCallEveryItemOnce) {
+  constexpr int kOuter = 16, kInner = 200;
+  const auto nested = [&](std::vector<std::atomic<int>>& calls) {
+    ParallelFor(
+        kOuter, 3,
+        [&](int outer) {
+          ParallelFor(
+              kInner, 2, [&](int inner) { ++calls[outer * kInner + inner]; }, 1);
+        },
+        1);
+  };
+  std::vector<std::atomic<int>> a(kOuter * kInner), b(kOuter * kInner);
+  for (int round = 0; round < 20; ++round) {
+    for (auto& c : a) c = 0;
+    for (auto& c : b) c = 0;
+    std::thread other([&] { nested(b); });
+    nested(a);
+    other.join();
+    for (int i = 0; i < kOuter * kInner; ++i) {
+      ASSERT_EQ(a[i].load(), 1) << "round " << round << ", item " << i;
+      ASSERT_EQ(b[i].load(), 1) << "round " << round << ", item " << i;
+    }
+  }
+}
+
+// A body that throws on the calling thread: the exception reaches the caller once the
+// helpers have let go of the loop, and the pool serves the next loop.
+TEST(ParallelFor, AnExceptionFromTheBodyReachesTheCaller) {
+  std::atomic<int> calls{0};
+  EXPECT_THROW(ParallelFor(
+                   64, 2,
+                   [&](int worker, int) {
+                     ++calls;
+                     if (worker == 0) throw std::runtime_error("item failed");
+                   },
+                   1),
+               std::runtime_error);
+  EXPECT_GE(calls.load(), 1);
+  std::vector<int> squares(100, 0);
   ParallelFor(100, 2, [&](int i) { squares[i] = i * i; });
   for (int i = 0; i < 100; ++i) EXPECT_EQ(squares[i], i * i);
 }

@@ -2,14 +2,20 @@
 // few at a time from a shared counter to up to `threads` threads, the calling thread among them.
 // When each item's result depends on nothing but the item (or per-thread results are merged in an
 // order-free way), the output does not depend on the number of threads.
+//
+// The helper threads are kept from one loop to the next (a pool that grows to the most threads
+// a loop has asked for), so that a loop of a few hundred microseconds, as the detector's stages
+// are on one frame, is worth splitting. (TBB would do this, but Debian's build of it is not
+// instrumented for ThreadSanitizer, which then reports races inside it; this pool is made of
+// the standard library's threads, mutex and condition variables, which the CI's TSan stage
+// checks.)
 #pragma once
 
 #include <algorithm>
 #include <atomic>
-#include <system_error>
+#include <functional>
 #include <thread>
 #include <type_traits>
-#include <vector>
 
 namespace cairn::od {
 
@@ -19,6 +25,15 @@ inline int ThreadCount(int threads) {
   return threads > 0 ? threads
                      : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
 }
+
+namespace internal {
+/// Calls work(0) on the calling thread and work(1), work(2), ... on up to `helpers` of the
+/// pool's threads, those free now or soon (the pool grows to `helpers` threads, or as far as
+/// the system lets it); returns once every call made has returned, with the number of calls
+/// made (1 + the helpers that joined). A helper that comes after the caller's work(0) has
+/// returned is not called: `work` must share its items through the caller's own counter.
+int RunTeam(int helpers, const std::function<void(int)>& work);
+}  // namespace internal
 
 /// Calls body(item), or body(worker, item) with worker in [0, threads) naming the thread
 /// (for per-thread scratch), for every item in [0, count), on up to ThreadCount(threads)
@@ -40,25 +55,11 @@ int ParallelFor(int count, int threads, const Body& body, int chunk = 4) {
     return 1;
   }
   std::atomic<int> next{0};
-  const auto work = [&](int worker) {
+  return internal::RunTeam(used - 1, [&](int worker) {
     for (int start = next.fetch_add(chunk); start < count; start = next.fetch_add(chunk)) {
       for (int item = start; item < std::min(count, start + chunk); ++item) call(worker, item);
     }
-  };
-  std::vector<std::thread> pool;
-  for (int worker = 1; worker < used; ++worker) {
-    // A thread the system cannot start (EAGAIN on a loaded machine) leaves its share to the
-    // others, which take items from the same counter; throwing here would terminate the
-    // program through the threads already started.
-    try {
-      pool.emplace_back(work, worker);
-    } catch (const std::system_error&) {
-      break;
-    }
-  }
-  work(0);
-  for (std::thread& thread : pool) thread.join();
-  return static_cast<int>(pool.size()) + 1;  // workers 0 .. pool.size() ran
+  });
 }
 
 }  // namespace cairn::od

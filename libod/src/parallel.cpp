@@ -1,0 +1,149 @@
+#include "cairn/od/parallel.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <system_error>
+#include <vector>
+
+namespace cairn::od::internal {
+namespace {
+
+// A team's call for helpers: open while its caller works, closed (taken off the queue) when
+// it has every helper it asked for or the caller is done.
+struct Team {
+  const std::function<void(int)>* work;
+  int wanted;                   // helpers still wanted
+  int joined = 0;               // helpers that took a worker number
+  std::atomic<int> running{0};  // helpers inside work(); changed under the pool's mutex
+};
+
+// How long a thread that waits for the pool spins before it sleeps. A sleeping thread takes
+// tens to hundreds of microseconds to wake (more on a virtual machine), as long as a whole
+// stage of the detector on one frame; its stages follow each other within microseconds.
+constexpr std::chrono::microseconds kSpin{200};
+
+// Spins until `ready()` or kSpin has passed; returns ready().
+template <class Ready>
+bool SpinUntil(const Ready& ready) {
+  const auto until = std::chrono::steady_clock::now() + kSpin;
+  for (int i = 1;; ++i) {
+    if (ready()) return true;
+    if (i % 64 == 0 && std::chrono::steady_clock::now() > until) return false;
+    std::this_thread::yield();
+  }
+}
+
+class Pool {
+ public:
+  ~Pool() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+      stopping_.store(true);
+    }
+    wake_.notify_all();
+    for (std::thread& t : threads_) t.join();
+  }
+
+  int Run(int helpers, const std::function<void(int)>& work) {
+    Team team{&work, helpers};
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      Grow(helpers);
+      if (!threads_.empty()) {
+        teams_.push_back(&team);
+        open_.store(static_cast<int>(teams_.size()));
+      }
+    }
+    if (helpers == 1) {
+      wake_.notify_one();
+    } else {
+      wake_.notify_all();
+    }
+    try {
+      work(0);
+    } catch (...) {
+      Finish(&team);  // the team lives on this stack: no helper may hold it any more
+      throw;
+    }
+    Finish(&team);
+    return 1 + team.joined;
+  }
+
+ private:
+  // Starts threads until there are `n` (as far as the system lets: a thread it cannot start,
+  // EAGAIN on a loaded machine, leaves the work to those there are). Under mutex_.
+  void Grow(int n) {
+    while (static_cast<int>(threads_.size()) < n) {
+      try {
+        threads_.emplace_back([this] { Serve(); });
+      } catch (const std::system_error&) {
+        return;
+      }
+    }
+  }
+
+  // Takes the team off the queue and waits for the helpers that joined it.
+  void Finish(Team* team) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (auto it = teams_.begin(); it != teams_.end(); ++it) {
+      if (*it == team) {
+        teams_.erase(it);
+        open_.store(static_cast<int>(teams_.size()));
+        break;
+      }
+    }
+    // No helper joins from here on. Seeing `running` at 0 orders after every joined helper's
+    // work (its decrement releases it), and a helper touches the team no more after that.
+    if (team->running.load() == 0) return;
+    lock.unlock();
+    if (SpinUntil([&] { return team->running.load() == 0; })) return;
+    lock.lock();
+    done_.wait(lock, [&] { return team->running.load() == 0; });
+  }
+
+  void Serve() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      if (!stop_ && teams_.empty()) {
+        lock.unlock();
+        SpinUntil([&] { return open_.load() != 0 || stopping_.load(); });
+        lock.lock();
+      }
+      wake_.wait(lock, [&] { return stop_ || !teams_.empty(); });
+      if (stop_) return;
+      Team* team = teams_.front();
+      const int worker = ++team->joined;
+      ++team->running;
+      if (--team->wanted == 0) {
+        teams_.pop_front();
+        open_.store(static_cast<int>(teams_.size()));
+      }
+      lock.unlock();
+      (*team->work)(worker);
+      lock.lock();
+      if (--team->running == 0) done_.notify_all();
+    }
+  }
+
+  std::mutex mutex_;
+  std::condition_variable wake_, done_;
+  std::deque<Team*> teams_;
+  std::vector<std::thread> threads_;
+  bool stop_ = false;
+  // Mirrors of teams_.size() and stop_ (written under mutex_), read while spinning.
+  std::atomic<int> open_{0};
+  std::atomic<bool> stopping_{false};
+};
+
+}  // namespace
+
+int RunTeam(int helpers, const std::function<void(int)>& work) {
+  static Pool pool;
+  return pool.Run(helpers, work);
+}
+
+}  // namespace cairn::od::internal
