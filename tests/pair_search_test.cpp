@@ -287,6 +287,75 @@ TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
   ExpectSameColumns(image, config, 10, "demo frame");
 }
 
+// The features of a frame whose segments have tens of thousands of points, summed in parts
+// (BuildDetection): bit for bit the same on any number of threads, and equal to each
+// segment's features recomputed here from its labels in one pass.
+TEST(PairSearch, FeaturesOfTheDemoFrameAreTheSameOnAnyThreadsAndMatchTheirDefinition) {
+  const std::string dir = kSource + "/datasets/frames/demo/";
+  const io::CameraIntrinsics camera = *io::LoadIntrinsics(dir + "intrinsics.yaml");
+  const od::Grid<float> depth = *io::ReadDepthImage(dir + "depth.png", camera);
+  const RangeImage image = *RangeImage::FromDepth(depth.data, camera.model, camera.up);
+  DetectorConfig config =
+      io::LoadDetectSettings(kSource + "/config/default.yaml", {"map", "tilt", "frames"})->detector;
+  config.threads = 1;
+  const Detection one = *Detect(image, config);
+  ASSERT_GT(one.stats.obstacle_points, 4 * 4096) << "too few points for the sums to run in parts";
+  for (int threads : {2, 5}) {
+    config.threads = threads;
+    const Detection many = *Detect(image, config);
+    ASSERT_EQ(many.segments.size(), one.segments.size());
+    EXPECT_TRUE(many.labels == one.labels && many.foot == one.foot) << threads << " threads";
+    for (std::size_t s = 0; s < one.segments.size(); ++s) {
+      const SegmentFeatures& a = many.segments[s];
+      const SegmentFeatures& b = one.segments[s];
+      const std::string what = std::to_string(threads) + " threads, segment " + std::to_string(s);
+      EXPECT_EQ(a.centroid, b.centroid) << what;
+      EXPECT_EQ(a.slope_mean_rad, b.slope_mean_rad) << what;
+      EXPECT_EQ(a.slope_max_rad, b.slope_max_rad) << what;
+      EXPECT_EQ(a.range_mean_m, b.range_mean_m) << what;
+      EXPECT_EQ(a.height_mean_m, b.height_mean_m) << what;
+      EXPECT_EQ(a.foot_count, b.foot_count) << what;
+    }
+  }
+  // The definitions, in one pass over the labels (level-frame points).
+  const Eigen::Matrix3d R = image.R_level_sensor();
+  struct Sums {
+    int points = 0, feet = 0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = Eigen::Vector3d::Constant(-1e30);
+    double range_sum = 0.0;
+  };
+  std::vector<Sums> sums(one.segments.size());
+  const auto level = [&](int i) {
+    return Eigen::Vector3d(
+        R * Eigen::Vector3f(image.x()[i], image.y()[i], image.z()[i]).cast<double>());
+  };
+  for (int i = 0; i < image.size(); ++i) {
+    if (one.labels[i] == 0) continue;
+    Sums& s = sums[one.labels[i] - 1];
+    const Eigen::Vector3d p = level(i);
+    ++s.points;
+    s.feet += one.foot[i];
+    s.sum += p;
+    s.lo = s.lo.cwiseMin(p);
+    s.hi = s.hi.cwiseMax(p);
+    s.range_sum += image.range(i);
+  }
+  for (std::size_t k = 0; k < sums.size(); ++k) {
+    const SegmentFeatures& f = one.segments[k];
+    const Sums& s = sums[k];
+    const std::string what = "segment " + std::to_string(k + 1);
+    EXPECT_EQ(f.point_count, s.points) << what;
+    EXPECT_EQ(f.foot_count, s.feet) << what;
+    // The level frame in float (the detector's) against double here: 1e-5 m at 10 m.
+    EXPECT_LT((f.centroid - s.sum / s.points).norm(), 1e-4) << what;
+    EXPECT_LT((f.bbox_min - s.lo).norm(), 1e-4) << what;
+    EXPECT_LT((f.bbox_max - s.hi).norm(), 1e-4) << what;
+    EXPECT_NEAR(f.ground_height_m, s.lo.z(), 1e-4) << what;
+    EXPECT_NEAR(f.range_mean_m, s.range_sum / s.points, 1e-6) << what;
+  }
+}
+
 // --- Surface slope -----------------------------------------------------------------------
 
 // A level camera (up = -y) facing a plane that rises 4 m ahead at `slope` from the

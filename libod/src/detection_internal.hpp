@@ -14,9 +14,10 @@
 namespace cairn::od::internal {
 
 /// Points in the level frame (z up along gravity), structure of arrays, NaN when invalid.
+/// Computed on up to `threads` threads (0: all).
 struct LevelPoints {
   std::vector<float> x, y, z;
-  explicit LevelPoints(const RangeImage& image);
+  explicit LevelPoints(const RangeImage& image, int threads = 1);
 };
 
 /// Bounds of short runs of pixels along each row (tiles of kTileWidth columns): the range of
@@ -61,11 +62,13 @@ class UnionFind {
 /// pixels of one segment) or -1 when i is in none. Ids follow the row-major order of each
 /// segment's first pixel; features follow the definitions in detector.hpp.
 /// `raised[i]` is 1 where i is the upper point of some compatible pair; with `min_height`
-/// (HT) it decides the feet (Detection::foot).
+/// (HT) it decides the feet (Detection::foot). On up to `threads` threads (0: all), with the
+/// same result on any: the sums run over parts of the segments' points that the points
+/// alone decide.
 Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
                          const std::vector<std::int32_t>& component,
                          const std::vector<std::uint8_t>& raised, float min_height,
-                         const DetectionStats& stats);
+                         const DetectionStats& stats, int threads = 1);
 
 /// With min_range_m > 0 and returns nearer than it: a copy of `image` without them; else
 /// nullopt (the image is used as it is). DetectorConfig::min_range_m.

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <optional>
 #include <string>
-#include <thread>
 #include <variant>
 
 #include "cairn/od/parallel.hpp"
@@ -105,39 +104,41 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
     return Detect(*masked, config);
   }
   const int n = image.size();
-  const internal::LevelPoints level(image);
+  const int threads = ThreadCount(config.threads);
+  const internal::LevelPoints level(image, threads);
   const PairTest test(config);
   // Leaves of 2 x 16 pixels on a LiDAR scan, of 4 x 8 on camera images: the fastest of the
   // shapes tried on the benchmark frames with the leaves scanned four points at a time
   // (BENCHMARKS.md; one ring of 16 was the fastest one point at a time).
   const bool lidar = std::holds_alternative<SphericalModel>(image.model());
   const int leaf_rows = lidar ? 2 : 4, leaf_cols = lidar ? 16 : 8;
-  const internal::Candidates candidates = internal::FindCandidates(level, test);
   internal::PairSearchOptions options;
-  options.threads = ThreadCount(config.threads);
+  options.threads = threads;
+  const internal::Candidates candidates = internal::FindCandidates(level, test, threads);
   // The two trees, side by side when there are threads for it.
   std::optional<internal::PointTree> lower, upper;
-  {
-    const auto build_upper = [&] {
-      upper.emplace(level, candidates.upper, image.width(), image.height(), leaf_rows,
-                    leaf_cols);
-    };
-    std::thread other;
-    if (options.threads > 1) other = std::thread(build_upper);
-    lower.emplace(level, candidates.lower, image.width(), image.height(), leaf_rows, leaf_cols);
-    if (other.joinable()) {
-      other.join();
-    } else {
-      build_upper();
-    }
-  }
+  ParallelFor(
+      2, options.threads,
+      [&](int tree) {
+        const bool is_lower = tree == 0;
+        (is_lower ? lower : upper)
+            .emplace(level, is_lower ? candidates.lower : candidates.upper, image.width(),
+                     image.height(), leaf_rows, leaf_cols);
+      },
+      1);
   const internal::PairSearchResult found = internal::SearchPairs(*lower, *upper, n, test, options);
   std::vector<std::int32_t> component(n, -1);
-  for (int i = 0; i < n; ++i) {
-    if (found.lower[i] || found.raised[i]) component[i] = found.set[i];
-  }
-  return internal::BuildDetection(image, level, component, found.raised,
-                                  test.min_height, found.stats);
+  ParallelFor(
+      8, threads,
+      [&](int k) {
+        const int end = static_cast<int>(static_cast<std::int64_t>(n) * (k + 1) / 8);
+        for (int i = static_cast<int>(static_cast<std::int64_t>(n) * k / 8); i < end; ++i) {
+          if (found.lower[i] || found.raised[i]) component[i] = found.set[i];
+        }
+      },
+      1);
+  return internal::BuildDetection(image, level, component, found.raised, test.min_height,
+                                  found.stats, threads);
 }
 
 Expected<Detection> DetectRegionScan(const RangeImage& image, const DetectorConfig& config) {

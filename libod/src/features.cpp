@@ -1,23 +1,42 @@
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <variant>
 
+#include "cairn/od/parallel.hpp"
 #include "detection_internal.hpp"
 
 namespace cairn::od::internal {
 
-LevelPoints::LevelPoints(const RangeImage& image)
+LevelPoints::LevelPoints(const RangeImage& image, int threads)
     : x(image.size()), y(image.size()), z(image.size()) {
   const Eigen::Matrix3f R = image.R_level_sensor().cast<float>();
-  for (int i = 0; i < image.size(); ++i) {
-    const Eigen::Vector3f p(image.x()[i], image.y()[i], image.z()[i]);
-    const Eigen::Vector3f q = R * p;  // NaN stays NaN
-    x[i] = q.x();
-    y[i] = q.y();
-    z[i] = q.z();
-  }
+  constexpr int kParts = 8;
+  const int n = image.size();
+  ParallelFor(
+      kParts, threads,
+      [&](int k) {
+        const float* sx = image.x().data();
+        const float* sy = image.y().data();
+        const float* sz = image.z().data();
+        float* lx = x.data();
+        float* ly = y.data();
+        float* lz = z.data();
+        // The matrix in locals, not reloaded after every store (which could alias it).
+        const float r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2);
+        const float r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2);
+        const float r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
+        const int end = static_cast<int>(static_cast<std::int64_t>(n) * (k + 1) / kParts);
+        for (int i = static_cast<int>(static_cast<std::int64_t>(n) * k / kParts); i < end; ++i) {
+          // NaN stays NaN.
+          lx[i] = r00 * sx[i] + r01 * sy[i] + r02 * sz[i];
+          ly[i] = r10 * sx[i] + r11 * sy[i] + r12 * sz[i];
+          lz[i] = r20 * sx[i] + r21 * sy[i] + r22 * sz[i];
+        }
+      },
+      1);
 }
 
 RowTiles::RowTiles(const LevelPoints& level, int width, int height)
@@ -83,9 +102,41 @@ std::vector<std::int32_t> UnionFind::Components() {
 
 namespace {
 
-struct SegmentSums {
+// One segment's features over some of its points, before the means: the sums behind them.
+struct Partial {
+  SegmentFeatures f;
   double sx = 0, sy = 0, sz = 0, s_range = 0, slope_sum = 0;
   double z_min = std::numeric_limits<double>::infinity();
+
+  Partial() {
+    const double inf = std::numeric_limits<double>::infinity();
+    f.bbox_min = Eigen::Vector3d::Constant(inf);
+    f.bbox_max = Eigen::Vector3d::Constant(-inf);
+    f.range_min_m = inf;
+    f.row_min = f.col_min = std::numeric_limits<int>::max();
+    f.row_max = f.col_max = -1;
+  }
+  // Adds the points of `o` (points that come after this one's in row-major order).
+  void Add(const Partial& o) {
+    f.point_count += o.f.point_count;
+    f.raised_count += o.f.raised_count;
+    f.foot_count += o.f.foot_count;
+    f.bbox_min = f.bbox_min.cwiseMin(o.f.bbox_min);
+    f.bbox_max = f.bbox_max.cwiseMax(o.f.bbox_max);
+    f.range_min_m = std::min(f.range_min_m, o.f.range_min_m);
+    f.row_min = std::min(f.row_min, o.f.row_min);
+    f.row_max = std::max(f.row_max, o.f.row_max);
+    f.col_min = std::min(f.col_min, o.f.col_min);
+    f.col_max = std::max(f.col_max, o.f.col_max);
+    f.slope_points += o.f.slope_points;
+    f.slope_max_rad = std::max(f.slope_max_rad, o.f.slope_max_rad);
+    sx += o.sx;
+    sy += o.sy;
+    sz += o.sz;
+    s_range += o.s_range;
+    slope_sum += o.slope_sum;
+    z_min = std::min(z_min, o.z_min);
+  }
 };
 
 }  // namespace
@@ -93,65 +144,53 @@ struct SegmentSums {
 Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
                          const std::vector<std::int32_t>& component,
                          const std::vector<std::uint8_t>& raised, float min_height,
-                         const DetectionStats& stats) {
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  const int n = image.size(), width = image.width();
+                         const DetectionStats& stats, int threads) {
+  const int n = image.size(), width = image.width(), height = image.height();
   Detection det;
   det.width = width;
-  det.height = image.height();
+  det.height = height;
   det.labels.assign(n, 0);
   det.foot.assign(n, 0);
   det.stats = stats;
-  det.stats.obstacle_points = 0;
 
-  // Ids in row-major order of first pixels; id_of_rep maps a representative to its id.
-  // The segments' pixels, in row-major order: every later pass visits only them.
+  // The segments' pixels, in row-major order (gathered in parts, joined in order): every
+  // later pass visits only them.
+  constexpr int kPixelParts = 8;
+  std::array<std::vector<std::int32_t>, kPixelParts> gathered;
+  ParallelFor(
+      kPixelParts, threads,
+      [&](int k) {
+        const int end = static_cast<int>(static_cast<std::int64_t>(n) * (k + 1) / kPixelParts);
+        for (int i = static_cast<int>(static_cast<std::int64_t>(n) * k / kPixelParts); i < end;
+             ++i) {
+          if (component[i] >= 0) gathered[k].push_back(i);
+        }
+      },
+      1);
   std::vector<std::int32_t> members;
-  for (int i = 0; i < n; ++i) {
-    if (component[i] >= 0) members.push_back(i);
-  }
-  std::vector<std::int32_t> id_of_rep(n, 0);
-  std::vector<SegmentSums> sums;
-  for (const int i : members) {
-    const int rep = component[i];
-    if (id_of_rep[rep] == 0) {
-      id_of_rep[rep] = static_cast<std::int32_t>(det.segments.size()) + 1;
-      SegmentFeatures f;
-      f.id = id_of_rep[rep];
-      f.bbox_min = Eigen::Vector3d::Constant(kInf);
-      f.bbox_max = Eigen::Vector3d::Constant(-kInf);
-      f.range_min_m = kInf;
-      f.row_min = f.col_min = std::numeric_limits<int>::max();
-      f.row_max = f.col_max = -1;
-      det.segments.push_back(f);
-      sums.emplace_back();
+  for (const auto& part : gathered) members.insert(members.end(), part.begin(), part.end());
+  const int m = static_cast<int>(members.size());
+  det.stats.obstacle_points = m;
+  // Ids in row-major order of first pixels; id_of_rep maps a representative to its id.
+  int segments = 0;
+  {
+    std::vector<std::int32_t> id_of_rep(n, 0);
+    for (const int i : members) {
+      std::int32_t& id = id_of_rep[component[i]];
+      if (id == 0) id = ++segments;
+      det.labels[i] = id;
     }
-    const int id = id_of_rep[rep];
-    det.labels[i] = id;
-    ++det.stats.obstacle_points;
-    SegmentFeatures& f = det.segments[id - 1];
-    SegmentSums& s = sums[id - 1];
-    const Eigen::Vector3d p(level.x[i], level.y[i], level.z[i]);
-    const double range = image.range(i);
-    ++f.point_count;
-    f.raised_count += raised[i] != 0;
-    f.bbox_min = f.bbox_min.cwiseMin(p);
-    f.bbox_max = f.bbox_max.cwiseMax(p);
-    f.range_min_m = std::min(f.range_min_m, range);
-    const int r = i / width, c = i % width;
-    f.row_min = std::min(f.row_min, r);
-    f.row_max = std::max(f.row_max, r);
-    f.col_min = std::min(f.col_min, c);
-    f.col_max = std::max(f.col_max, c);
-    s.sx += p.x();
-    s.sy += p.y();
-    s.sz += p.z();
-    s.s_range += range;
-    s.z_min = std::min(s.z_min, p.z());
   }
+  // The sums run over parts of the members, each part's per segment, added in order: how
+  // the members are cut depends on the members only, so the result does not depend on the
+  // threads. Parts hold at least 4096 members and 4 per segment (their sums' memory).
+  const int parts = std::clamp(std::min(m / 4096, m / std::max(1, 4 * segments)), 1, 8);
+  const auto part_begin = [&](int k) {
+    return static_cast<int>(static_cast<std::int64_t>(m) * k / parts);
+  };
+  std::vector<Partial> partial(static_cast<std::size_t>(parts) * segments);
   // Surface slopes from each point's neighbours in its own segment.
   const bool wraps = std::holds_alternative<SphericalModel>(image.model());
-  const int height = image.height();
   const auto at = [&](int j) { return Eigen::Vector3d(level.x[j], level.y[j], level.z[j]); };
   // The tangent along one line through i: neighbours `before` and `after` (-1: none).
   const auto tangent = [&](int i, int before, int after, Eigen::Vector3d& t) {
@@ -162,28 +201,61 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     t = (a ? at(after) : at(i)) - (b ? at(before) : at(i));
     return true;
   };
-  for (const int i : members) {
-    const int id = det.labels[i];
-    const int r = i / width, c = i % width;
-    int left = c > 0 ? i - 1 : (wraps ? i + width - 1 : -1);
-    int right = c + 1 < width ? i + 1 : (wraps ? i - c : -1);
-    if (width == 1) left = right = -1;
-    const int up = r > 0 ? i - width : -1;
-    const int down = r + 1 < height ? i + width : -1;
-    Eigen::Vector3d tu, tv;
-    if (!tangent(i, left, right, tu) || !tangent(i, up, down, tv)) continue;
-    const Eigen::Vector3d normal = tu.cross(tv);
-    const double horizontal = std::sqrt(normal.x() * normal.x() + normal.y() * normal.y());
-    if (!(horizontal > 0.0 || normal.z() != 0.0)) continue;
-    const double slope = std::atan2(horizontal, std::abs(normal.z()));
-    SegmentFeatures& f = det.segments[id - 1];
-    ++f.slope_points;
-    f.slope_max_rad = std::max(f.slope_max_rad, slope);
-    sums[id - 1].slope_sum += slope;
+  ParallelFor(
+      parts, threads,
+      [&](int k) {
+        Partial* sums = &partial[static_cast<std::size_t>(k) * segments];
+        for (int mi = part_begin(k); mi < part_begin(k + 1); ++mi) {
+          const int i = members[mi];
+          const int id = det.labels[i];
+          Partial& s = sums[id - 1];
+          SegmentFeatures& f = s.f;
+          const Eigen::Vector3d p = at(i);
+          const double range = image.range(i);
+          ++f.point_count;
+          f.raised_count += raised[i] != 0;
+          f.bbox_min = f.bbox_min.cwiseMin(p);
+          f.bbox_max = f.bbox_max.cwiseMax(p);
+          f.range_min_m = std::min(f.range_min_m, range);
+          const int r = i / width, c = i % width;
+          f.row_min = std::min(f.row_min, r);
+          f.row_max = std::max(f.row_max, r);
+          f.col_min = std::min(f.col_min, c);
+          f.col_max = std::max(f.col_max, c);
+          s.sx += p.x();
+          s.sy += p.y();
+          s.sz += p.z();
+          s.s_range += range;
+          s.z_min = std::min(s.z_min, p.z());
+
+          int left = c > 0 ? i - 1 : (wraps ? i + width - 1 : -1);
+          int right = c + 1 < width ? i + 1 : (wraps ? i - c : -1);
+          if (width == 1) left = right = -1;
+          const int up = r > 0 ? i - width : -1;
+          const int down = r + 1 < height ? i + width : -1;
+          Eigen::Vector3d tu, tv;
+          if (!tangent(i, left, right, tu) || !tangent(i, up, down, tv)) continue;
+          const Eigen::Vector3d normal = tu.cross(tv);
+          const double horizontal = std::sqrt(normal.x() * normal.x() + normal.y() * normal.y());
+          if (!(horizontal > 0.0 || normal.z() != 0.0)) continue;
+          const double slope = std::atan2(horizontal, std::abs(normal.z()));
+          ++f.slope_points;
+          f.slope_max_rad = std::max(f.slope_max_rad, slope);
+          s.slope_sum += slope;
+        }
+      },
+      1);
+  for (int k = 1; k < parts; ++k) {
+    for (int id = 0; id < segments; ++id) {
+      partial[id].Add(partial[static_cast<std::size_t>(k) * segments + id]);
+    }
   }
-  for (std::size_t k = 0; k < det.segments.size(); ++k) {
-    SegmentFeatures& f = det.segments[k];
-    const SegmentSums& s = sums[k];
+  det.segments.resize(segments);
+  for (int id = 0; id < segments; ++id) {
+    const Partial& s = partial[id];
+    SegmentFeatures& f = det.segments[id];
+    f = s.f;
+    f.id = id + 1;
     const double np = f.point_count;
     const Eigen::Vector3d extent = f.bbox_max - f.bbox_min;
     f.bbox_perimeter_m = 2.0 * (extent.x() + extent.y());
@@ -195,14 +267,27 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     f.height_max_m = f.bbox_max.z() - s.z_min;
     f.range_mean_m = s.s_range / np;
   }
-  // Feet: not raised, and lower than HT above the segment's ground.
-  for (const int i : members) {
-    const int id = det.labels[i];
-    if (raised[i] != 0) continue;
-    SegmentFeatures& f = det.segments[id - 1];
-    if (level.z[i] - f.ground_height_m < min_height) {
-      det.foot[i] = 1;
-      ++f.foot_count;
+  // Feet: not raised, and lower than HT above the segment's ground (counted per part).
+  ParallelFor(
+      parts, threads,
+      [&](int k) {
+        Partial* sums = &partial[static_cast<std::size_t>(k) * segments];
+        for (int id = 0; id < segments; ++id) sums[id].f.foot_count = 0;
+        for (int mi = part_begin(k); mi < part_begin(k + 1); ++mi) {
+          const int i = members[mi];
+          const int id = det.labels[i];
+          if (raised[i] != 0) continue;
+          if (level.z[i] - det.segments[id - 1].ground_height_m < min_height) {
+            det.foot[i] = 1;
+            ++sums[id - 1].f.foot_count;
+          }
+        }
+      },
+      1);
+  for (int k = 0; k < parts; ++k) {
+    for (int id = 0; id < segments; ++id) {
+      det.segments[id].foot_count +=
+          partial[static_cast<std::size_t>(k) * segments + id].f.foot_count;
     }
   }
   return det;

@@ -1,6 +1,7 @@
 #include "pair_search.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -14,19 +15,47 @@
 
 namespace cairn::od::internal {
 
-Candidates FindCandidates(const LevelPoints& level, const PairTest& test) {
+Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int threads) {
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const int n = static_cast<int>(level.z.size());
   Candidates c{std::vector<std::uint8_t>(n, 0), std::vector<std::uint8_t>(n, 0)};
+  // The passes over the points run in kParts parts whatever the threads; everything they
+  // gather is a count, a minimum or a maximum, so the result is the same on any threads.
+  constexpr int kParts = 8;
+  const auto part_begin = [n](int k) {
+    return static_cast<int>(static_cast<std::int64_t>(n) * k / kParts);
+  };
+  struct Extent {
+    float x_lo = kInf, x_hi = -kInf, y_lo = kInf, y_hi = -kInf;
+    int valid = 0;
+  };
+  std::array<Extent, kParts> parts;
+  ParallelFor(
+      kParts, threads,
+      [&](int k) {
+        // Without a branch: an invalid point's NaN fails every comparison.
+        Extent e;
+        const float* x = level.x.data();
+        const float* y = level.y.data();
+        const float* z = level.z.data();
+        for (int i = part_begin(k); i < part_begin(k + 1); ++i) {
+          e.valid += z[i] == z[i];
+          e.x_lo = x[i] < e.x_lo ? x[i] : e.x_lo;
+          e.x_hi = x[i] > e.x_hi ? x[i] : e.x_hi;
+          e.y_lo = y[i] < e.y_lo ? y[i] : e.y_lo;
+          e.y_hi = y[i] > e.y_hi ? y[i] : e.y_hi;
+        }
+        parts[k] = e;
+      },
+      1);
   float x_lo = kInf, x_hi = -kInf, y_lo = kInf, y_hi = -kInf;
   int valid = 0;
-  for (int i = 0; i < n; ++i) {
-    if (std::isnan(level.z[i])) continue;
-    ++valid;
-    x_lo = std::min(x_lo, level.x[i]);
-    x_hi = std::max(x_hi, level.x[i]);
-    y_lo = std::min(y_lo, level.y[i]);
-    y_hi = std::max(y_hi, level.y[i]);
+  for (const Extent& e : parts) {
+    x_lo = std::min(x_lo, e.x_lo);
+    x_hi = std::max(x_hi, e.x_hi);
+    y_lo = std::min(y_lo, e.y_lo);
+    y_hi = std::max(y_hi, e.y_hi);
+    valid += e.valid;
   }
   if (!(x_lo <= x_hi)) return c;
   // Cells of a quarter of the reach, at most 256 a side and at most about 2 sqrt(points) a
@@ -42,19 +71,45 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test) {
   const int nx = static_cast<int>((x_hi - x_lo) / side) + 1;
   const int ny = static_cast<int>((y_hi - y_lo) / side) + 1;
   const int rings = std::max(1, static_cast<int>(std::ceil(reach / side)));
-  std::vector<float> high(static_cast<std::size_t>(nx) * ny, -kInf);
-  std::vector<float> low(high.size(), kInf);
+  const std::size_t cells = static_cast<std::size_t>(nx) * ny;
   std::vector<std::int32_t> cell(n, -1);
+  // Each worker's highest and lowest point per cell, then the workers' together.
   // Rounding may put a point lying on a cell boundary in the neighbouring cell (off by far
   // less than a micrometre): the margin below covers it.
   const double per_m = 1.0 / side;
-  for (int i = 0; i < n; ++i) {
-    if (std::isnan(level.z[i])) continue;
-    const int cx = std::clamp(static_cast<int>((level.x[i] - x_lo) * per_m), 0, nx - 1);
-    const int cy = std::clamp(static_cast<int>((level.y[i] - y_lo) * per_m), 0, ny - 1);
-    cell[i] = cy * nx + cx;
-    high[cell[i]] = std::max(high[cell[i]], level.z[i]);
-    low[cell[i]] = std::min(low[cell[i]], level.z[i]);
+  const int workers = std::clamp(ThreadCount(threads), 1, kParts);
+  std::vector<std::vector<float>> highs(workers), lows(workers);
+  ParallelFor(
+      kParts, workers,
+      [&](int worker, int k) {
+        std::vector<float>& high = highs[worker];
+        std::vector<float>& low = lows[worker];
+        if (high.empty()) {
+          high.assign(cells, -kInf);
+          low.assign(cells, kInf);
+        }
+        for (int i = part_begin(k); i < part_begin(k + 1); ++i) {
+          if (std::isnan(level.z[i])) continue;
+          const int cx = std::clamp(static_cast<int>((level.x[i] - x_lo) * per_m), 0, nx - 1);
+          const int cy = std::clamp(static_cast<int>((level.y[i] - y_lo) * per_m), 0, ny - 1);
+          cell[i] = cy * nx + cx;
+          high[cell[i]] = std::max(high[cell[i]], level.z[i]);
+          low[cell[i]] = std::min(low[cell[i]], level.z[i]);
+        }
+      },
+      1);
+  std::vector<float> high, low;
+  for (int w = 0; w < workers; ++w) {
+    if (highs[w].empty()) continue;  // a worker that took no part
+    if (high.empty()) {
+      high = std::move(highs[w]);
+      low = std::move(lows[w]);
+      continue;
+    }
+    for (std::size_t j = 0; j < cells; ++j) {
+      high[j] = std::max(high[j], highs[w][j]);
+      low[j] = std::min(low[j], lows[w][j]);
+    }
   }
   // Ring k: the highest / lowest point within k cells (Chebyshev), by repeated 3x3
   // dilation; a point there lies at least (k - 1) cells away horizontally, so a partner
@@ -63,49 +118,61 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test) {
   constexpr float kMargin = 1e-3f;
   std::vector<std::uint8_t>& lower = c.lower;
   std::vector<std::uint8_t>& upper = c.upper;
-  std::vector<float> tmp(high.size());
-  const auto dilate = [&](std::vector<float>& v, bool take_max) {
-    const auto pick = [take_max](float a, float b) { return take_max ? std::max(a, b) : std::min(a, b); };
-    for (int y = 0; y < ny; ++y) {
-      const float* row = &v[static_cast<std::size_t>(y) * nx];
-      float* out = &tmp[static_cast<std::size_t>(y) * nx];
-      for (int x = 0; x < nx; ++x) {
-        float m = row[x];
-        if (x > 0) m = pick(m, row[x - 1]);
-        if (x + 1 < nx) m = pick(m, row[x + 1]);
-        out[x] = m;
-      }
-    }
-    for (int y = 0; y < ny; ++y) {
-      for (int x = 0; x < nx; ++x) {
-        const std::size_t k = static_cast<std::size_t>(y) * nx + x;
-        float m = tmp[k];
-        if (y > 0) m = pick(m, tmp[k - nx]);
-        if (y + 1 < ny) m = pick(m, tmp[k + nx]);
-        v[k] = m;
-      }
-    }
-  };
   // Per cell, over the rings: a point there may be a lower point when it lies below
-  // `below`, an upper point when above `above`.
+  // `below`, an upper point when above `above`; the first from the highest points, the
+  // second from the lowest, side by side.
   std::vector<float> below(high.size(), -kInf), above(high.size(), kInf);
-  for (int k = 0; k <= rings; ++k) {
-    if (k > 0) {
-      dilate(high, true);
-      dilate(low, false);
-    }
-    const float need = static_cast<float>(
-        std::max<double>(test.min_height, std::max(0, k - 1) * side * tan_theta)) - kMargin;
-    for (std::size_t j = 0; j < high.size(); ++j) {
-      below[j] = std::max(below[j], high[j] - need);
-      above[j] = std::min(above[j], low[j] + need);
-    }
-  }
-  for (int i = 0; i < n; ++i) {
-    if (cell[i] < 0) continue;
-    lower[i] = level.z[i] < below[cell[i]];
-    upper[i] = level.z[i] > above[cell[i]];
-  }
+  ParallelFor(
+      2, threads,
+      [&](int item) {
+        const bool take_max = item == 0;
+        std::vector<float>& v = take_max ? high : low;
+        std::vector<float>& bound = take_max ? below : above;
+        const auto pick = [take_max](float a, float b) {
+          return take_max ? std::max(a, b) : std::min(a, b);
+        };
+        std::vector<float> tmp(v.size());
+        for (int k = 0; k <= rings; ++k) {
+          if (k > 0) {  // one 3 x 3 dilation: along rows into tmp, along columns back
+            for (int y = 0; y < ny; ++y) {
+              const float* row = &v[static_cast<std::size_t>(y) * nx];
+              float* out = &tmp[static_cast<std::size_t>(y) * nx];
+              for (int x = 0; x < nx; ++x) {
+                float m = row[x];
+                if (x > 0) m = pick(m, row[x - 1]);
+                if (x + 1 < nx) m = pick(m, row[x + 1]);
+                out[x] = m;
+              }
+            }
+            for (int y = 0; y < ny; ++y) {
+              for (int x = 0; x < nx; ++x) {
+                const std::size_t j = static_cast<std::size_t>(y) * nx + x;
+                float m = tmp[j];
+                if (y > 0) m = pick(m, tmp[j - nx]);
+                if (y + 1 < ny) m = pick(m, tmp[j + nx]);
+                v[j] = m;
+              }
+            }
+          }
+          const float need = static_cast<float>(std::max<double>(
+                                 test.min_height, std::max(0, k - 1) * side * tan_theta)) -
+                             kMargin;
+          for (std::size_t j = 0; j < v.size(); ++j) {
+            bound[j] = take_max ? std::max(bound[j], v[j] - need) : std::min(bound[j], v[j] + need);
+          }
+        }
+      },
+      1);
+  ParallelFor(
+      kParts, threads,
+      [&](int k) {
+        for (int i = part_begin(k); i < part_begin(k + 1); ++i) {
+          if (cell[i] < 0) continue;
+          lower[i] = level.z[i] < below[cell[i]];
+          upper[i] = level.z[i] > above[cell[i]];
+        }
+      },
+      1);
   return c;
 }
 

@@ -41,11 +41,12 @@
 namespace cairn::od::internal {
 
 /// Which points can be the lower / upper point of a compatible pair (1 = may, 0 = cannot),
-/// per pixel, by the grid bound above. Invalid points are 0 in both.
+/// per pixel, by the grid bound above. Invalid points are 0 in both. On up to `threads`
+/// threads (0: all), with the same result on any.
 struct Candidates {
   std::vector<std::uint8_t> lower, upper;
 };
-Candidates FindCandidates(const LevelPoints& level, const PairTest& test);
+Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int threads = 1);
 
 /// Points of an image (those with mask[pixel] != 0) in a binary tree of pixel rectangles.
 struct PointTree {
