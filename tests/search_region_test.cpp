@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <string>
 
@@ -117,6 +118,39 @@ TEST(SearchRegion, ContainsEveryCompatiblePartnerOnLidarScans) {
     pairs_checked += CheckEveryPartnerInside(image, config, "lidar trial " + std::to_string(trial));
   }
   EXPECT_GT(pairs_checked, 100000);
+}
+
+// The level frame: R_level_sensor p for every point, in float as (r0 x + r1 y) + r2 z (to
+// 1e-6 of the product in double), NaN for every hole, the same on any number of threads (the
+// points run four at a time, in parts).
+TEST(LevelPoints, AreTheTiltedPointsOnAnyThreads) {
+  std::mt19937 rng(77);
+  for (int trial = 0; trial < 4; ++trial) {
+    const RangeImage image = RandomScan(rng, "OS1-64", 61 + trial * 7, 4.0 * trial);
+    const Eigen::Matrix3f R = image.R_level_sensor().cast<float>();  // as the detector rounds it
+    const internal::LevelPoints one(image, 1), three(image, 3);
+    int valid = 0;
+    for (int i = 0; i < image.size(); ++i) {
+      if (!image.valid(i)) {
+        EXPECT_TRUE(std::isnan(one.x[i]) && std::isnan(one.y[i]) && std::isnan(one.z[i]));
+        continue;
+      }
+      ++valid;
+      const float p[3] = {image.x()[i], image.y()[i], image.z()[i]};
+      const float* level[3] = {one.x.data(), one.y.data(), one.z.data()};
+      const Eigen::Vector3d exact =
+          image.R_level_sensor() * Eigen::Vector3f(p[0], p[1], p[2]).cast<double>();
+      for (int a = 0; a < 3; ++a) {
+        const float sum = R(a, 0) * p[0] + R(a, 1) * p[1] + R(a, 2) * p[2];
+        ASSERT_EQ(level[a][i], sum) << "trial " << trial << ", pixel " << i << ", axis " << a;
+        ASSERT_NEAR(level[a][i], exact[a], 1e-6 * (1.0 + exact.norm()));
+      }
+      ASSERT_EQ(three.x[i], one.x[i]);
+      ASSERT_EQ(three.y[i], one.y[i]);
+      ASSERT_EQ(three.z[i], one.z[i]);
+    }
+    EXPECT_GT(valid, 1000);
+  }
 }
 
 TEST(SearchRegion, LidarDetectionEqualsBruteForce) {

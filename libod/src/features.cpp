@@ -5,6 +5,10 @@
 #include <limits>
 #include <variant>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "cairn/od/parallel.hpp"
 #include "detection_internal.hpp"
 
@@ -18,19 +22,34 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads)
   ParallelFor(
       kParts, threads,
       [&](int k) {
+        const float r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2);
+        const float r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2);
+        const float r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
         const float* sx = image.x().data();
         const float* sy = image.y().data();
         const float* sz = image.z().data();
         float* lx = x.data();
         float* ly = y.data();
         float* lz = z.data();
-        // The matrix in locals, not reloaded after every store (which could alias it).
-        const float r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2);
-        const float r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2);
-        const float r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
+        const int begin = static_cast<int>(static_cast<std::int64_t>(n) * k / kParts);
         const int end = static_cast<int>(static_cast<std::int64_t>(n) * (k + 1) / kParts);
-        for (int i = static_cast<int>(static_cast<std::int64_t>(n) * k / kParts); i < end; ++i) {
-          // NaN stays NaN.
+        int i = begin;
+#if defined(__SSE2__)
+        const auto row = [&](float a, float b, float c, __m128 px, __m128 py, __m128 pz) {
+          return _mm_add_ps(
+              _mm_add_ps(_mm_mul_ps(_mm_set1_ps(a), px), _mm_mul_ps(_mm_set1_ps(b), py)),
+              _mm_mul_ps(_mm_set1_ps(c), pz));
+        };
+        for (; i + 4 <= end; i += 4) {
+          const __m128 px = _mm_loadu_ps(sx + i), py = _mm_loadu_ps(sy + i),
+                       pz = _mm_loadu_ps(sz + i);
+          _mm_storeu_ps(lx + i, row(r00, r01, r02, px, py, pz));
+          _mm_storeu_ps(ly + i, row(r10, r11, r12, px, py, pz));
+          _mm_storeu_ps(lz + i, row(r20, r21, r22, px, py, pz));
+        }
+#endif
+        for (; i < end; ++i) {
+          // R p as (r0 x + r1 y) + r2 z, as the four at a time above; NaN stays NaN.
           lx[i] = r00 * sx[i] + r01 * sy[i] + r02 * sz[i];
           ly[i] = r10 * sx[i] + r11 * sy[i] + r12 * sz[i];
           lz[i] = r20 * sx[i] + r21 * sy[i] + r22 * sz[i];

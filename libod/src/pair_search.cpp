@@ -15,6 +15,42 @@
 
 namespace cairn::od::internal {
 
+namespace {
+
+// FindCandidates' rings: for k = 0..rings, v is dilated (3 x 3, the maximum for kMax, else the
+// minimum) k times, and bound becomes the running max of v - need(k) (kMax) or min of
+// v + need(k). Leaves v dilated.
+template <bool kMax, class Need>
+void RingBounds(std::vector<float>& v, int nx, int ny, int rings, const Need& need,
+                std::vector<float>& bound) {
+  const auto pick = [](float a, float b) { return kMax ? std::max(a, b) : std::min(a, b); };
+  std::vector<float> tmp(v.size());
+  for (int k = 0; k <= rings; ++k) {
+    if (k > 0) {  // along rows into tmp, along columns back
+      for (int y = 0; y < ny; ++y) {
+        const float* row = &v[static_cast<std::size_t>(y) * nx];
+        float* out = &tmp[static_cast<std::size_t>(y) * nx];
+        out[0] = nx > 1 ? pick(row[0], row[1]) : row[0];
+        for (int x = 1; x + 1 < nx; ++x) out[x] = pick(pick(row[x - 1], row[x]), row[x + 1]);
+        if (nx > 1) out[nx - 1] = pick(row[nx - 2], row[nx - 1]);
+      }
+      for (int y = 0; y < ny; ++y) {
+        const float* mid = &tmp[static_cast<std::size_t>(y) * nx];
+        const float* above = y > 0 ? mid - nx : mid;
+        const float* below = y + 1 < ny ? mid + nx : mid;
+        float* out = &v[static_cast<std::size_t>(y) * nx];
+        for (int x = 0; x < nx; ++x) out[x] = pick(pick(above[x], mid[x]), below[x]);
+      }
+    }
+    const float d = need(k);
+    for (std::size_t j = 0; j < v.size(); ++j) {
+      bound[j] = kMax ? std::max(bound[j], v[j] - d) : std::min(bound[j], v[j] + d);
+    }
+  }
+}
+
+}  // namespace
+
 Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int threads) {
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const int n = static_cast<int>(level.z.size());
@@ -122,44 +158,18 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
   // `below`, an upper point when above `above`; the first from the highest points, the
   // second from the lowest, side by side.
   std::vector<float> below(high.size(), -kInf), above(high.size(), kInf);
+  const auto need = [&](int k) {
+    return static_cast<float>(
+               std::max<double>(test.min_height, std::max(0, k - 1) * side * tan_theta)) -
+           kMargin;
+  };
   ParallelFor(
       2, threads,
       [&](int item) {
-        const bool take_max = item == 0;
-        std::vector<float>& v = take_max ? high : low;
-        std::vector<float>& bound = take_max ? below : above;
-        const auto pick = [take_max](float a, float b) {
-          return take_max ? std::max(a, b) : std::min(a, b);
-        };
-        std::vector<float> tmp(v.size());
-        for (int k = 0; k <= rings; ++k) {
-          if (k > 0) {  // one 3 x 3 dilation: along rows into tmp, along columns back
-            for (int y = 0; y < ny; ++y) {
-              const float* row = &v[static_cast<std::size_t>(y) * nx];
-              float* out = &tmp[static_cast<std::size_t>(y) * nx];
-              for (int x = 0; x < nx; ++x) {
-                float m = row[x];
-                if (x > 0) m = pick(m, row[x - 1]);
-                if (x + 1 < nx) m = pick(m, row[x + 1]);
-                out[x] = m;
-              }
-            }
-            for (int y = 0; y < ny; ++y) {
-              for (int x = 0; x < nx; ++x) {
-                const std::size_t j = static_cast<std::size_t>(y) * nx + x;
-                float m = tmp[j];
-                if (y > 0) m = pick(m, tmp[j - nx]);
-                if (y + 1 < ny) m = pick(m, tmp[j + nx]);
-                v[j] = m;
-              }
-            }
-          }
-          const float need = static_cast<float>(std::max<double>(
-                                 test.min_height, std::max(0, k - 1) * side * tan_theta)) -
-                             kMargin;
-          for (std::size_t j = 0; j < v.size(); ++j) {
-            bound[j] = take_max ? std::max(bound[j], v[j] - need) : std::min(bound[j], v[j] + need);
-          }
+        if (item == 0) {
+          RingBounds<true>(high, nx, ny, rings, need, below);
+        } else {
+          RingBounds<false>(low, nx, ny, rings, need, above);
         }
       },
       1);
