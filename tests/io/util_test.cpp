@@ -71,18 +71,26 @@ TEST(ParallelFor, LoopsFromSeveralThreadsAndInsideLoopsEachCallEveryItemOnce) {
 }
 
 // A body that throws on the calling thread: the exception reaches the caller once the
-// helpers have let go of the loop, and the pool serves the next loop.
+// helpers have let go of the loop, and the pool serves the next loop. (A helper holds its
+// first item until the caller has one, so that the caller is sure to run an item.)
 TEST(ParallelFor, AnExceptionFromTheBodyReachesTheCaller) {
-  std::atomic<int> calls{0};
-  EXPECT_THROW(ParallelFor(
-                   64, 2,
-                   [&](int worker, int) {
-                     ++calls;
-                     if (worker == 0) throw std::runtime_error("item failed");
-                   },
-                   1),
-               std::runtime_error);
-  EXPECT_GE(calls.load(), 1);
+  for (int round = 0; round < 20; ++round) {
+    std::atomic<int> calls{0};
+    std::atomic<bool> caller_has_one{false};
+    EXPECT_THROW(ParallelFor(
+                     64, 2,
+                     [&](int worker, int) {
+                       ++calls;
+                       if (worker == 0) {
+                         caller_has_one = true;
+                         throw std::runtime_error("item failed");
+                       }
+                       while (!caller_has_one) std::this_thread::yield();
+                     },
+                     1),
+                 std::runtime_error);
+    EXPECT_GE(calls.load(), 1);
+  }
   std::vector<int> squares(100, 0);
   ParallelFor(100, 2, [&](int i) { squares[i] = i * i; });
   for (int i = 0; i < 100; ++i) EXPECT_EQ(squares[i], i * i);
