@@ -4,8 +4,8 @@
 // order-free way), the output does not depend on the number of threads.
 //
 // The helper threads are kept from one loop to the next (a pool that grows to the most threads
-// a loop has asked for), so that a loop of a few hundred microseconds, as the detector's stages
-// are on one frame, is worth splitting. (TBB would do this, but Debian's build of it is not
+// loops have asked for at once), so that a loop of a few hundred microseconds, as the detector's
+// stages are on one frame, is worth splitting. (TBB would do this, but Debian's build of it is not
 // instrumented for ThreadSanitizer, which then reports races inside it; this pool is made of
 // the standard library's threads, mutex and condition variables, which the CI's TSan stage
 // checks.)
