@@ -124,13 +124,21 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
           high.assign(cells, -kInf);
           low.assign(cells, kInf);
         }
-        for (int i = part_begin(k); i < part_begin(k + 1); ++i) {
-          if (std::isnan(level.z[i])) continue;
-          const int cx = std::clamp(static_cast<int>((level.x[i] - x_lo) * per_m), 0, nx - 1);
-          const int cy = std::clamp(static_cast<int>((level.y[i] - y_lo) * per_m), 0, ny - 1);
-          cell[i] = cy * nx + cx;
-          high[cell[i]] = std::max(high[cell[i]], level.z[i]);
-          low[cell[i]] = std::min(low[cell[i]], level.z[i]);
+        const float* x = level.x.data();
+        const float* y = level.y.data();
+        const float* z = level.z.data();
+        std::int32_t* cells_of = cell.data();
+        float* hi = high.data();
+        float* lo = low.data();
+        const int end = part_begin(k + 1);
+        for (int i = part_begin(k); i < end; ++i) {
+          if (std::isnan(z[i])) continue;
+          const int cx = std::clamp(static_cast<int>((x[i] - x_lo) * per_m), 0, nx - 1);
+          const int cy = std::clamp(static_cast<int>((y[i] - y_lo) * per_m), 0, ny - 1);
+          const std::int32_t j = cy * nx + cx;
+          cells_of[i] = j;
+          hi[j] = std::max(hi[j], z[i]);
+          lo[j] = std::min(lo[j], z[i]);
         }
       },
       1);
@@ -176,10 +184,20 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
   ParallelFor(
       kParts, threads,
       [&](int k) {
-        for (int i = part_begin(k); i < part_begin(k + 1); ++i) {
-          if (cell[i] < 0) continue;
-          lower[i] = level.z[i] < below[cell[i]];
-          upper[i] = level.z[i] > above[cell[i]];
+        // Raw pointers and a local bound: the byte stores may alias anything, which would
+        // reload the vectors' data and the bound on every step.
+        const std::int32_t* cells_of = cell.data();
+        const float* z = level.z.data();
+        const float* lo = below.data();
+        const float* hi = above.data();
+        std::uint8_t* is_lower = lower.data();
+        std::uint8_t* is_upper = upper.data();
+        const int end = part_begin(k + 1);
+        for (int i = part_begin(k); i < end; ++i) {
+          const std::int32_t j = cells_of[i];
+          if (j < 0) continue;
+          is_lower[i] = z[i] < lo[j];
+          is_upper[i] = z[i] > hi[j];
         }
       },
       1);
