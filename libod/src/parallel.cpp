@@ -4,6 +4,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <deque>
+#include <exception>
 #include <mutex>
 #include <system_error>
 #include <vector>
@@ -18,13 +19,14 @@ struct Team {
   int wanted;                   // helpers still wanted
   int joined = 0;               // helpers that took a worker number
   std::atomic<int> running{0};  // helpers inside work(); changed under the pool's mutex
+  std::exception_ptr error;     // the first helper's exception (under the pool's mutex)
 };
 
-// How long a thread that waits for the pool spins before it sleeps. A sleeping thread takes
-// tens to hundreds of microseconds to wake (more on a virtual machine), as long as a whole
-// stage of the detector on one frame; its stages follow each other within microseconds, and
-// a longer spin only takes the core from threads with work (50 and 200 us were as fast on
-// the detector; 200 slowed `cairn map` on the demo drive).
+// About how long a thread that waits for the pool spins before it sleeps. A sleeping thread
+// takes tens to hundreds of microseconds to wake (more on a virtual machine), as long as a
+// whole stage of the detector on one frame; its stages follow each other within
+// microseconds, and a longer spin only takes the core from threads with work (50 and 200 us
+// were as fast on the detector).
 constexpr std::chrono::microseconds kSpin{50};
 
 // Spins until `ready()` or kSpin has passed; returns ready().
@@ -33,33 +35,28 @@ bool SpinUntil(const Ready& ready) {
   const auto until = std::chrono::steady_clock::now() + kSpin;
   for (int i = 1;; ++i) {
     if (ready()) return true;
-    if (i % 64 == 0 && std::chrono::steady_clock::now() > until) return false;
+    if (i % 8 == 0 && std::chrono::steady_clock::now() > until) return false;
     std::this_thread::yield();
   }
 }
 
 class Pool {
  public:
-  ~Pool() {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      stop_ = true;
-      stopping_.store(true);
-    }
-    wake_.notify_all();
-    for (std::thread& t : threads_) t.join();
-  }
-
   int Run(int helpers, const std::function<void(int)>& work) {
+    if (helpers < 1) {
+      work(0);
+      return 1;
+    }
     Team team{&work, helpers};
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      // Helpers for this loop besides those busy with others' (the loops of two threads, as
-      // `cairn map`'s detection beside its fusion, each get theirs, as with threads of their
-      // own).
-      Grow(busy_ + helpers);
+      // Helpers for this loop besides those busy with others' or promised to them (the loops
+      // of two threads, as `cairn map`'s detection beside its fusion, each get theirs, as
+      // with threads of their own).
+      Grow(busy_ + pending_ + helpers);
       if (!threads_.empty()) {
         teams_.push_back(&team);
+        pending_ += helpers;
         open_.store(static_cast<int>(teams_.size()));
       }
     }
@@ -75,6 +72,7 @@ class Pool {
       throw;
     }
     Finish(&team);
+    if (team.error) std::rethrow_exception(team.error);
     return 1 + team.joined;
   }
 
@@ -97,6 +95,7 @@ class Pool {
     for (auto it = teams_.begin(); it != teams_.end(); ++it) {
       if (*it == team) {
         teams_.erase(it);
+        pending_ -= team->wanted;
         open_.store(static_cast<int>(teams_.size()));
         break;
       }
@@ -113,24 +112,30 @@ class Pool {
   void Serve() {
     std::unique_lock<std::mutex> lock(mutex_);
     for (;;) {
-      if (!stop_ && teams_.empty()) {
+      if (teams_.empty()) {
         lock.unlock();
-        SpinUntil([&] { return open_.load() != 0 || stopping_.load(); });
+        SpinUntil([&] { return open_.load() != 0; });
         lock.lock();
       }
-      wake_.wait(lock, [&] { return stop_ || !teams_.empty(); });
-      if (stop_) return;
+      wake_.wait(lock, [&] { return !teams_.empty(); });
       Team* team = teams_.front();
       const int worker = ++team->joined;
       ++team->running;
       ++busy_;
+      --pending_;
       if (--team->wanted == 0) {
         teams_.pop_front();
         open_.store(static_cast<int>(teams_.size()));
       }
       lock.unlock();
-      (*team->work)(worker);
+      std::exception_ptr error;
+      try {
+        (*team->work)(worker);
+      } catch (...) {
+        error = std::current_exception();
+      }
       lock.lock();
+      if (error && !team->error) team->error = error;
       --busy_;
       if (--team->running == 0) done_.notify_all();
     }
@@ -140,17 +145,20 @@ class Pool {
   std::condition_variable wake_, done_;
   std::deque<Team*> teams_;
   std::vector<std::thread> threads_;
-  bool stop_ = false;
-  int busy_ = 0;  // threads inside some team's work()
-  // Mirrors of teams_.size() and stop_ (written under mutex_), read while spinning.
+  int busy_ = 0;     // threads inside some team's work()
+  int pending_ = 0;  // helpers still wanted by the teams in the queue
+  // A mirror of teams_.size() (written under mutex_), read while spinning.
   std::atomic<int> open_{0};
-  std::atomic<bool> stopping_{false};
 };
 
 }  // namespace
 
 int RunTeam(int helpers, const std::function<void(int)>& work) {
-  static Pool pool;
+  // Never destroyed: a loop may still run when static objects are destroyed at exit (a
+  // thread of the caller's, a static destructor), and the idle threads end with the process.
+  // (A child made by fork() while loops run has no pool threads: its loops run on the calling
+  // thread alone.)
+  static Pool& pool = *new Pool;
   return pool.Run(helpers, work);
 }
 

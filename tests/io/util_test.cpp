@@ -70,9 +70,10 @@ TEST(ParallelFor, LoopsFromSeveralThreadsAndInsideLoopsEachCallEveryItemOnce) {
   }
 }
 
-// A body that throws on the calling thread: the exception reaches the caller once the
-// helpers have let go of the loop, and the pool serves the next loop. (A helper holds its
-// first item until the caller has one, so that the caller is sure to run an item.)
+// A body that throws on the calling thread, or on a helper: the exception reaches the caller
+// once the helpers have let go of the loop, and the pool serves the next loop. (In the first
+// case a helper holds its first item until the caller has one, so that the caller is sure to
+// run an item.)
 TEST(ParallelFor, AnExceptionFromTheBodyReachesTheCaller) {
   for (int round = 0; round < 20; ++round) {
     std::atomic<int> calls{0};
@@ -90,6 +91,16 @@ TEST(ParallelFor, AnExceptionFromTheBodyReachesTheCaller) {
                      1),
                  std::runtime_error);
     EXPECT_GE(calls.load(), 1);
+  }
+  // Thrown on whichever thread runs the item: a helper's exception reaches the caller too.
+  for (int round = 0; round < 20; ++round) {
+    EXPECT_THROW(ParallelFor(
+                     64, 2,
+                     [&](int item) {
+                       if (item == 37) throw std::runtime_error("item 37 failed");
+                     },
+                     1),
+                 std::runtime_error);
   }
   std::vector<int> squares(100, 0);
   ParallelFor(100, 2, [&](int i) { squares[i] = i * i; });
