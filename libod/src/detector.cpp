@@ -118,7 +118,7 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   // The two trees, side by side when there are threads for it.
   std::optional<internal::PointTree> lower, upper;
   ParallelFor(
-      2, options.threads,
+      2, threads,
       [&](int tree) {
         const bool is_lower = tree == 0;
         (is_lower ? lower : upper)
@@ -128,11 +128,12 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
       1);
   const internal::PairSearchResult found = internal::SearchPairs(*lower, *upper, n, test, options);
   std::vector<std::int32_t> component(n, -1);
+  constexpr int kParts = 8;
   ParallelFor(
-      8, threads,
+      kParts, threads,
       [&](int k) {
-        const int end = static_cast<int>(static_cast<std::int64_t>(n) * (k + 1) / 8);
-        for (int i = static_cast<int>(static_cast<std::int64_t>(n) * k / 8); i < end; ++i) {
+        const int end = internal::PartBegin(n, k + 1, kParts);
+        for (int i = internal::PartBegin(n, k, kParts); i < end; ++i) {
           if (found.lower[i] || found.raised[i]) component[i] = found.set[i];
         }
       },

@@ -31,8 +31,7 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads)
         float* lx = x.data();
         float* ly = y.data();
         float* lz = z.data();
-        const int begin = static_cast<int>(static_cast<std::int64_t>(n) * k / kParts);
-        const int end = static_cast<int>(static_cast<std::int64_t>(n) * (k + 1) / kParts);
+        const int begin = PartBegin(n, k, kParts), end = PartBegin(n, k + 1, kParts);
         int i = begin;
 #if defined(__SSE2__)
         const auto row = [&](float a, float b, float c, __m128 px, __m128 py, __m128 pz) {
@@ -139,7 +138,6 @@ struct Partial {
   void Add(const Partial& o) {
     f.point_count += o.f.point_count;
     f.raised_count += o.f.raised_count;
-    f.foot_count += o.f.foot_count;
     f.bbox_min = f.bbox_min.cwiseMin(o.f.bbox_min);
     f.bbox_max = f.bbox_max.cwiseMax(o.f.bbox_max);
     f.range_min_m = std::min(f.range_min_m, o.f.range_min_m);
@@ -179,17 +177,19 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
   ParallelFor(
       kPixelParts, threads,
       [&](int k) {
-        const int end = static_cast<int>(static_cast<std::int64_t>(n) * (k + 1) / kPixelParts);
-        for (int i = static_cast<int>(static_cast<std::int64_t>(n) * k / kPixelParts); i < end;
-             ++i) {
-          if (component[i] >= 0) gathered[k].push_back(i);
+        std::vector<std::int32_t> part;  // filled here, not beside the other parts' headers
+        const int end = PartBegin(n, k + 1, kPixelParts);
+        for (int i = PartBegin(n, k, kPixelParts); i < end; ++i) {
+          if (component[i] >= 0) part.push_back(i);
         }
+        gathered[k] = std::move(part);
       },
       1);
   std::vector<std::int32_t> members;
   for (const auto& part : gathered) members.insert(members.end(), part.begin(), part.end());
   const int m = static_cast<int>(members.size());
   det.stats.obstacle_points = m;
+  if (m == 0) return det;
   // Ids in row-major order of first pixels; id_of_rep maps a representative to its id.
   int segments = 0;
   {
@@ -204,9 +204,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
   // the members are cut depends on the members only, so the result does not depend on the
   // threads. Parts hold at least 4096 members and 4 per segment (their sums' memory).
   const int parts = std::clamp(std::min(m / 4096, m / std::max(1, 4 * segments)), 1, 8);
-  const auto part_begin = [&](int k) {
-    return static_cast<int>(static_cast<std::int64_t>(m) * k / parts);
-  };
+  const auto part_begin = [&](int k) { return PartBegin(m, k, parts); };
   std::vector<Partial> partial(static_cast<std::size_t>(parts) * segments);
   // Surface slopes from each point's neighbours in its own segment.
   const bool wraps = std::holds_alternative<SphericalModel>(image.model());
@@ -287,26 +285,25 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     f.range_mean_m = s.s_range / np;
   }
   // Feet: not raised, and lower than HT above the segment's ground (counted per part).
+  std::vector<int> feet(static_cast<std::size_t>(parts) * segments, 0);
   ParallelFor(
       parts, threads,
       [&](int k) {
-        Partial* sums = &partial[static_cast<std::size_t>(k) * segments];
-        for (int id = 0; id < segments; ++id) sums[id].f.foot_count = 0;
+        int* count = &feet[static_cast<std::size_t>(k) * segments];
         for (int mi = part_begin(k); mi < part_begin(k + 1); ++mi) {
           const int i = members[mi];
           const int id = det.labels[i];
           if (raised[i] != 0) continue;
           if (level.z[i] - det.segments[id - 1].ground_height_m < min_height) {
             det.foot[i] = 1;
-            ++sums[id - 1].f.foot_count;
+            ++count[id - 1];
           }
         }
       },
       1);
   for (int k = 0; k < parts; ++k) {
     for (int id = 0; id < segments; ++id) {
-      det.segments[id].foot_count +=
-          partial[static_cast<std::size_t>(k) * segments + id].f.foot_count;
+      det.segments[id].foot_count += feet[static_cast<std::size_t>(k) * segments + id];
     }
   }
   return det;

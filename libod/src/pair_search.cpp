@@ -58,9 +58,7 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
   // The passes over the points run in kParts parts whatever the threads; everything they
   // gather is a count, a minimum or a maximum, so the result is the same on any threads.
   constexpr int kParts = 8;
-  const auto part_begin = [n](int k) {
-    return static_cast<int>(static_cast<std::int64_t>(n) * k / kParts);
-  };
+  const auto part_begin = [n](int k) { return PartBegin(n, k, kParts); };
   struct Extent {
     float x_lo = kInf, x_hi = -kInf, y_lo = kInf, y_hi = -kInf;
     int valid = 0;
@@ -337,11 +335,11 @@ using Node = PointTree::Node;
 
 // An array of findings. Shared by workers (kAtomic), it is read and written with relaxed
 // atomics: everything the search writes only grows (a mark is set, two sets are joined), and
-// a worker that reads a fact late does more work, never wrong work; the result is read after
-// the workers join. One worker alone keeps plain values, which the compiler keeps in
-// registers and reorders freely. The values are a plain vector either way, accessed
-// atomically through GCC's and Clang's __atomic built-ins (C++20's std::atomic_ref), so that
-// they are filled and handed over without a copy.
+// a worker that reads a fact late does more work, never wrong work; the result is read once
+// ParallelFor has returned (every worker's calls done). One worker alone keeps plain values, which
+// the compiler keeps in registers and reorders freely. The values are a plain vector either way,
+// accessed atomically through GCC's and Clang's __atomic built-ins (C++20's std::atomic_ref), so
+// that they are filled and handed over without a copy.
 template <class T, bool kAtomic>
 class Cells {
   static_assert(std::is_integral_v<T> && __atomic_always_lock_free(sizeof(T), 0));
@@ -647,7 +645,7 @@ class alignas(64) Search {
       const int pi = lo_.pixel[i];
       if (b_done && lower_[pi] && (!unions_ || SameSet(pi, b_first))) continue;
       if ((accept >> k) & 1) {
-        lower_.Set(pi, 1);
+        lower_.Add(pi, 1);
         stats_.pairs_compatible += Size(B);
         Mark(up_, flags_up_, b, raised_);
         if (unions_) {
@@ -678,7 +676,7 @@ class alignas(64) Search {
       };
       const int j = ScanWindow(B, p, first, partner);
       stats_.pairs_tested += j - first;
-      if (any) lower_.Set(pi, 1);
+      if (any) lower_.Add(pi, 1);
     }
     UpdateLeaf(lo_, flags_lo_, a, lower_);
     UpdateLeaf(up_, flags_up_, b, raised_);
@@ -729,7 +727,7 @@ class alignas(64) Search {
     flags.Add(n, kFull);
     const Node& node = t.nodes[n];
     if (Leaf(node)) {
-      for (int i = node.begin; i < node.end; ++i) point_flag.Set(t.pixel[i], 1);
+      for (int i = node.begin; i < node.end; ++i) point_flag.Add(t.pixel[i], 1);
       return;
     }
     MarkDown(t, flags, node.child[0], point_flag);
@@ -818,8 +816,8 @@ PairSearchResult Run(const PointTree& lower, const PointTree& upper, int pixels,
   ParallelFor(
       static_cast<int>(tasks.size()), threads,
       [&](int worker, int k) { workers[worker].Visit(tasks[k].lower, tasks[k].upper); }, 1);
-  // The workers have joined: the findings are final. Each set's root is its smallest pixel,
-  // and a parent's index is below its child's, so one pass in index order finds them.
+  // Every worker's calls have returned: the findings are final. Each set's root is its smallest
+  // pixel, and a parent's index is below its child's, so one pass in index order finds them.
   PairSearchResult r;
   r.lower = found.lower.Take();
   r.raised = found.raised.Take();
