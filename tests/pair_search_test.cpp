@@ -271,13 +271,21 @@ TEST(PairSearch, EqualsTheRegionScanOnTheKittiScan) {
   ExpectSameColumns(*image, config, 0, "KITTI 00 scan 0");
 }
 
-TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
+// The bundled demo frame and its detector settings (config/default.yaml).
+RangeImage DemoFrame() {
   const std::string dir = kSource + "/datasets/frames/demo/";
   const io::CameraIntrinsics camera = *io::LoadIntrinsics(dir + "intrinsics.yaml");
   const od::Grid<float> depth = *io::ReadDepthImage(dir + "depth.png", camera);
-  const RangeImage image = *RangeImage::FromDepth(depth.data, camera.model, camera.up);
-  DetectorConfig config =
-      io::LoadDetectSettings(kSource + "/config/default.yaml", {"map", "tilt", "frames"})->detector;
+  return *RangeImage::FromDepth(depth.data, camera.model, camera.up);
+}
+DetectorConfig DemoConfig() {
+  return io::LoadDetectSettings(kSource + "/config/default.yaml", {"map", "tilt", "frames"})
+      ->detector;
+}
+
+TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
+  const RangeImage image = DemoFrame();
+  DetectorConfig config = DemoConfig();
   config.threads = 2;
   const Detection scan = *DetectRegionScan(image, config);
   EXPECT_GT(scan.segments.size(), 5u);
@@ -292,12 +300,8 @@ TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
 // (BuildDetection): bit for bit the same on any number of threads, and equal to each
 // segment's features recomputed here from its labels in one pass.
 TEST(PairSearch, FeaturesOfTheDemoFrameAreTheSameOnAnyThreadsAndMatchTheirDefinition) {
-  const std::string dir = kSource + "/datasets/frames/demo/";
-  const io::CameraIntrinsics camera = *io::LoadIntrinsics(dir + "intrinsics.yaml");
-  const od::Grid<float> depth = *io::ReadDepthImage(dir + "depth.png", camera);
-  const RangeImage image = *RangeImage::FromDepth(depth.data, camera.model, camera.up);
-  DetectorConfig config =
-      io::LoadDetectSettings(kSource + "/config/default.yaml", {"map", "tilt", "frames"})->detector;
+  const RangeImage image = DemoFrame();
+  DetectorConfig config = DemoConfig();
   config.threads = 1;
   const Detection one = *Detect(image, config);
   // BuildDetection's parts: at least 4,096 points and 4 per segment each.

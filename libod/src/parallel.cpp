@@ -19,7 +19,7 @@ struct Team {
   int wanted;                   // helpers still wanted
   int joined = 0;               // helpers that took a worker number
   std::atomic<int> running{0};  // helpers inside work(); changed under the pool's mutex
-  std::exception_ptr error;     // the first helper's exception (under the pool's mutex)
+  std::exception_ptr error = nullptr;  // the first helper's exception (under the pool's mutex)
 };
 
 // About how long a thread that waits for the pool spins before it sleeps. A sleeping thread
