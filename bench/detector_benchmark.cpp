@@ -38,6 +38,7 @@
 #include "cairn/sim/random_scene.hpp"
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/world.hpp"
+#include "detection_internal.hpp"  // libod/src: the features stage
 
 namespace {
 
@@ -429,6 +430,35 @@ void BM_Rules(benchmark::State& state, const std::string& name) {
   }
 }
 
+// The features stage alone (internal::BuildDetection, one thread): labels, each segment's
+// features and the feet, from the reference's segments. The detectors' raised marks stay
+// inside them; every segment point that is not a foot stands in for them here.
+void BM_Features(benchmark::State& state, const std::string& name) {
+  Frame* f = FrameOrSkip(state, name);
+  if (f == nullptr || !f->reference) return;
+  const od::Detection& r = *f->reference;
+  const od::internal::LevelPoints level(f->image);
+  std::vector<std::int32_t> component(r.labels.size(), -1), first(r.segments.size() + 1, -1);
+  std::vector<std::uint8_t> raised(r.labels.size(), 0);
+  for (std::size_t i = 0; i < r.labels.size(); ++i) {
+    const int id = r.labels[i];
+    if (id == 0) continue;
+    if (first[id] < 0) first[id] = static_cast<std::int32_t>(i);
+    component[i] = first[id];
+    raised[i] = r.foot[i] == 0;
+  }
+  const float min_height = static_cast<float>(f->settings.detector.min_height_m);
+  od::Detection last;
+  for (auto _ : state) {
+    last = od::internal::BuildDetection(f->image, level, component, raised, min_height, r.stats);
+    benchmark::DoNotOptimize(last);
+  }
+  if (last.labels != r.labels)
+    state.SkipWithError((name + ": other labels than the reference's").c_str());
+  state.counters["points"] = static_cast<double>(last.stats.obstacle_points);
+  state.counters["segments"] = static_cast<double>(last.segments.size());
+}
+
 // Growth of the cost: Hmax (range(0), cm) on a frame, one thread.
 void BM_DetectHmax(benchmark::State& state, const std::string& name) {
   Frame* f = FrameOrSkip(state, name);
@@ -459,6 +489,7 @@ void Register() {
         ->Arg(1)
         ->Arg(0);
     ms(benchmark::RegisterBenchmark(("Columns/" + name).c_str(), BM_Columns, name));
+    ms(benchmark::RegisterBenchmark(("Features/" + name).c_str(), BM_Features, name));
     ms(benchmark::RegisterBenchmark(("Rules/" + name).c_str(), BM_Rules, name));
     ms(benchmark::RegisterBenchmark(("PaperWindow/" + name).c_str(), BM_PaperWindow, name));
     // The region scan takes tens of seconds on the TUM frame: one iteration there.

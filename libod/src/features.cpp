@@ -222,44 +222,102 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
       parts, threads,
       [&](int k) {
         Partial* sums = &partial[static_cast<std::size_t>(k) * segments];
-        for (int mi = part_begin(k); mi < part_begin(k + 1); ++mi) {
-          const int i = members[mi];
-          const int id = det.labels[i];
+        const int begin = part_begin(k), end = part_begin(k + 1);
+        if (begin == end) return;
+        // The members ascend: their row is followed, not divided out. Each run of them along
+        // a row within one segment is summed on its own, then added to its segment's sums;
+        // inside a run a point's row neighbours are its own segment's. The slopes' angles
+        // wait for the end of a chunk, to be taken in one loop whose iterations overlap.
+        int r = members[begin] / width, row_start = r * width;
+        constexpr int kChunk = 256;
+        double squares[kChunk], verticals[kChunk], slopes[kChunk];
+        Partial* owners[kChunk];
+        int pending = 0;
+        const auto add_slopes = [&] {
+          Inclinations(squares, verticals, slopes, pending);
+          for (int j = 0; j < pending; ++j) {
+            Partial& s = *owners[j];
+            ++s.f.slope_points;
+            s.f.slope_max_rad = std::max(s.f.slope_max_rad, slopes[j]);
+            s.slope_sum += slopes[j];
+          }
+          pending = 0;
+        };
+        for (int mi = begin; mi < end;) {
+          const int i0 = members[mi];
+          while (i0 >= row_start + width) {
+            row_start += width;
+            ++r;
+          }
+          const int id = det.labels[i0], c0 = i0 - row_start;
+          int len = 1;
+          while (mi + len < end && members[mi + len] == i0 + len && c0 + len < width &&
+                 det.labels[i0 + len] == id) {
+            ++len;
+          }
+          mi += len;
           Partial& s = sums[id - 1];
+          float lo[3] = {level.x[i0], level.y[i0], level.z[i0]}, hi[3] = {lo[0], lo[1], lo[2]};
+          double sx = 0.0, sy = 0.0, sz = 0.0, s_range = 0.0;
+          double range_min = std::numeric_limits<double>::infinity();
+          int raised_points = 0;
+          const int up_offset = r > 0 ? -width : 0, down_offset = r + 1 < height ? width : 0;
+          for (int j = 0; j < len; ++j) {
+            const int i = i0 + j;
+            const float x = level.x[i], y = level.y[i], z = level.z[i];
+            lo[0] = std::min(lo[0], x);
+            lo[1] = std::min(lo[1], y);
+            lo[2] = std::min(lo[2], z);
+            hi[0] = std::max(hi[0], x);
+            hi[1] = std::max(hi[1], y);
+            hi[2] = std::max(hi[2], z);
+            sx += x;
+            sy += y;
+            sz += z;
+            const double range = image.range(i);
+            s_range += range;
+            range_min = std::min(range_min, range);
+            raised_points += raised[i] != 0;
+
+            Eigen::Vector3d tu, tv;
+            if (j > 0 && j + 1 < len) {
+              tu = at(i + 1) - at(i - 1);
+            } else {
+              const int c = c0 + j;
+              int left = j > 0 ? i - 1 : (c > 0 ? i - 1 : (wraps ? i + width - 1 : -1));
+              int right = j + 1 < len ? i + 1 : (c + 1 < width ? i + 1 : (wraps ? i - c : -1));
+              if (width == 1) left = right = -1;
+              if (!tangent(i, left, right, tu)) continue;
+            }
+            if (!tangent(i, up_offset != 0 ? i + up_offset : -1,
+                         down_offset != 0 ? i + down_offset : -1, tv)) {
+              continue;
+            }
+            const Eigen::Vector3d normal = tu.cross(tv);
+            const double square = normal.x() * normal.x() + normal.y() * normal.y();
+            if (!(square > 0.0 || normal.z() != 0.0)) continue;
+            if (pending == kChunk) add_slopes();
+            squares[pending] = square;
+            verticals[pending] = std::abs(normal.z());
+            owners[pending++] = &s;
+          }
           SegmentFeatures& f = s.f;
-          const Eigen::Vector3d p = at(i);
-          const double range = image.range(i);
-          ++f.point_count;
-          f.raised_count += raised[i] != 0;
-          f.bbox_min = f.bbox_min.cwiseMin(p);
-          f.bbox_max = f.bbox_max.cwiseMax(p);
-          f.range_min_m = std::min(f.range_min_m, range);
-          const int r = i / width, c = i % width;
+          f.point_count += len;
+          f.raised_count += raised_points;
+          f.bbox_min = f.bbox_min.cwiseMin(Eigen::Vector3f(lo[0], lo[1], lo[2]).cast<double>());
+          f.bbox_max = f.bbox_max.cwiseMax(Eigen::Vector3f(hi[0], hi[1], hi[2]).cast<double>());
+          f.range_min_m = std::min(f.range_min_m, range_min);
           f.row_min = std::min(f.row_min, r);
           f.row_max = std::max(f.row_max, r);
-          f.col_min = std::min(f.col_min, c);
-          f.col_max = std::max(f.col_max, c);
-          s.sx += p.x();
-          s.sy += p.y();
-          s.sz += p.z();
-          s.s_range += range;
-          s.z_min = std::min(s.z_min, p.z());
-
-          int left = c > 0 ? i - 1 : (wraps ? i + width - 1 : -1);
-          int right = c + 1 < width ? i + 1 : (wraps ? i - c : -1);
-          if (width == 1) left = right = -1;
-          const int up = r > 0 ? i - width : -1;
-          const int down = r + 1 < height ? i + width : -1;
-          Eigen::Vector3d tu, tv;
-          if (!tangent(i, left, right, tu) || !tangent(i, up, down, tv)) continue;
-          const Eigen::Vector3d normal = tu.cross(tv);
-          const double horizontal = std::sqrt(normal.x() * normal.x() + normal.y() * normal.y());
-          if (!(horizontal > 0.0 || normal.z() != 0.0)) continue;
-          const double slope = std::atan2(horizontal, std::abs(normal.z()));
-          ++f.slope_points;
-          f.slope_max_rad = std::max(f.slope_max_rad, slope);
-          s.slope_sum += slope;
+          f.col_min = std::min(f.col_min, c0);
+          f.col_max = std::max(f.col_max, c0 + len - 1);
+          s.sx += sx;
+          s.sy += sy;
+          s.sz += sz;
+          s.s_range += s_range;
+          s.z_min = std::min(s.z_min, static_cast<double>(lo[2]));
         }
+        add_slopes();
       },
       1);
   for (int k = 1; k < parts; ++k) {
