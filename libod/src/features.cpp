@@ -177,11 +177,16 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
   ParallelFor(
       kPixelParts, threads,
       [&](int k) {
-        std::vector<std::int32_t> part;  // filled here, not beside the other parts' headers
-        const int end = PartBegin(n, k + 1, kPixelParts);
-        for (int i = PartBegin(n, k, kPixelParts); i < end; ++i) {
-          if (component[i] >= 0) part.push_back(i);
+        // Filled here, not beside the other parts' headers; written at every pixel and
+        // advanced at members (no branch to mispredict).
+        const int begin = PartBegin(n, k, kPixelParts), end = PartBegin(n, k + 1, kPixelParts);
+        std::vector<std::int32_t> part(end - begin + 1);
+        int count = 0;
+        for (int i = begin; i < end; ++i) {
+          part[count] = i;
+          count += component[i] >= 0;
         }
+        part.resize(count);
         gathered[k] = std::move(part);
       },
       1);
@@ -235,11 +240,19 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
         int pending = 0;
         const auto add_slopes = [&] {
           Inclinations(squares, verticals, slopes, pending);
-          for (int j = 0; j < pending; ++j) {
+          // Each owner's sums held in registers while its slopes follow each other (the
+          // same additions in the same order).
+          for (int j = 0; j < pending;) {
             Partial& s = *owners[j];
-            ++s.f.slope_points;
-            s.f.slope_max_rad = std::max(s.f.slope_max_rad, slopes[j]);
-            s.slope_sum += slopes[j];
+            double max = s.f.slope_max_rad, sum = s.slope_sum;
+            const int first = j;
+            for (; j < pending && owners[j] == &s; ++j) {
+              max = std::max(max, slopes[j]);
+              sum += slopes[j];
+            }
+            s.f.slope_points += j - first;
+            s.f.slope_max_rad = max;
+            s.slope_sum = sum;
           }
           pending = 0;
         };
@@ -348,15 +361,22 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
       parts, threads,
       [&](int k) {
         int* count = &feet[static_cast<std::size_t>(k) * segments];
-        for (int mi = part_begin(k); mi < part_begin(k + 1); ++mi) {
+        int id = 0, feet_of_id = 0;  // the segment whose feet are being counted
+        // The bounds held apart: the byte stores below may alias anything, part_begin too.
+        const int begin = part_begin(k), end = part_begin(k + 1);
+        for (int mi = begin; mi < end; ++mi) {
           const int i = members[mi];
-          const int id = det.labels[i];
-          if (raised[i] != 0) continue;
-          if (level.z[i] - det.segments[id - 1].ground_height_m < min_height) {
-            det.foot[i] = 1;
-            ++count[id - 1];
+          if (det.labels[i] != id) {
+            if (id > 0) count[id - 1] += feet_of_id;
+            id = det.labels[i];
+            feet_of_id = 0;
           }
+          const bool foot =
+              raised[i] == 0 && level.z[i] - det.segments[id - 1].ground_height_m < min_height;
+          det.foot[i] = foot;
+          feet_of_id += foot;
         }
+        if (id > 0) count[id - 1] += feet_of_id;
       },
       1);
   for (int k = 0; k < parts; ++k) {
