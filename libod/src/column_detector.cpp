@@ -101,9 +101,11 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
                             int height) {
   const int n = width * height;
   ColumnPairs out{std::vector<std::uint8_t>(n, 0), std::vector<std::uint8_t>(n, 0), {}};
-  std::vector<std::uint8_t>& obstacle = out.obstacle;
-  std::vector<std::uint8_t>& raised = out.raised;
-  DetectionStats& stats = out.stats;
+  // Local pointers and counters: the byte stores below may alias anything in memory, but
+  // not these (every one kept in memory would be loaded again after each store).
+  std::uint8_t* const obstacle = out.obstacle.data();
+  std::uint8_t* const raised = out.raised.data();
+  std::int64_t pairs_compatible = 0, pairs_tested = 0;
   struct Bin {
     std::int32_t bin;
     int begin, end;  // its points in the column
@@ -115,24 +117,40 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
   // are clamped to +-1e9: a bin that far out holds nothing within reach of the others.
   const double bin_width =
       test.max_height / std::sqrt(static_cast<double>(test.tan2_theta)) * 1.001 + 1e-3;
+  const double per_width = 1.0 / bin_width;
+  // u is the horizontal direction of the column before (its points' mean); any horizontal
+  // direction keeps the bins' argument, one near the column's keeps its bins short. The
+  // first column's comes from its own points.
+  double ux = 1.0, uy = 0.0;
+  const auto direction = [&](double mx, double my) {
+    const double norm = std::sqrt(mx * mx + my * my);
+    if (norm > 0.0) {
+      ux = mx / norm;
+      uy = my / norm;
+    }
+  };
+  {
+    double mx = 0.0, my = 0.0;
+    for (int i = (height - 1) * width; i >= 0; i -= width) {
+      if (!std::isnan(level.z[i])) mx += level.x[i], my += level.y[i];
+    }
+    direction(mx, my);
+  }
   for (int c = 0; c < width; ++c) {
     int m = 0;
     double mx = 0.0, my = 0.0;
     for (int i = (height - 1) * width + c; i >= 0; i -= width) {
-      if (std::isnan(level.z[i])) continue;
-      column[m++] = {0, level.x[i], level.y[i], level.z[i], i};
-      mx += level.x[i];
-      my += level.y[i];
-    }
-    if (m < 2) continue;
-    const double norm = std::sqrt(mx * mx + my * my);
-    const double ux = norm > 0.0 ? mx / norm : 1.0, uy = norm > 0.0 ? my / norm : 0.0;
-    for (int k = 0; k < m; ++k) {
-      const double u = std::clamp((ux * column[k].x + uy * column[k].y) / bin_width, -1e9, 1e9);
+      const float x = level.x[i], y = level.y[i], z = level.z[i];
+      if (std::isnan(z)) continue;
+      const double u = std::clamp((ux * x + uy * y) * per_width, -1e9, 1e9);
       int bin = static_cast<int>(u);
       bin -= static_cast<double>(bin) > u;  // floor
-      column[k].key = ColumnKey(bin, column[k].z);
+      column[m++] = {ColumnKey(bin, z), x, y, z, i};
+      mx += x;
+      my += y;
     }
+    direction(mx, my);
+    if (m < 2) continue;
     SortColumn(column.data(), m);
     bins.clear();
     for (int k = 0; k < m; ++k) {
@@ -156,22 +174,29 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       for (int k = bins[g].begin; k < bins[g].end; ++k) {
         const float px = column[k].x, py = column[k].y, pz = column[k].z;
         if (!(top - pz > ht)) break;  // nothing more than HT above this point or the next
-        const int p = column[k].pixel;
+        // Every tested partner's marks are stored, as they were or raised by the test: no
+        // branch on its outcome, which the processor cannot foresee.
+        std::uint8_t any = 0;
         for (int h = 0; h < near; ++h) {
           while (first[h] < end[h] && !(first[h]->z - pz > ht)) ++first[h];
           const ColumnPoint* q = first[h];
           for (; q < end[h] && q->z - pz < hmax; ++q) {
             const float dx = q->x - px, dy = q->y - py, dz = q->z - pz;
-            if (!(dz * dz > tan2 * (dx * dx + dy * dy))) continue;
-            ++stats.pairs_compatible;
-            obstacle[p] = obstacle[q->pixel] = 1;
-            raised[q->pixel] = 1;
+            const std::uint8_t compatible = dz * dz > tan2 * (dx * dx + dy * dy);
+            const int pixel = q->pixel;
+            pairs_compatible += compatible;
+            any |= compatible;
+            obstacle[pixel] |= compatible;
+            raised[pixel] |= compatible;
           }
-          stats.pairs_tested += q - first[h];
+          pairs_tested += q - first[h];
         }
+        obstacle[column[k].pixel] |= any;
       }
     }
   }
+  out.stats.pairs_compatible = pairs_compatible;
+  out.stats.pairs_tested = pairs_tested;
   return out;
 }
 
