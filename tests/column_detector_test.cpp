@@ -222,6 +222,18 @@ TEST(ColumnDetector, BlobAreaRejectionRemovesSmallBlobs) {
   for (std::int32_t label : d.labels) EXPECT_EQ(label, 0);
 }
 
+// An image of no pixels (a default RangeImage): no obstacles, quickly, from both.
+TEST(ColumnDetector, AnEmptyImageHasNoObstacles) {
+  const od::RangeImage empty;
+  const od::ColumnConfig config;
+  for (const bool fast : {true, false}) {
+    const Expected<od::Detection> d =
+        fast ? od::DetectColumns(empty, config) : od::DetectColumnsBruteForce(empty, config);
+    ASSERT_TRUE(d.ok()) << d.error().message;
+    EXPECT_TRUE(d->labels.empty() && d->segments.empty()) << (fast ? "fast" : "brute force");
+  }
+}
+
 TEST(ColumnConfig, ValidationNamesTheBadField) {
   EXPECT_TRUE(od::ColumnConfig().Validate().ok());
   od::ColumnConfig c;

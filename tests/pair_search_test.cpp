@@ -16,8 +16,10 @@
 #include <filesystem>
 #include <random>
 #include <string>
+#include <variant>
 #include <vector>
 
+#include "../libod/src/detection_internal.hpp"
 #include "cairn/od/column_detector.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/io/depth_png.hpp"
@@ -296,6 +298,92 @@ TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
   ExpectSameColumns(image, config, 10, "demo frame");
 }
 
+// Each segment's features against their definitions (detector.hpp), recomputed here in one
+// pass over the labels: counts, feet, the level-frame box, centroid and ground (in double
+// here, in float in the detector), ranges, rows and columns, and the slope.
+void ExpectFeaturesFollowTheirDefinitions(const RangeImage& image, const Detection& d,
+                                          const std::string& frame) {
+  const Eigen::Matrix3d R = image.R_level_sensor();
+  struct Sums {
+    int points = 0, feet = 0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = Eigen::Vector3d::Constant(-1e30);
+    double range_sum = 0.0;
+    int slope_points = 0;
+    double slope_sum = 0.0, slope_max = 0.0;
+    int row_min = 1 << 30, row_max = -1, col_min = 1 << 30, col_max = -1;
+  };
+  std::vector<Sums> sums(d.segments.size());
+  const auto level = [&](int i) {
+    return Eigen::Vector3d(
+        R * Eigen::Vector3f(image.x()[i], image.y()[i], image.z()[i]).cast<double>());
+  };
+  // The slope: tangents between the detector's own level-frame points (float), of the
+  // neighbours on the row and on the column that are in the point's segment (central, else
+  // one-sided; rows wrap on spherical images), the normal their cross product, its angle
+  // from up by std::atan2.
+  const internal::LevelPoints points(image);
+  const auto at = [&](int j) { return Eigen::Vector3d(points.x[j], points.y[j], points.z[j]); };
+  const int width = image.width(), height = image.height();
+  const bool wraps = std::holds_alternative<SphericalModel>(image.model());
+  const auto tangent = [&](int i, int before, int after, Eigen::Vector3d& t) {
+    const bool b = before >= 0 && d.labels[before] == d.labels[i];
+    const bool a = after >= 0 && d.labels[after] == d.labels[i];
+    t = (a ? at(after) : at(i)) - (b ? at(before) : at(i));
+    return a || b;
+  };
+  for (int i = 0; i < image.size(); ++i) {
+    if (d.labels[i] == 0) continue;
+    Sums& s = sums[d.labels[i] - 1];
+    const int r = i / width, c = i % width;
+    s.row_min = std::min(s.row_min, r);
+    s.row_max = std::max(s.row_max, r);
+    s.col_min = std::min(s.col_min, c);
+    s.col_max = std::max(s.col_max, c);
+    const int left = width == 1 ? -1 : (c > 0 ? i - 1 : (wraps ? i + width - 1 : -1));
+    const int right = width == 1 ? -1 : (c + 1 < width ? i + 1 : (wraps ? i - c : -1));
+    Eigen::Vector3d tu, tv;
+    if (tangent(i, left, right, tu) &&
+        tangent(i, r > 0 ? i - width : -1, r + 1 < height ? i + width : -1, tv)) {
+      const Eigen::Vector3d normal = tu.cross(tv);
+      const double horizontal = std::hypot(normal.x(), normal.y());
+      if (horizontal > 0.0 || normal.z() != 0.0) {
+        const double slope = std::atan2(horizontal, std::abs(normal.z()));
+        ++s.slope_points;
+        s.slope_sum += slope;
+        s.slope_max = std::max(s.slope_max, slope);
+      }
+    }
+    const Eigen::Vector3d p = level(i);
+    ++s.points;
+    s.feet += d.foot[i];
+    s.sum += p;
+    s.lo = s.lo.cwiseMin(p);
+    s.hi = s.hi.cwiseMax(p);
+    s.range_sum += image.range(i);
+  }
+  for (std::size_t k = 0; k < sums.size(); ++k) {
+    const SegmentFeatures& f = d.segments[k];
+    const Sums& s = sums[k];
+    const std::string what = frame + ", segment " + std::to_string(k + 1);
+    EXPECT_EQ(f.point_count, s.points) << what;
+    EXPECT_EQ(f.foot_count, s.feet) << what;
+    // The level frame in float (the detector's) against double here: 1e-5 m at 10 m.
+    EXPECT_LT((f.centroid - s.sum / s.points).norm(), 1e-4) << what;
+    EXPECT_LT((f.bbox_min - s.lo).norm(), 1e-4) << what;
+    EXPECT_LT((f.bbox_max - s.hi).norm(), 1e-4) << what;
+    EXPECT_NEAR(f.ground_height_m, s.lo.z(), 1e-4) << what;
+    EXPECT_NEAR(f.range_mean_m, s.range_sum / s.points, 1e-6) << what;
+    EXPECT_EQ(f.slope_points, s.slope_points) << what;
+    EXPECT_NEAR(f.slope_max_rad, s.slope_max, 1e-9) << what;
+    EXPECT_NEAR(f.slope_mean_rad, s.slope_points > 0 ? s.slope_sum / s.slope_points : 0.0, 1e-9)
+        << what;
+    EXPECT_TRUE(f.row_min == s.row_min && f.row_max == s.row_max && f.col_min == s.col_min &&
+                f.col_max == s.col_max)
+        << what;
+  }
+}
+
 // The features of a frame whose segments have tens of thousands of points, summed in parts
 // (BuildDetection): bit for bit the same on any number of threads, and equal to each
 // segment's features recomputed here from its labels in one pass.
@@ -325,43 +413,24 @@ TEST(PairSearch, FeaturesOfTheDemoFrameAreTheSameOnAnyThreadsAndMatchTheirDefini
       EXPECT_EQ(a.foot_count, b.foot_count) << what;
     }
   }
-  // The definitions, in one pass over the labels (level-frame points).
-  const Eigen::Matrix3d R = image.R_level_sensor();
-  struct Sums {
-    int points = 0, feet = 0;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = Eigen::Vector3d::Constant(-1e30);
-    double range_sum = 0.0;
-  };
-  std::vector<Sums> sums(one.segments.size());
-  const auto level = [&](int i) {
-    return Eigen::Vector3d(
-        R * Eigen::Vector3f(image.x()[i], image.y()[i], image.z()[i]).cast<double>());
-  };
-  for (int i = 0; i < image.size(); ++i) {
-    if (one.labels[i] == 0) continue;
-    Sums& s = sums[one.labels[i] - 1];
-    const Eigen::Vector3d p = level(i);
-    ++s.points;
-    s.feet += one.foot[i];
-    s.sum += p;
-    s.lo = s.lo.cwiseMin(p);
-    s.hi = s.hi.cwiseMax(p);
-    s.range_sum += image.range(i);
+  ExpectFeaturesFollowTheirDefinitions(image, one, "demo frame");
+}
+
+// The same on LiDAR scans whose near objects straddle the seam of the azimuth (columns
+// 0 and width - 1, neighbours on a spherical image), at random settings.
+TEST(PairSearch, FeaturesOfLidarScansAcrossTheSeamMatchTheirDefinitions) {
+  std::mt19937 rng(2027);
+  int across = 0;
+  for (int trial = 0; trial < 4; ++trial) {
+    // (width - 1) % 17 == 0: the first and last columns are both among the near ones.
+    const RangeImage image = RandomScan(rng, trial % 2 ? "VLP-16" : "OS1-64", 69 + 17 * trial);
+    DetectorConfig config = RandomConfig(rng);
+    const Detection d = *Detect(image, config);
+    for (const SegmentFeatures& f : d.segments)
+      across += f.col_min == 0 && f.col_max == image.width() - 1;
+    ExpectFeaturesFollowTheirDefinitions(image, d, "scan " + std::to_string(trial));
   }
-  for (std::size_t k = 0; k < sums.size(); ++k) {
-    const SegmentFeatures& f = one.segments[k];
-    const Sums& s = sums[k];
-    const std::string what = "segment " + std::to_string(k + 1);
-    EXPECT_EQ(f.point_count, s.points) << what;
-    EXPECT_EQ(f.foot_count, s.feet) << what;
-    // The level frame in float (the detector's) against double here: 1e-5 m at 10 m.
-    EXPECT_LT((f.centroid - s.sum / s.points).norm(), 1e-4) << what;
-    EXPECT_LT((f.bbox_min - s.lo).norm(), 1e-4) << what;
-    EXPECT_LT((f.bbox_max - s.hi).norm(), 1e-4) << what;
-    EXPECT_NEAR(f.ground_height_m, s.lo.z(), 1e-4) << what;
-    EXPECT_NEAR(f.range_mean_m, s.range_sum / s.points, 1e-6) << what;
-  }
+  EXPECT_GT(across, 0) << "no segment across the seam: the test would not see the wrap";
 }
 
 // --- Surface slope -----------------------------------------------------------------------

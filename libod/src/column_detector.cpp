@@ -129,10 +129,12 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       uy = my / norm;
     }
   };
-  {
+  if (width > 0) {
     double mx = 0.0, my = 0.0;
     for (int i = (height - 1) * width; i >= 0; i -= width) {
-      if (!std::isnan(level.z[i])) mx += level.x[i], my += level.y[i];
+      if (std::isnan(level.z[i])) continue;
+      mx += level.x[i];
+      my += level.y[i];
     }
     direction(mx, my);
   }

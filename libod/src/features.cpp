@@ -180,7 +180,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
         // Filled here, not beside the other parts' headers; written at every pixel and
         // advanced at members (no branch to mispredict).
         const int begin = PartBegin(n, k, kPixelParts), end = PartBegin(n, k + 1, kPixelParts);
-        std::vector<std::int32_t> part(end - begin + 1);
+        std::vector<std::int32_t> part(end - begin);  // count <= i - begin at each write
         int count = 0;
         for (int i = begin; i < end; ++i) {
           part[count] = i;
@@ -361,7 +361,9 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
       parts, threads,
       [&](int k) {
         int* count = &feet[static_cast<std::size_t>(k) * segments];
-        int id = 0, feet_of_id = 0;  // the segment whose feet are being counted
+        // The segment whose feet are being counted (0: none yet; ids start at 1), and its
+        // count so far, added to its part's counts when another segment's points begin.
+        int id = 0, feet_of_id = 0;
         // The bounds held apart: the byte stores below may alias anything, part_begin too.
         const int begin = part_begin(k), end = part_begin(k + 1);
         for (int mi = begin; mi < end; ++mi) {
