@@ -124,7 +124,6 @@ namespace {
 struct Partial {
   SegmentFeatures f;
   double sx = 0, sy = 0, sz = 0, s_range = 0, slope_sum = 0;
-  double z_min = std::numeric_limits<double>::infinity();
 
   Partial() {
     const double inf = std::numeric_limits<double>::infinity();
@@ -152,7 +151,6 @@ struct Partial {
     sz += o.sz;
     s_range += o.s_range;
     slope_sum += o.slope_sum;
-    z_min = std::min(z_min, o.z_min);
   }
 };
 
@@ -328,7 +326,6 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
           s.sy += sy;
           s.sz += sz;
           s.s_range += s_range;
-          s.z_min = std::min(s.z_min, static_cast<double>(lo[2]));
         }
         add_slopes();
       },
@@ -350,9 +347,9 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
     f.bbox_volume_m3 = extent.x() * extent.y() * extent.z();
     f.slope_mean_rad = f.slope_points > 0 ? s.slope_sum / f.slope_points : 0.0;
     f.centroid = Eigen::Vector3d(s.sx, s.sy, s.sz) / np;
-    f.ground_height_m = s.z_min;
-    f.height_mean_m = f.centroid.z() - s.z_min;
-    f.height_max_m = f.bbox_max.z() - s.z_min;
+    f.ground_height_m = f.bbox_min.z();
+    f.height_mean_m = f.centroid.z() - f.bbox_min.z();
+    f.height_max_m = f.bbox_max.z() - f.bbox_min.z();
     f.range_mean_m = s.s_range / np;
   }
   // Feet: not raised, and lower than HT above the segment's ground (counted per part).
