@@ -272,7 +272,6 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
           double sx = 0.0, sy = 0.0, sz = 0.0, s_range = 0.0;
           double range_min = std::numeric_limits<double>::infinity();
           int raised_points = 0;
-          const int up_offset = r > 0 ? -width : 0, down_offset = r + 1 < height ? width : 0;
           for (int j = 0; j < len; ++j) {
             const int i = i0 + j;
             const float x = level.x[i], y = level.y[i], z = level.z[i];
@@ -290,20 +289,19 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
             range_min = std::min(range_min, range);
             raised_points += raised[i] != 0;
 
+            // Inside the run both row neighbours are the segment's; at its ends, as anywhere.
             Eigen::Vector3d tu, tv;
             if (j > 0 && j + 1 < len) {
               tu = at(i + 1) - at(i - 1);
             } else {
               const int c = c0 + j;
-              int left = j > 0 ? i - 1 : (c > 0 ? i - 1 : (wraps ? i + width - 1 : -1));
-              int right = j + 1 < len ? i + 1 : (c + 1 < width ? i + 1 : (wraps ? i - c : -1));
+              int left = c > 0 ? i - 1 : (wraps ? i + width - 1 : -1);
+              int right = c + 1 < width ? i + 1 : (wraps ? i - c : -1);
               if (width == 1) left = right = -1;
               if (!tangent(i, left, right, tu)) continue;
             }
-            if (!tangent(i, up_offset != 0 ? i + up_offset : -1,
-                         down_offset != 0 ? i + down_offset : -1, tv)) {
-              continue;
-            }
+            const int up = r > 0 ? i - width : -1, down = r + 1 < height ? i + width : -1;
+            if (!tangent(i, up, down, tv)) continue;
             const Eigen::Vector3d normal = tu.cross(tv);
             const double square = normal.x() * normal.x() + normal.y() * normal.y();
             if (!(square > 0.0 || normal.z() != 0.0)) continue;
