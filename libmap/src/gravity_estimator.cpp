@@ -79,7 +79,18 @@ struct Prior {
   std::vector<int> sizes;
 };
 
-enum class Kind { kAccel, kGyro, kAttitude, kYaw, kVertical, kHeightStep, kGround, kAnchor, kPrior };
+enum class Kind {
+  kAccel,
+  kGyro,
+  kAttitude,
+  kYaw,
+  kVertical,
+  kHeightStep,
+  kGround,
+  kGroundRise,
+  kAnchor,
+  kPrior
+};
 
 struct Residual {
   ceres::ResidualBlockId id = nullptr;
@@ -107,6 +118,7 @@ struct GravityEstimator::State {
   double heading_unwrapped = 0.0, heading_min = 0.0, heading_max = 0.0;
   double last_heading = NAN;
   int verticals_seen = 0;
+  int rises_seen = 0;  // ground rises given so far
 
   // The window's problem; with `oldest_only`, only the residuals that may involve the
   // oldest frame (those Marginalise needs: built the same way, the rest left out).
@@ -212,6 +224,31 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
         add(new ceres::AutoDiffCostFunction<gravity::HeightTerm, 1, 1>(t),
             new ceres::HuberLoss(c.ground_height_huber), {f.h}, Kind::kGround, i);
       }
+    }
+    // Ground rises: frame i against an earlier frame j of the window (they involve the
+    // oldest frame when j is it).
+    for (const GroundRise& rise : in.ground_rises) {
+      int j = i - 1;
+      while (j >= 0 && window[j]->input.stamp_s != rise.earlier_stamp_s) --j;
+      if (j < 0 || (oldest_only && j != 0)) continue;
+      WindowFrame& e = *window[j];
+      auto* t = new gravity::GroundRiseTerm;
+      t->R_body_sensor = R_body_sensor;
+      t->R0_k = rise.R_world_sensor;
+      t->R0_j = rise.R_world_sensor_earlier;
+      t->Rb0_k = rise.R_world_body;
+      t->Rb0_j = rise.R_world_body_earlier;
+      t->sensor_on_body = rise.sensor_on_body_m;
+      t->offset_k = rise.offset_m;
+      t->offset_j = rise.offset_earlier_m;
+      t->rise_m = rise.rise_m;
+      t->sigma_m = rise.sigma_m;
+      t->climb_m = rise.gradient.dot(rise.odometry_step_m);
+      add(new ceres::AutoDiffCostFunction<gravity::GroundRiseTerm, 1, 1, 1, 3, 3, 2, 1>(t),
+          new ceres::HuberLoss(c.ground_height_huber), {e.h, f.h, e.rpy, f.rpy, mount_, scale_},
+          Kind::kGroundRise, j);
+    }
+    if (!oldest_only || i == 0) {
       if (f.id == 0) {
         // The start's anchor: heights are relative to it.
         auto* t = new gravity::HeightTerm{in.ground_height_m.value_or(0.0), 0.01};
@@ -503,14 +540,15 @@ std::string GravityEstimate::BriefReport() const {
   std::snprintf(line, sizeof(line),
                 "roll %.3f pitch %.3f deg (sigma %.3f %.3f), ba (%.3f %.3f %.3f) m/s^2, "
                 "mount (%.3f %.3f) deg, odometry scale %+.2f%%; cues: %d accel (%d out), %d gyro, "
-                "%d verticals (%d out), %d priors; %d iterations, cost %.3g -> %.3g",
+                "%d verticals (%d out), %d ground rises, %d priors; %d iterations, cost %.3g "
+                "-> %.3g",
                 roll_rad / kDegToRad, pitch_rad / kDegToRad,
                 std::sqrt(attitude_covariance(0, 0)) / kDegToRad,
                 std::sqrt(attitude_covariance(1, 1)) / kDegToRad, accel_bias_mps2.x(),
                 accel_bias_mps2.y(), accel_bias_mps2.z(), mount_rad.x() / kDegToRad,
                 mount_rad.y() / kDegToRad, 100.0 * odometry_scale, cues.accel_terms,
                 cues.accel_outliers, cues.gyro_terms, cues.verticals, cues.vertical_outliers,
-                cues.attitude_priors, iterations, initial_cost, final_cost);
+                cues.ground_rises, cues.attitude_priors, iterations, initial_cost, final_cost);
   std::string out = line;
   for (const GravityDegeneracy& d : degeneracies) out += "; not observable: " + d.reason;
   return out;
@@ -596,6 +634,21 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
       !(std::isfinite(*frame.ground_height_m) && frame.ground_height_sigma_m > 0.0)) {
     return GravityError("frame.ground_height_m", "must be finite, with a sigma > 0");
   }
+  for (std::size_t i = 0; i < frame.ground_rises.size(); ++i) {
+    const GroundRise& r = frame.ground_rises[i];
+    const std::string field = "frame.ground_rises[" + std::to_string(i) + "]";
+    if (!(std::isfinite(r.rise_m) && r.R_world_sensor.allFinite() &&
+          r.R_world_sensor_earlier.allFinite() && r.R_world_body.allFinite() &&
+          r.R_world_body_earlier.allFinite() && r.sensor_on_body_m.allFinite() &&
+          r.offset_m.allFinite() && r.offset_earlier_m.allFinite() &&
+          r.odometry_step_m.allFinite() && r.gradient.allFinite() && std::isfinite(r.sigma_m) &&
+          r.sigma_m > 0.0)) {
+      return GravityError(field, "must be finite, with a sigma > 0");
+    }
+    if (!(r.earlier_stamp_s < frame.stamp_s)) {
+      return GravityError(field + ".earlier_stamp_s", "must be before the frame's stamp");
+    }
+  }
 
   auto wf = std::make_unique<WindowFrame>();
   wf->input = frame;
@@ -662,6 +715,7 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
   st.heading_min = std::min(st.heading_min, st.heading_unwrapped);
   st.heading_max = std::max(st.heading_max, st.heading_unwrapped);
   st.verticals_seen += static_cast<int>(frame.verticals.size());
+  st.rises_seen += static_cast<int>(frame.ground_rises.size());
 
   if (frame.velocity_world_mps) {
     wf->velocity = *frame.velocity_world_mps;
@@ -762,6 +816,9 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
       case Kind::kGyro: ++cues.gyro_terms; break;
       case Kind::kAttitude: ++cues.attitude_priors; break;
       case Kind::kGround: ++cues.ground_heights; break;
+      case Kind::kGroundRise:
+        ++cues.ground_rises;
+        break;
       default: break;
     }
   }
@@ -829,9 +886,10 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
         if (s > limit * c.mount_sigma_rad) {
           std::snprintf(
               why, sizeof(why),
-              "sensor mount tilt (sigma %.2f deg of %.2f a priori): %d vertical cues seen "
-              "so far; the mount needs trunks, poles or walls in view",
-              s / kDegToRad, c.mount_sigma_rad / kDegToRad, st.verticals_seen);
+              "sensor mount tilt (sigma %.2f deg of %.2f a priori): %d vertical cues and %d "
+              "ground rises so far; the mount needs trunks, poles or walls in view, or ground "
+              "seen by two frames",
+              s / kDegToRad, c.mount_sigma_rad / kDegToRad, st.verticals_seen, st.rises_seen);
           est.degeneracies.push_back({GravityDegeneracy::State::kMount, why});
         }
       }
@@ -886,6 +944,24 @@ json FrameJson(const WindowFrame& f) {
   if (in.velocity_world_mps) j["velocity_world"] = Array(in.velocity_world_mps->data(), 3);
   if (in.attitude_prior_rad) j["attitude"] = Array(in.attitude_prior_rad->data(), 2);
   if (in.ground_height_m) j["ground"] = *in.ground_height_m;
+  if (!in.ground_rises.empty()) {
+    json rises = json::array();
+    for (const GroundRise& r : in.ground_rises) {
+      rises.push_back({{"earlier", r.earlier_stamp_s},
+                       {"rise", r.rise_m},
+                       {"R", Array(r.R_world_sensor.data(), 9)},
+                       {"R_earlier", Array(r.R_world_sensor_earlier.data(), 9)},
+                       {"Rb", Array(r.R_world_body.data(), 9)},
+                       {"Rb_earlier", Array(r.R_world_body_earlier.data(), 9)},
+                       {"sensor_on_body", Array(r.sensor_on_body_m.data(), 3)},
+                       {"offset", Array(r.offset_m.data(), 3)},
+                       {"offset_earlier", Array(r.offset_earlier_m.data(), 3)},
+                       {"step", Array(r.odometry_step_m.data(), 2)},
+                       {"gradient", Array(r.gradient.data(), 2)},
+                       {"sigma", r.sigma_m}});
+    }
+    j["rises"] = rises;
+  }
   return j;
 }
 
@@ -929,6 +1005,24 @@ std::unique_ptr<WindowFrame> FrameFrom(const json& j) {
     in.attitude_prior_rad = a;
   }
   if (j.contains("ground")) in.ground_height_m = j.at("ground").get<double>();
+  if (j.contains("rises")) {
+    for (const json& rj : j.at("rises")) {
+      GroundRise r;
+      r.earlier_stamp_s = rj.at("earlier").get<double>();
+      r.rise_m = rj.at("rise").get<double>();
+      ArrayFrom(rj.at("R"), r.R_world_sensor.data(), 9, "R");
+      ArrayFrom(rj.at("R_earlier"), r.R_world_sensor_earlier.data(), 9, "R_earlier");
+      ArrayFrom(rj.at("Rb"), r.R_world_body.data(), 9, "Rb");
+      ArrayFrom(rj.at("Rb_earlier"), r.R_world_body_earlier.data(), 9, "Rb_earlier");
+      r.sensor_on_body_m = Vector3From(rj.at("sensor_on_body"), "sensor_on_body");
+      r.offset_m = Vector3From(rj.at("offset"), "offset");
+      r.offset_earlier_m = Vector3From(rj.at("offset_earlier"), "offset_earlier");
+      ArrayFrom(rj.at("step"), r.odometry_step_m.data(), 2, "step");
+      ArrayFrom(rj.at("gradient"), r.gradient.data(), 2, "gradient");
+      r.sigma_m = rj.at("sigma").get<double>();
+      in.ground_rises.push_back(r);
+    }
+  }
   return f;
 }
 
@@ -997,7 +1091,8 @@ std::string GravityEstimator::SaveState() const {
                   {"last_sample_stamp", Number(st.last_sample_stamp_s)},
                   {"heading", {st.heading_unwrapped, st.heading_min, st.heading_max}},
                   {"last_heading", Number(st.last_heading)},
-                  {"verticals_seen", st.verticals_seen}};
+                  {"verticals_seen", st.verticals_seen},
+                  {"rises_seen", st.rises_seen}};
   return j.dump();
 }
 
@@ -1096,6 +1191,7 @@ Status GravityEstimator::RestoreState(const std::string& text) {
     st.heading_max = heading[2];
     st.last_heading = NumberFrom(j.at("last_heading"));
     st.verticals_seen = j.at("verticals_seen").get<int>();
+    st.rises_seen = j.value("rises_seen", 0);  // absent before the ground rises
   } catch (const std::exception& e) {
     return GravityError("state", std::string("unreadable: ") + e.what());
   }

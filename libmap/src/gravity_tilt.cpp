@@ -2,13 +2,16 @@
 #include "gravity_tilt.hpp"
 
 #include <cmath>
+#include <deque>
 #include <exception>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
 #include "gravity_terms.hpp"
+#include "ground_rise.hpp"
 #include "json_numbers.hpp"
 
 namespace cairn::map {
@@ -101,6 +104,38 @@ class GravityTilt final : public TiltStep {
     } else if (h.error().message != kNoGround) {
       return h.error();
     }
+    // The ground against the ground of the frame rise_frames_back before, where both saw it.
+    const int back = config_.gravity_rise_frames_back;
+    std::vector<Eigen::Vector3f> ground;
+    if (back > 0) ground = internal::ThinGroundPoints(frame.ground_points_sensor, RiseFitConfig());
+    // The body on which the prior places this frame, and its height (the estimator's).
+    const Eigen::Isometry3d body_prior =
+        frame.T_world_sensor_prior * T_body_sensor_estimated_.inverse();
+    const double h_prior = body_prior.translation().z() - z0_m_;
+    // From the frame that fills the estimator's window on: begun at the first frames, with the
+    // mount at its wide prior and the body's up from a few accelerometer spans, the first
+    // rises moved those frames' tilt more than they told (libmap/README.md).
+    if (back > 0 && static_cast<int>(earlier_.size()) >= back &&
+        estimator_->frames_added() >= config_.gravity.window_frames) {
+      const EarlierGround& e = earlier_[earlier_.size() - back];
+      if (std::optional<internal::GroundRiseFit> fit = internal::FitGroundRise(
+              ground, frame.T_world_sensor_prior, e.surface, RiseFitConfig())) {
+        GroundRise rise;
+        rise.earlier_stamp_s = e.stamp_s;
+        rise.rise_m = fit->dz_m + h_prior - e.h_m;
+        rise.R_world_sensor = frame.T_world_sensor_prior.linear();
+        rise.R_world_sensor_earlier = e.surface.T_world_sensor().linear();
+        rise.R_world_body = body_prior.linear();
+        rise.R_world_body_earlier = e.R_world_body;
+        rise.sensor_on_body_m = T_body_sensor_.translation();
+        rise.offset_m = fit->offset_m;
+        rise.offset_earlier_m = fit->offset_earlier_m;
+        rise.odometry_step_m = g.odometry_xy_yaw.head<2>() - e.odometry_xy;
+        rise.gradient = fit->gradient;
+        rise.sigma_m = config_.gravity_rise_sigma_m;
+        g.ground_rises.push_back(rise);
+      }
+    }
     Expected<GravityEstimate> estimate = estimator_->AddFrame(g);
     if (!estimate) return estimate.error();
     verticals_seen_ += static_cast<int>(g.verticals.size());
@@ -132,8 +167,26 @@ class GravityTilt final : public TiltStep {
     outcome.pitch_rad = fused.pitch - odom.pitch;
     outcome.dz_m = outcome.T_world_sensor.translation().z() -
                    frame.T_world_sensor_odometry.translation().z();
+    if (back > 0) {
+      // The body this frame is fused on (the mount as now estimated).
+      const Eigen::Isometry3d body_fused =
+          outcome.T_world_sensor * T_body_sensor_estimated_.inverse();
+      earlier_.push_back(
+          EarlierGround{frame.stamp_s, body_fused.translation().z() - z0_m_, body_fused.linear(),
+                        g.odometry_xy_yaw.head<2>(), ground,
+                        internal::GroundSurface(ground, outcome.T_world_sensor, RiseFitConfig())});
+      while (static_cast<int>(earlier_.size()) > back) earlier_.pop_front();
+    }
     outcome.gravity = std::move(*estimate);
     return outcome;
+  }
+
+  internal::GroundRiseFitConfig RiseFitConfig() const {
+    internal::GroundRiseFitConfig c;
+    c.max_range_m = config_.refiner.max_range_m;
+    c.max_points = config_.refiner.max_points;
+    c.huber_m = config_.refiner.huber_m;
+    return c;
   }
 
   // The body height [m] at which the frame's ground points fit the fused terrain (tilt as
@@ -160,6 +213,20 @@ class GravityTilt final : public TiltStep {
               {"z0", z0_m_},
               {"verticals_seen", verticals_seen_},
               {"mount", Entries(T_body_sensor_.matrix())}};
+    json earlier = json::array();
+    for (const EarlierGround& e : earlier_) {
+      std::vector<double> points;
+      points.reserve(3 * e.points_sensor.size());
+      for (const Eigen::Vector3f& p : e.points_sensor)
+        points.insert(points.end(), {p.x(), p.y(), p.z()});
+      earlier.push_back({{"stamp", e.stamp_s},
+                         {"h", e.h_m},
+                         {"body", Entries(e.R_world_body)},
+                         {"odometry_xy", {e.odometry_xy.x(), e.odometry_xy.y()}},
+                         {"pose", Entries(e.surface.T_world_sensor().matrix())},
+                         {"points", points}});
+    }
+    j["earlier_ground"] = earlier;
     if (estimator_) j["estimator"] = json::parse(estimator_->SaveState());
     return j.dump();
   }
@@ -194,6 +261,27 @@ class GravityTilt final : public TiltStep {
       Eigen::Isometry3d mount_estimated = Eigen::Isometry3d::Identity();
       mount_estimated.matrix() = EntriesFrom<4, 4>(j.at("mount_estimated"), "mount_estimated");
       const double dz = j.at("dz").get<double>(), z0 = j.at("z0").get<double>();
+      std::deque<EarlierGround> earlier;
+      // (absent from a state of a cairn before the ground rises: they start afresh)
+      for (const json& e : j.value("earlier_ground", json::array())) {
+        Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+        pose.matrix() = EntriesFrom<4, 4>(e.at("pose"), "earlier_ground.pose");
+        const std::vector<double> flat = e.at("points").get<std::vector<double>>();
+        if (flat.size() % 3 != 0)
+          throw std::runtime_error("earlier_ground.points: not x, y, z triples");
+        std::vector<Eigen::Vector3f> points;
+        for (std::size_t i = 0; i < flat.size(); i += 3) {
+          points.emplace_back(static_cast<float>(flat[i]), static_cast<float>(flat[i + 1]),
+                              static_cast<float>(flat[i + 2]));
+        }
+        internal::GroundSurface surface(points, pose, RiseFitConfig());
+        Eigen::Vector2d odometry_xy;
+        internal::ArrayFrom(e.at("odometry_xy"), odometry_xy.data(), 2,
+                            "earlier_ground.odometry_xy");
+        earlier.push_back(EarlierGround{e.at("stamp").get<double>(), e.at("h").get<double>(),
+                                        EntriesFrom<3, 3>(e.at("body"), "earlier_ground.body"),
+                                        odometry_xy, std::move(points), std::move(surface)});
+      }
       T_body_sensor_ = mount;
       estimator_ = std::move(estimator);
       verticals_seen_ = verticals_seen;
@@ -201,6 +289,7 @@ class GravityTilt final : public TiltStep {
       dz_m_ = dz;
       T_body_sensor_estimated_ = mount_estimated;
       z0_m_ = z0;
+      earlier_ = std::move(earlier);
     } catch (const std::exception& e) {
       return Error{std::string("tilt state (gravity) unreadable: ") + e.what()};
     }
@@ -217,6 +306,16 @@ class GravityTilt final : public TiltStep {
   Eigen::Matrix3d R_correction_ = Eigen::Matrix3d::Identity();
   double dz_m_ = 0.0;
   Eigen::Isometry3d T_body_sensor_estimated_ = Eigen::Isometry3d::Identity();
+  // The last rise_frames_back frames' ground, as fused, for the ground rises.
+  struct EarlierGround {
+    double stamp_s = 0.0;
+    double h_m = 0.0;  // the body height (the estimator's) it was fused at [m]
+    Eigen::Matrix3d R_world_body = Eigen::Matrix3d::Identity();  // and its rotation
+    Eigen::Vector2d odometry_xy = Eigen::Vector2d::Zero();       // the odometry's body x, y [m]
+    std::vector<Eigen::Vector3f> points_sensor;
+    internal::GroundSurface surface;
+  };
+  std::deque<EarlierGround> earlier_;
 };
 
 }  // namespace

@@ -87,13 +87,15 @@ Status ParseGravity(const yaml::FieldReader& reader, const YAML::Node& section, 
       {"mount_sigma_rad", &g.mount_sigma_rad},
       {"odometry_scale_sigma", &g.odometry_scale_sigma},
       {"observable_ratio", &g.observable_ratio},
-      {"ground_sigma_m", &tilt.gravity_ground_sigma_m}};
+      {"ground_sigma_m", &tilt.gravity_ground_sigma_m},
+      {"rise_sigma_m", &tilt.gravity_rise_sigma_m}};
   const std::vector<IntField> ints = {
       {"window_frames", &g.window_frames, 2, 10000},
       {"accel_half_span_frames", &g.accel_half_span_frames, 1, 10000},
       {"accel_warmup_spans", &g.accel_warmup_spans, 0, 10000},
       {"max_iterations", &g.max_iterations, 1, 100000000},
-      {"ground_min_verticals", &tilt.gravity_ground_min_verticals, 0, 1000000000}};
+      {"ground_min_verticals", &tilt.gravity_ground_min_verticals, 0, 1000000000},
+      {"rise_frames_back", &tilt.gravity_rise_frames_back, 0, 10000}};
   const std::vector<BoolField> bools = {{"estimate_accel_bias", &g.estimate_accel_bias},
                                         {"estimate_gyro_bias", &g.estimate_gyro_bias},
                                         {"estimate_mount", &g.estimate_mount},
@@ -107,6 +109,13 @@ Status ParseGravity(const yaml::FieldReader& reader, const YAML::Node& section, 
   if (Status s = g.Validate(); !s) return FailAtField(reader, s, "tilt.", "tilt.gravity");
   if (!(tilt.gravity_ground_sigma_m > 0.0 && std::isfinite(tilt.gravity_ground_sigma_m))) {
     return reader.Fail("tilt.gravity.ground_sigma_m", "must be > 0 m");
+  }
+  if (!(tilt.gravity_rise_sigma_m > 0.0 && std::isfinite(tilt.gravity_rise_sigma_m))) {
+    return reader.Fail("tilt.gravity.rise_sigma_m", "must be > 0 m");
+  }
+  if (tilt.gravity_rise_frames_back >= g.window_frames) {
+    return reader.Fail("tilt.gravity.rise_frames_back",
+                       "must be under window_frames (" + std::to_string(g.window_frames) + ")");
   }
   return {};
 }

@@ -119,6 +119,15 @@ Status TiltConfig::Validate() const {
   if (gravity_ground_min_verticals < 0) {
     return Error{"tilt config: 'gravity_ground_min_verticals': must be >= 0"};
   }
+  if (gravity_rise_frames_back < 0 || gravity_rise_frames_back >= gravity.window_frames) {
+    return Error{
+        "tilt config: 'gravity_rise_frames_back': must be >= 0 and under "
+        "gravity.window_frames (" +
+        std::to_string(gravity.window_frames) + ")"};
+  }
+  if (!(gravity_rise_sigma_m > 0.0 && std::isfinite(gravity_rise_sigma_m))) {
+    return Error{"tilt config: 'gravity_rise_sigma_m': must be > 0 m"};
+  }
   return {};
 }
 

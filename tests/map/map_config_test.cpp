@@ -157,6 +157,8 @@ TEST(MapConfigFile, DefaultYamlHasAMapSectionThatBothLoadersAccept) {
   EXPECT_DOUBLE_EQ(g.odometry_scale_sigma, tilt.gravity.odometry_scale_sigma);
   EXPECT_DOUBLE_EQ(mapper->mapper.tilt.gravity_ground_sigma_m, tilt.gravity_ground_sigma_m);
   EXPECT_EQ(mapper->mapper.tilt.gravity_ground_min_verticals, tilt.gravity_ground_min_verticals);
+  EXPECT_EQ(mapper->mapper.tilt.gravity_rise_frames_back, tilt.gravity_rise_frames_back);
+  EXPECT_DOUBLE_EQ(mapper->mapper.tilt.gravity_rise_sigma_m, tilt.gravity_rise_sigma_m);
   const VerticalCueConfig& v = mapper->mapper.tilt.verticals;
   EXPECT_DOUBLE_EQ(v.min_height_m, tilt.verticals.min_height_m);
   EXPECT_EQ(v.min_points, tilt.verticals.min_points);

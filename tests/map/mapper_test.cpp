@@ -420,6 +420,7 @@ TEST(MapperSettings, TheGravityEstimatorsNoisesAndTheVerticalCuesAreSetInTheFile
       "    odometry_walk_sigma: 0.03\n    gyro_sigma_radps: 0.004\n"
       "    attitude_prior_sigma_rad: 0.02\n    estimate_mount: false\n    covariance: false\n"
       "    ground_sigma_m: 0.2\n    ground_min_verticals: 3\n"
+      "    rise_frames_back: 5\n    rise_sigma_m: 0.03\n"
       "  verticals:\n    min_height: 1.5\n    max_angle: 10\n    min_points: 60\n"
       "    walls: false\n",
       "test.yaml");
@@ -436,6 +437,8 @@ TEST(MapperSettings, TheGravityEstimatorsNoisesAndTheVerticalCuesAreSetInTheFile
   EXPECT_FALSE(t.gravity.covariance);
   EXPECT_DOUBLE_EQ(t.gravity_ground_sigma_m, 0.2);
   EXPECT_EQ(t.gravity_ground_min_verticals, 3);
+  EXPECT_EQ(t.gravity_rise_frames_back, 5);
+  EXPECT_DOUBLE_EQ(t.gravity_rise_sigma_m, 0.03);
   EXPECT_DOUBLE_EQ(t.verticals.min_height_m, 1.5);
   EXPECT_DOUBLE_EQ(t.verticals.max_angle_rad, 10.0 * kDegToRad);
   EXPECT_EQ(t.verticals.min_points, 60);
@@ -451,6 +454,9 @@ TEST(MapperSettings, TheGravityEstimatorsNoisesAndTheVerticalCuesAreSetInTheFile
   fails_naming("tilt:\n  gravity:\n    odometry_walk_sigma: -0.01\n",
                "tilt.gravity.odometry_walk_sigma");
   fails_naming("tilt:\n  gravity:\n    ground_sigma_m: 0\n", "tilt.gravity.ground_sigma_m");
+  fails_naming("tilt:\n  gravity:\n    rise_sigma_m: -0.1\n", "tilt.gravity.rise_sigma_m");
+  fails_naming("tilt:\n  gravity:\n    rise_frames_back: 12\n", "tilt.gravity.rise_frames_back");
+  fails_naming("tilt:\n  gravity:\n    rise_frames_back: -1\n", "tilt.gravity.rise_frames_back");
   fails_naming("tilt:\n  gravity:\n    accel_sigma_mps2: -1\n", "tilt.gravity.accel_sigma_mps2");
   fails_naming("tilt:\n  gravity:\n    odometry_walk_sigma: nan\n",
                "tilt.gravity.odometry_walk_sigma");

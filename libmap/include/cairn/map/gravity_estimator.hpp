@@ -13,16 +13,19 @@
 //   - vertical structure: tall segments' axes are vertical, walls' normals horizontal
 //     (measured in the sensor frame; Cauchy-robust, because trees lean);
 //   - heights: the height step implied by the pitch over the distance driven (the
-//     odometry's, its scale error a slow state), and an optional frame-to-map ground
-//     height; Huber-robust;
+//     odometry's, its scale error a slow state), an optional frame-to-map ground height,
+//     and the ground a frame sees against the same ground seen by an earlier frame of the
+//     window (GroundRise: a rise measured by the sensor, which moves with its tilt);
+//     Huber-robust;
 //   - priors: the IMU's attitude output (roll, pitch), the measured heading (yaw).
 // Frames that leave the window are marginalised into a Gaussian prior on what remains
 // (Schur complement), so the biases and the mount learned earlier are kept.
 //
 // What it cannot see, it says: a straight drive on even ground cannot tell an accelerometer
 // bias from a tilt (a turn or a change of attitude separates them, through the gyro); a
-// sensor mount's tilt needs vertical structure in view. Such a state keeps (about) its prior
-// uncertainty and is flagged with the reason, rather than corrected from nothing.
+// sensor mount's tilt needs vertical structure in view, or ground seen by two frames. Such a state
+// keeps (about) its prior uncertainty and is flagged with the reason, rather than corrected from
+// nothing.
 //
 // Frames: world z up; body x forward, y left, z up, defined by the IMU (R_body_imu, known);
 // sensor frames as od:: has them, on the body by R_body_sensor_nominal. Attitudes Z-Y-X as
@@ -123,6 +126,39 @@ struct VerticalCue {
   bool wall_normal = false;
 };
 
+/// The ground this frame sees where an earlier frame saw it too: how much higher this
+/// frame's body stands than the earlier one's, measured by the sensor looking at the terrain
+/// ahead (not by the wheels or the IMU), at the tilts at which both frames' ground points
+/// were placed. A tilt of either sensor moves its points' heights by its rotation of their
+/// offset, which the estimator applies as it re-estimates the tilts (GroundRiseTerm in
+/// gravity_terms.hpp): against the climb the wheels' plane gives (the body's pitch over the
+/// distance), this tells the sensor's tilt from the body's, the mount, without structure in
+/// view; with the sensor's tilt anchored by vertical structure it holds the height to the
+/// terrain's true rise.
+struct GroundRise {
+  double earlier_stamp_s = 0.0;  ///< the earlier frame's stamp; it must still be in the window
+  double rise_m = 0.0;           ///< body height here minus there, at the placements [m]
+  /// The sensors' world rotations at which this frame's and the earlier frame's ground
+  /// points were placed.
+  Eigen::Matrix3d R_world_sensor = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d R_world_sensor_earlier = Eigen::Matrix3d::Identity();
+  /// The bodies' world rotations at the placements, and the sensor's position on the body
+  /// [m]: a tilt of the body moves the sensor with it.
+  Eigen::Matrix3d R_world_body = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d R_world_body_earlier = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d sensor_on_body_m = Eigen::Vector3d::Zero();
+  /// The matched ground's mean offset from each sensor, world axes [m].
+  Eigen::Vector3d offset_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d offset_earlier_m = Eigen::Vector3d::Zero();
+  /// Where the frames were placed from the odometry: the displacement between them (world
+  /// x, y [m]) and the ground's gradient at the matched places (dz/dx, dz/dy). With the
+  /// odometry's distances 1 + s of the true ones, the later frame stood s / (1 + s) of the
+  /// displacement short of where it was placed, on ground lower by the gradient times that.
+  Eigen::Vector2d odometry_step_m = Eigen::Vector2d::Zero();
+  Eigen::Vector2d gradient = Eigen::Vector2d::Zero();
+  double sigma_m = 0.02;  ///< [m]
+};
+
 /// What one frame brings.
 struct GravityFrame {
   double stamp_s = 0.0;  ///< strictly after the previous frame's [s]
@@ -140,6 +176,8 @@ struct GravityFrame {
   /// A frame-to-map ground height of the body [m] and its sigma [m].
   std::optional<double> ground_height_m;
   double ground_height_sigma_m = 0.05;
+  /// This frame's ground against earlier frames' (Huber-robust, ground_height_huber).
+  std::vector<GroundRise> ground_rises;
 };
 
 /// A state that the data in the window do not determine.
@@ -161,6 +199,7 @@ struct GravityCues {
   int verticals = 0;           ///< vertical cues in the window
   int vertical_outliers = 0;   ///< beyond 3 sigma at the solution (leaning, wrong)
   int ground_heights = 0;
+  int ground_rises = 0;        ///< frame-to-frame ground rises in the window
   int frame_imu_samples = 0;   ///< raw samples the newest frame brought
   int frame_verticals = 0;     ///< vertical cues the newest frame brought
   double heading_change_rad = 0.0;  ///< largest heading change seen so far from the start
