@@ -243,6 +243,7 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
       t->offset_j = rise.offset_earlier_m;
       t->rise_m = rise.rise_m;
       t->sigma_m = rise.sigma_m;
+      t->gradient = rise.gradient;
       t->climb_m = rise.gradient.dot(rise.odometry_step_m);
       add(new ceres::AutoDiffCostFunction<gravity::GroundRiseTerm, 1, 1, 1, 3, 3, 2, 1>(t),
           new ceres::HuberLoss(c.ground_height_huber), {e.h, f.h, e.rpy, f.rpy, mount_, scale_},
@@ -648,6 +649,18 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
     if (!(r.earlier_stamp_s < frame.stamp_s)) {
       return GravityError(field + ".earlier_stamp_s", "must be before the frame's stamp");
     }
+    // The window keeps its last window_frames - 1 frames beside this one.
+    const std::size_t kept = static_cast<std::size_t>(c.window_frames - 1);
+    const std::size_t first = st.window.size() > kept ? st.window.size() - kept : 0;
+    bool found = false;
+    for (std::size_t w = first; w < st.window.size() && !found; ++w) {
+      found = st.window[w]->input.stamp_s == r.earlier_stamp_s;
+    }
+    if (!found) {
+      return GravityError(
+          field + ".earlier_stamp_s",
+          "names no frame that stays in the window (" + std::to_string(r.earlier_stamp_s) + " s)");
+    }
   }
 
   auto wf = std::make_unique<WindowFrame>();
@@ -1020,6 +1033,16 @@ std::unique_ptr<WindowFrame> FrameFrom(const json& j) {
       ArrayFrom(rj.at("step"), r.odometry_step_m.data(), 2, "step");
       ArrayFrom(rj.at("gradient"), r.gradient.data(), 2, "gradient");
       r.sigma_m = rj.at("sigma").get<double>();
+      if (!(std::isfinite(r.rise_m) && r.R_world_sensor.allFinite() &&
+            r.R_world_sensor_earlier.allFinite() && r.R_world_body.allFinite() &&
+            r.R_world_body_earlier.allFinite() && r.sensor_on_body_m.allFinite() &&
+            r.offset_m.allFinite() && r.offset_earlier_m.allFinite() &&
+            r.odometry_step_m.allFinite() && r.gradient.allFinite() && std::isfinite(r.sigma_m) &&
+            r.sigma_m > 0.0 && r.earlier_stamp_s < in.stamp_s)) {
+        throw std::runtime_error(
+            "rises: a rise is not finite, its sigma not > 0 or its earlier "
+            "frame not before its own");
+      }
       in.ground_rises.push_back(r);
     }
   }

@@ -415,10 +415,11 @@ struct HeightStepTerm {
 /// The ground seen by frame k where frame j saw it (GroundRise): with the sensors' rotations
 ///   R_ws = WorldFromBody(rpy) RotY(mount_pitch) RotX(mount_roll) R_body_sensor,
 /// a tilt moves the matched ground of a frame from where it was placed (R_ws0, R_wb0) by
-///   dZ = ((R_ws R_ws0^T - I) offset)_z + ((R_wb - R_wb0) t_bs)_z,
-/// the sensor turned about itself and carried by the body (t_bs its position on the body);
-/// an odometry scale s placed frame k s / (1 + s) of the step d between them too far along,
-/// on ground higher by the gradient g times that, so
+///   D = (R_ws R_ws0^T - I) offset + (R_wb - R_wb0) t_bs,
+/// the ground turned about the sensor and carried with it by the body (t_bs the sensor's
+/// position on the body); over ground of gradient g its height above the other frame's
+/// ground changes by dZ = D_z - g . D_xy. An odometry scale s placed frame k s / (1 + s) of
+/// the step d between them too far along, on ground higher by g . d times that, so
 ///   r = ((h_k - h_j) + dZ_k - dZ_j - rise + (g . d) s / (1 + s)) / sigma_m   [1, m / m]
 struct GroundRiseTerm {
   Eigen::Matrix3d R_body_sensor = Eigen::Matrix3d::Identity();  ///< nominal mount
@@ -426,7 +427,8 @@ struct GroundRiseTerm {
   Eigen::Matrix3d Rb0_k = Eigen::Matrix3d::Identity(), Rb0_j = Eigen::Matrix3d::Identity();
   Eigen::Vector3d sensor_on_body = Eigen::Vector3d::Zero();
   Eigen::Vector3d offset_k = Eigen::Vector3d::Zero(), offset_j = Eigen::Vector3d::Zero();
-  double rise_m = 0.0, sigma_m = 0.02;
+  Eigen::Vector2d gradient = Eigen::Vector2d::Zero();  ///< g (dz/dx, dz/dy)
+  double rise_m = 0.0, sigma_m = 0.05;
   double climb_m = 0.0;  ///< g . d: the rise of the ground over the odometry's step [m]
 
   template <typename T>
@@ -435,24 +437,26 @@ struct GroundRiseTerm {
     const Eigen::Matrix<T, 3, 3> R_mount =
         RotY(mount[1]) * RotX(mount[0]) * R_body_sensor.cast<T>();
     const Eigen::Matrix<T, 3, 3> Rb_k = WorldFromBody(rpy_k), Rb_j = WorldFromBody(rpy_j);
-    const T dz_k = Lift<T>(Rb_k * R_mount, R0_k, offset_k) + Carry<T>(Rb_k, Rb0_k);
-    const T dz_j = Lift<T>(Rb_j * R_mount, R0_j, offset_j) + Carry<T>(Rb_j, Rb0_j);
+    const T dz_k = OverGround<T>(Moved<T>(Rb_k * R_mount, R0_k, offset_k, Rb_k, Rb0_k));
+    const T dz_j = OverGround<T>(Moved<T>(Rb_j * R_mount, R0_j, offset_j, Rb_j, Rb0_j));
     const T misplaced = T(climb_m) * scale[0] / (T(1.0) + scale[0]);
     residual[0] = ((h_k[0] - h_j[0]) + dz_k - dz_j - T(rise_m) + misplaced) / T(sigma_m);
     return true;
   }
 
  private:
+  // D: how far the matched ground moved from its placement.
   template <typename T>
-  static T Lift(const Eigen::Matrix<T, 3, 3>& R, const Eigen::Matrix3d& R0,
-                const Eigen::Vector3d& offset) {
-    const Eigen::Matrix<T, 3, 1> moved = R * (R0.transpose() * offset).cast<T>();
-    return moved[2] - T(offset.z());
+  Eigen::Matrix<T, 3, 1> Moved(const Eigen::Matrix<T, 3, 3>& R, const Eigen::Matrix3d& R0,
+                               const Eigen::Vector3d& offset, const Eigen::Matrix<T, 3, 3>& Rb,
+                               const Eigen::Matrix3d& Rb0) const {
+    const Eigen::Matrix<T, 3, 1> turned = R * (R0.transpose() * offset).cast<T>();
+    const Eigen::Matrix<T, 3, 1> carried = Rb * sensor_on_body.cast<T>();
+    return (turned - offset.cast<T>()) + (carried - (Rb0 * sensor_on_body).cast<T>());
   }
   template <typename T>
-  T Carry(const Eigen::Matrix<T, 3, 3>& Rb, const Eigen::Matrix3d& Rb0) const {
-    const Eigen::Matrix<T, 3, 1> now = Rb * sensor_on_body.cast<T>();
-    return now[2] - T((Rb0 * sensor_on_body).z());
+  T OverGround(const Eigen::Matrix<T, 3, 1>& D) const {
+    return D[2] - T(gradient.x()) * D[0] - T(gradient.y()) * D[1];
   }
 };
 

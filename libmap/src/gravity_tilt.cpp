@@ -112,9 +112,9 @@ class GravityTilt final : public TiltStep {
     const Eigen::Isometry3d body_prior =
         frame.T_world_sensor_prior * T_body_sensor_estimated_.inverse();
     const double h_prior = body_prior.translation().z() - z0_m_;
-    // From the frame that fills the estimator's window on: begun at the first frames, with the
-    // mount at its wide prior and the body's up from a few accelerometer spans, the first
-    // rises moved those frames' tilt more than they told (libmap/README.md).
+    // From the frame after the one that fills the estimator's window: begun at the first
+    // frames, with the mount at its wide prior and the body's up from a few accelerometer
+    // spans, the first rises moved those frames' tilt more than they told (libmap/README.md).
     if (back > 0 && static_cast<int>(earlier_.size()) >= back &&
         estimator_->frames_added() >= config_.gravity.window_frames) {
       const EarlierGround& e = earlier_[earlier_.size() - back];
@@ -266,21 +266,34 @@ class GravityTilt final : public TiltStep {
       for (const json& e : j.value("earlier_ground", json::array())) {
         Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
         pose.matrix() = EntriesFrom<4, 4>(e.at("pose"), "earlier_ground.pose");
+        const Eigen::Matrix3d body = EntriesFrom<3, 3>(e.at("body"), "earlier_ground.body");
+        Eigen::Vector2d odometry_xy;
+        internal::ArrayFrom(e.at("odometry_xy"), odometry_xy.data(), 2,
+                            "earlier_ground.odometry_xy");
+        const double stamp = e.at("stamp").get<double>(), h = e.at("h").get<double>();
+        if (!(pose.matrix().allFinite() && body.allFinite() && odometry_xy.allFinite() &&
+              std::isfinite(stamp) && std::isfinite(h))) {
+          throw std::runtime_error(
+              "earlier_ground: a pose, rotation, position or height not finite");
+        }
         const std::vector<double> flat = e.at("points").get<std::vector<double>>();
-        if (flat.size() % 3 != 0)
+        if (flat.size() % 3 != 0) {
           throw std::runtime_error("earlier_ground.points: not x, y, z triples");
+        }
         std::vector<Eigen::Vector3f> points;
         for (std::size_t i = 0; i < flat.size(); i += 3) {
+          for (std::size_t k = i; k < i + 3; ++k) {
+            if (!(std::abs(flat[k]) < 1e6)) {
+              throw std::runtime_error(
+                  "earlier_ground.points: a coordinate not finite or beyond 1e6 m");
+            }
+          }
           points.emplace_back(static_cast<float>(flat[i]), static_cast<float>(flat[i + 1]),
                               static_cast<float>(flat[i + 2]));
         }
         internal::GroundSurface surface(points, pose, RiseFitConfig());
-        Eigen::Vector2d odometry_xy;
-        internal::ArrayFrom(e.at("odometry_xy"), odometry_xy.data(), 2,
-                            "earlier_ground.odometry_xy");
-        earlier.push_back(EarlierGround{e.at("stamp").get<double>(), e.at("h").get<double>(),
-                                        EntriesFrom<3, 3>(e.at("body"), "earlier_ground.body"),
-                                        odometry_xy, std::move(points), std::move(surface)});
+        earlier.push_back(
+            EarlierGround{stamp, h, body, odometry_xy, std::move(points), std::move(surface)});
       }
       T_body_sensor_ = mount;
       estimator_ = std::move(estimator);

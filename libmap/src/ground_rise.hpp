@@ -58,12 +58,14 @@ class GroundSurface {
   struct Sums {
     double n = 0, x = 0, y = 0, z = 0, xx = 0, xy = 0, yy = 0, xz = 0, yz = 0;
   };
-  static std::int64_t Key(std::int64_t i, std::int64_t j) { return (i << 32) ^ (j & 0xffffffff); }
+  static std::uint64_t Key(std::int64_t i, std::int64_t j) {
+    return (static_cast<std::uint64_t>(i) << 32) ^ static_cast<std::uint32_t>(j);
+  }
 
   GroundRiseFitConfig config_;
   Eigen::Isometry3d T_world_sensor_;
   Eigen::Vector2d origin_;  // the sensor's x, y: sums are kept relative to it
-  std::unordered_map<std::int64_t, Sums> cells_;
+  std::unordered_map<std::uint64_t, Sums> cells_;
 };
 
 /// The later frame's ground fitted to the earlier one's.

@@ -624,6 +624,10 @@ TEST(GravityTerms, DerivativesMatchNumericOnes) {
   rise->offset_j << 10.0, 0.5, -2.6;
   rise->rise_m = 0.8;
   rise->climb_m = 0.4;
+  rise->gradient << 0.2, -0.05;
+  rise->sensor_on_body << 0.5, 0.0, 1.5;
+  rise->Rb0_k = gravity::WorldFromBody(rpy1.data());
+  rise->Rb0_j = gravity::WorldFromBody(rpy0.data());
   ceres::AutoDiffCostFunction<gravity::GroundRiseTerm, 1, 1, 1, 3, 3, 2, 1> rise_cost(rise);
   ExpectDerivativesMatchNumeric(rise_cost, {{0.1}, {0.9}, rpy0, rpy1, mount, {0.013}});
 
@@ -721,8 +725,8 @@ TEST(GroundRise, TheFittedRiseIsTheTrueClimbOnceThePlacementsTiltsAreTakenOut) {
   EXPECT_LT(std::abs(exact->dz_m), 0.003);
   EXPECT_GT(exact->offset_m.head<2>().norm(), 4.0);  // the matched ground lies ahead
 
-  // Misplaced: each sensor turned about its origin (0.6 and -0.4 deg about world axes), the
-  // later one 0.12 m too high.
+  // Misplaced: each sensor turned about its origin (by 0.3 and -0.4 deg about the world's x
+  // and y axes, the later one by -0.2 and 0.6 deg), the later one 0.12 m too high.
   const auto turned = [](const Eigen::Isometry3d& T, double ax, double ay) {
     Eigen::Isometry3d out = T;
     out.linear() = (Eigen::AngleAxisd(ay, Eigen::Vector3d::UnitY()) *
@@ -747,6 +751,7 @@ TEST(GroundRise, TheFittedRiseIsTheTrueClimbOnceThePlacementsTiltsAreTakenOut) {
   term.offset_k = fit->offset_m;
   term.offset_j = fit->offset_earlier_m;
   term.rise_m = fit->dz_m + h_k0 - h_j0;
+  term.gradient = fit->gradient;
   term.sigma_m = 1.0;
   const double zero_mount[2] = {0.0, 0.0}, zero_scale = 0.0;
   double residual = 0.0;
@@ -771,6 +776,7 @@ TEST(GroundRise, TheFittedRiseIsTheTrueClimbOnceThePlacementsTiltsAreTakenOut) {
   term.offset_k = long_fit->offset_m;
   term.offset_j = long_fit->offset_earlier_m;
   term.rise_m = long_fit->dz_m + h_k0 - h_j0;
+  term.gradient = long_fit->gradient;
   term.climb_m = long_fit->gradient.dot(step);
   double scaled = 0.0, unscaled = 0.0;
   ASSERT_TRUE(term(&j.h, &k.h, j.rpy, k.rpy, zero_mount, &s, &scaled));
@@ -778,6 +784,41 @@ TEST(GroundRise, TheFittedRiseIsTheTrueClimbOnceThePlacementsTiltsAreTakenOut) {
   std::printf("odometry 3 %% long: %.4f m with its scale, %.4f m without\n", scaled, unscaled);
   EXPECT_GT(std::abs(unscaled), 0.015);
   EXPECT_LT(std::abs(scaled), 0.005);
+
+  // The later body placed pitched 1.5 deg nose down about its own origin: the sensor, 0.5 m
+  // ahead of it and 1.5 m up, goes down with it. The term carries the sensor with the body.
+  const Eigen::Vector3d on_body(0.5, 0.0, 1.5);
+  const Eigen::Matrix3d Rb_true = gravity::WorldFromBody(k.rpy);
+  const Eigen::Matrix3d Rb_placed =
+      Rb_true * Eigen::AngleAxisd(1.5 * kDegToRad, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  Eigen::Isometry3d body_placed = Eigen::Isometry3d::Identity();
+  body_placed.linear() = Rb_placed;
+  body_placed.translation() = k.T_world_sensor.translation() - Rb_true * on_body;
+  const Eigen::Isometry3d pitched =
+      body_placed * (Eigen::Translation3d(on_body) * Eigen::Isometry3d(R_bs));
+  const std::optional<internal::GroundRiseFit> pitched_fit =
+      internal::FitGroundRise(ground_k, pitched, truth_j, config);
+  ASSERT_TRUE(pitched_fit.has_value());
+  gravity::GroundRiseTerm carried;
+  carried.R_body_sensor = R_bs;
+  carried.R0_k = pitched.linear();
+  carried.R0_j = j.T_world_sensor.linear();
+  carried.Rb0_k = Rb_placed;
+  carried.Rb0_j = gravity::WorldFromBody(j.rpy);
+  carried.sensor_on_body = on_body;
+  carried.offset_k = pitched_fit->offset_m;
+  carried.offset_j = pitched_fit->offset_earlier_m;
+  carried.rise_m = pitched_fit->dz_m + k.h - j.h;  // both bodies placed at their true heights
+  carried.gradient = pitched_fit->gradient;
+  carried.sigma_m = 1.0;
+  double with_carry = 0.0, without_carry = 0.0;
+  ASSERT_TRUE(carried(&j.h, &k.h, j.rpy, k.rpy, zero_mount, &zero_scale, &with_carry));
+  carried.sensor_on_body.setZero();
+  ASSERT_TRUE(carried(&j.h, &k.h, j.rpy, k.rpy, zero_mount, &zero_scale, &without_carry));
+  std::printf("body pitched 1.5 deg: %.4f m with the sensor carried, %.4f m without\n", with_carry,
+              without_carry);
+  EXPECT_GT(std::abs(without_carry), 0.01);
+  EXPECT_LT(std::abs(with_carry), 0.005);
 }
 
 // A step on the plane of the wheels, written in the body frame as (u, v, 0) and turned into

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <limits>
 #include <string>
@@ -156,10 +157,12 @@ TEST(Mapper, PriorTiltFusesWhatTheHandWrittenLoopFuses) {
 // Saved after 5 frames, restored into a new Mapper and fed the other 7: the same map files
 // and the same fused poses as the run that was never interrupted, in both tilt modes (the
 // refiner's correction is carried through the checkpoint).
-void ExpectResumeGivesTheSameMap(TiltMode mode, double bias_rad) {
+void ExpectResumeGivesTheSameMap(TiltMode mode, double bias_rad,
+                                 const std::function<void(MapperConfig&)>& tweak = {}) {
   const std::vector<InputFrame> frames = Drive(bias_rad);
   ASSERT_EQ(frames.size(), 12u);
-  const MapperConfig config = Config(mode);
+  MapperConfig config = Config(mode);
+  if (tweak) tweak(config);
   Expected<Mapper> whole = Mapper::Create(config);
   ASSERT_TRUE(whole.ok()) << whole.error().message;
   std::vector<MapperRecord> records;
@@ -278,6 +281,31 @@ TEST(Mapper, ResumedWithTheTiltRefinerGivesTheSameMap) {
 // fills; GravityEstimator.ARestoredState... saves one that has marginalised frames.)
 TEST(Mapper, ResumedWithTheGravityEstimatorGivesTheSameMap) {
   ExpectResumeGivesTheSameMap(TiltMode::kGravity, 1.0 * kDegToRad);
+}
+
+// With a 4-frame window the ground rises begin at the 5th frame: the checkpoint after it holds
+// the last frames' ground and a rise in the window, and the resumed run, fitting its rises
+// to the restored ground, still fuses at bit-identical poses.
+TEST(Mapper, ResumedWithTheGravityEstimatorsGroundRisesGivesTheSameMap) {
+  ExpectResumeGivesTheSameMap(TiltMode::kGravity, 1.0 * kDegToRad, [](MapperConfig& c) {
+    c.tilt.gravity.window_frames = 4;
+    c.tilt.gravity_rise_frames_back = 2;
+  });
+  // The rises were there.
+  const std::vector<InputFrame> frames = Drive(1.0 * kDegToRad);
+  MapperConfig config = Config(TiltMode::kGravity);
+  config.tilt.gravity.window_frames = 4;
+  Expected<Mapper> mapper = Mapper::Create(config);
+  ASSERT_TRUE(mapper.ok());
+  int rises = 0;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    Expected<MapperRecord> r = Feed(*mapper, frames[k]);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    ASSERT_TRUE(r->tilt.gravity.has_value());
+    if (k < 4) EXPECT_EQ(r->tilt.gravity->cues.ground_rises, 0) << "frame " << k;
+    rises += r->tilt.gravity->cues.ground_rises;
+  }
+  EXPECT_GT(rises, 5);
 }
 
 TEST(Mapper, ACheckpointOfAnotherTiltModeIsRefused) {

@@ -136,7 +136,8 @@ struct VerticalCue {
 /// view; with the sensor's tilt anchored by vertical structure it holds the height to the
 /// terrain's true rise.
 struct GroundRise {
-  double earlier_stamp_s = 0.0;  ///< the earlier frame's stamp; it must still be in the window
+  /// The earlier frame's stamp: one of the window's frames that stay in it with this one.
+  double earlier_stamp_s = 0.0;
   double rise_m = 0.0;           ///< body height here minus there, at the placements [m]
   /// The sensors' world rotations at which this frame's and the earlier frame's ground
   /// points were placed.
@@ -156,7 +157,7 @@ struct GroundRise {
   /// displacement short of where it was placed, on ground lower by the gradient times that.
   Eigen::Vector2d odometry_step_m = Eigen::Vector2d::Zero();
   Eigen::Vector2d gradient = Eigen::Vector2d::Zero();
-  double sigma_m = 0.02;  ///< [m]
+  double sigma_m = 0.05;  ///< [m]
 };
 
 /// What one frame brings.

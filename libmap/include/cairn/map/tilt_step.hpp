@@ -74,8 +74,8 @@ struct TiltConfig {
   /// tilt anchored by structure, not only by the accelerometer).
   int gravity_ground_min_verticals = 5;
   /// kGravity: each frame's ground against the ground of the frame this many before it (a
-  /// GroundRise to the estimator; 0: none), from the frame that fills the estimator's
-  /// window on; under gravity.window_frames.
+  /// GroundRise to the estimator; 0: none), from the frame after the one that fills the
+  /// estimator's window; under gravity.window_frames.
   int gravity_rise_frames_back = 2;
   /// kGravity: sigma of a ground rise [m].
   double gravity_rise_sigma_m = 0.05;
