@@ -18,7 +18,8 @@
 #include "cairn/map/terrain_octree.hpp"
 #include "cairn/od/units.hpp"
 #include "cairn/sim/scene.hpp"
-#include "key_bricks.hpp"  // libmap/src: the free-space key set
+#include "ground_rise.hpp"  // libmap/src: the gravity step's ground seen twice
+#include "key_bricks.hpp"   // libmap/src: the free-space key set
 #include "ray_keys.hpp"    // libmap/src: the ray walk
 #include "sim_frames.hpp"
 
@@ -803,6 +804,53 @@ TEST(TerrainOcTree, LeafWalkTouchesTheLeavesTouchLeafDoes) {
   a.writeData(sa);
   b.writeData(sb);
   EXPECT_EQ(sa.str(), sb.str());
+}
+
+// The gravity step's ground planes (libmap/src/ground_rise.hpp), here because this test runs
+// under the CI's sanitizers: ground all round a sensor, cells on every side of it (negative
+// cell indices too), gives the plane it lies on, height and gradient; a single scan line has
+// no plane across it; the same ground 10 cm higher fits 10 cm down.
+TEST(GroundSurface, APlaneIsFoundOnEverySideOfTheSensor) {
+  const auto plane = [](double x, double y) { return 0.2 * x - 0.1 * y + 0.3; };
+  Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();
+  T_world_sensor.translation() << 3.0, -2.0, 1.5;
+  std::vector<Eigen::Vector3f> points, raised;
+  for (double dx = -6.0; dx <= 6.0; dx += 0.13) {
+    for (double dy = -6.0; dy <= 6.0; dy += 0.17) {
+      const double x = 3.0 + dx, y = -2.0 + dy;
+      points.emplace_back(static_cast<float>(dx), static_cast<float>(dy),
+                          static_cast<float>(plane(x, y) - 1.5));
+      raised.emplace_back(points.back() + Eigen::Vector3f(0.0f, 0.0f, 0.1f));
+    }
+  }
+  internal::GroundRiseFitConfig config;
+  config.max_points = 100000;
+  const internal::GroundSurface surface(internal::ThinGroundPoints(points, config), T_world_sensor,
+                                        config);
+  for (const Eigen::Vector2d q : {Eigen::Vector2d(-1.7, -5.9), Eigen::Vector2d(7.2, 1.3),
+                                  Eigen::Vector2d(2.9, -2.1), Eigen::Vector2d(0.4, 2.6)}) {
+    const std::optional<internal::GroundSurface::Plane> p = surface.PlaneAt(q.x(), q.y());
+    ASSERT_TRUE(p.has_value()) << q.transpose();
+    EXPECT_NEAR(p->height_m, plane(q.x(), q.y()), 1e-4) << q.transpose();
+    EXPECT_NEAR(p->gradient.x(), 0.2, 1e-4);
+    EXPECT_NEAR(p->gradient.y(), -0.1, 1e-4);
+  }
+  EXPECT_FALSE(surface.PlaneAt(20.0, 0.0).has_value());  // no ground there
+
+  std::vector<Eigen::Vector3f> line;  // one scan line across x
+  for (double dx = -3.0; dx <= 3.0; dx += 0.05) {
+    line.emplace_back(static_cast<float>(dx), 0.0f,
+                      static_cast<float>(plane(3.0 + dx, -2.0) - 1.5));
+  }
+  const internal::GroundSurface thin(line, T_world_sensor, config);
+  EXPECT_FALSE(thin.PlaneAt(3.0, -2.0).has_value());
+
+  const std::optional<internal::GroundRiseFit> fit = internal::FitGroundRise(
+      internal::ThinGroundPoints(raised, config), T_world_sensor, surface, config);
+  ASSERT_TRUE(fit.has_value());
+  EXPECT_NEAR(fit->dz_m, -0.1, 1e-4);
+  EXPECT_NEAR(fit->gradient.x(), 0.2, 1e-4);
+  EXPECT_LT(fit->offset_m.head<2>().norm(), 0.5);  // ground all round: the offsets cancel
 }
 
 }  // namespace
