@@ -4,25 +4,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "ground_points.hpp"
+
 namespace cairn::map::internal {
 
 std::vector<Eigen::Vector3f> ThinGroundPoints(const std::vector<Eigen::Vector3f>& points_sensor,
                                               const GroundRiseFitConfig& config) {
-  const double max_range2 = config.max_range_m * config.max_range_m;
-  std::vector<int> in_range;
-  for (int i = 0; i < static_cast<int>(points_sensor.size()); ++i) {
-    const Eigen::Vector3f& q = points_sensor[i];
-    if (q.allFinite() && q.squaredNorm() > 0.0f && q.cast<double>().squaredNorm() <= max_range2) {
-      in_range.push_back(i);
-    }
-  }
-  const std::size_t step =
-      std::max<std::size_t>(1, (in_range.size() + static_cast<std::size_t>(config.max_points) - 1) /
-                                   static_cast<std::size_t>(config.max_points));
-  std::vector<Eigen::Vector3f> out;
-  out.reserve(in_range.size() / step + 1);
-  for (std::size_t k = 0; k < in_range.size(); k += step) out.push_back(points_sensor[in_range[k]]);
-  return out;
+  return ThinGroundPoints(points_sensor, config.max_range_m, config.max_points);
 }
 
 GroundSurface::GroundSurface(const std::vector<Eigen::Vector3f>& points_sensor,

@@ -26,14 +26,13 @@ struct GroundRiseFitConfig {
   /// scan line gives no slope across it).
   double min_spread_m = 0.1;
   double max_range_m = 25.0;  ///< points farther from their sensor are not used [m]
-  int max_points = 1500;      ///< points per frame, thinned evenly by index
+  int max_points = 1500;      ///< points per frame, thinned evenly by index (ThinGroundPoints)
   int min_points = 50;        ///< matched points a fit needs
   double huber_m = 0.05;      ///< Huber scale of a point's height residual [m]
   int max_iterations = 50;    ///< reweightings
 };
 
-/// The points of `points_sensor` (finite, non-zero, within max_range_m of the sensor),
-/// thinned evenly by index to max_points.
+/// ThinGroundPoints (ground_points.hpp) with the config's range and count.
 std::vector<Eigen::Vector3f> ThinGroundPoints(const std::vector<Eigen::Vector3f>& points_sensor,
                                               const GroundRiseFitConfig& config);
 

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <sstream>
 
+#include "ground_points.hpp"
+
 namespace cairn::map {
 namespace {
 
@@ -187,19 +189,9 @@ class FitInput {
         grid(filled.z.data(), 0, filled.rows, 0, filled.cols),
         interpolator(grid),
         origin(T_world_sensor_prior.translation()) {
-    const double max_range2 = config.max_range_m * config.max_range_m;
-    std::vector<int> in_range;
-    for (int i = 0; i < static_cast<int>(ground_points_sensor.size()); ++i) {
-      const Eigen::Vector3f& q = ground_points_sensor[i];
-      if (q.allFinite() && q.squaredNorm() > 0.0f && q.cast<double>().squaredNorm() <= max_range2) {
-        in_range.push_back(i);
-      }
-    }
-    const std::size_t step =
-        std::max<std::size_t>(1, in_range.size() / static_cast<std::size_t>(config.max_points));
-    for (std::size_t k = 0; k < in_range.size(); k += step) {
-      const Eigen::Vector3d p =
-          T_world_sensor_prior * ground_points_sensor[in_range[k]].cast<double>();
+    for (const Eigen::Vector3f& q :
+         internal::ThinGroundPoints(ground_points_sensor, config.max_range_m, config.max_points)) {
+      const Eigen::Vector3d p = T_world_sensor_prior * q.cast<double>();
       double row = 0.0, col = 0.0;
       PatchCoordinates(terrain, p.x(), p.y(), &row, &col);
       if (filled.StencilKnown(row, col)) used_rel.push_back(p - origin);
