@@ -124,6 +124,7 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   std::vector<PoseError> pose_errors;
   std::vector<double> cue_errors_rad;
   int degenerate_frames = 0;
+  double last_height_sigma = NAN;
   std::vector<map::GravityDegeneracy> last_degeneracies;
   int refined_frames = 0;
   double distance_m = 0.0;
@@ -199,6 +200,7 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
     if (record->tilt.gravity) {
       degenerate_frames += record->tilt.gravity->degeneracies.empty() ? 0 : 1;
       last_degeneracies = record->tilt.gravity->degeneracies;
+      last_height_sigma = std::sqrt(record->tilt.gravity->height_variance);
     }
     std::map<int, int> pixels;
     for (const std::int32_t object : rendered->object_id) {
@@ -235,6 +237,7 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   r.pose_errors = std::move(pose_errors);
   r.cue_errors_rad = std::move(cue_errors_rad);
   r.degenerate_frames = degenerate_frames;
+  r.final_height_sigma_m = last_height_sigma;
   r.last_degeneracies = std::move(last_degeneracies);
   Expected<MapScore> score = ScoreMap(world->scene, r.map());
   if (!score) return Error{spec.world + ": " + score.error().message};

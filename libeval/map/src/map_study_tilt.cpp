@@ -121,6 +121,7 @@ struct TiltOutcome {
   double elevation_rms_m = 0.0, ground_rms_m = 0.0, cost_error = 0.0;
   int lethal_more = 0, degenerate_frames = 0, frames = 0;
   std::vector<map::GravityDegeneracy> last_flags;
+  double height_sigma_m = NAN;  // gravity: the estimator's own, at the end
 };
 
 }  // namespace
@@ -172,6 +173,7 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
     o.degenerate_frames = r->degenerate_frames;
     o.frames = r->frames;
     o.last_flags = r->last_degeneracies;
+    o.height_sigma_m = r->final_height_sigma_m;
     return world.label + ", " + sources[d.source].label + ", " + mode + ", seed " +
            std::to_string(d.seed) + ": tilt " + Fixed(Quantile(o.tilt_deg, 0.5), 2) + " / " +
            Fixed(Quantile(o.tilt_deg, 0.95), 2) + " deg, elevation RMS " +
@@ -180,7 +182,8 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
   if (!st) return st;
 
   csv << "world,error_source,mode,seed,frames,tilt_median_deg,tilt_p95_deg,elevation_rms_m,"
-         "ground_height_rms_m,cost_error,false_lethal_vs_truth,degenerate_frames,last_flags\n";
+         "ground_height_rms_m,cost_error,false_lethal_vs_truth,degenerate_frames,"
+         "final_height_sigma_m,last_flags\n";
   md << "## Tilt: the odometry prior, the frame-to-map refiner and the gravity estimator\n\n"
      << "Each frame is fused at the tilt one of three modes gives (`tilt.mode`, "
      << "`cairn map --tilt`): `prior` (the odometry pose: roll and pitch from the IMU's "
@@ -196,7 +199,9 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
      << "every frame of every drive (median and 95th percentile), `cost err` the mean "
      << "absolute difference of the cost grid from the one fused at the true poses (nav2 "
      << "values 0-254, cells both know), `lethal+` the cells lethal here but not at the true "
-     << "poses, `flagged` the frames where the estimator said a state was not observable.\n\n"
+     << "poses, `flagged` the frames where the estimator said a state was not observable, "
+     << "`height sigma` the estimator's own height sigma for the drive's last frame (what it "
+     << "says it knows, to read against the ground RMS; mean over the drives).\n\n"
      << "Two elevation errors: `elevation RMS` compares the grid with the true terrain at the "
      << "same x, y, so it also holds the odometry's horizontal drift, which no tilt corrects "
      << "(x, y and heading come from the odometry in every mode); `ground RMS` is the height "
@@ -210,8 +215,8 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
     md << "### " << world.label << "\n\n"
        << "| error source | mode | drives | tilt median [deg] | tilt 95th [deg] | elevation RMS "
           "[m] "
-          "| ground RMS [m] | cost err | lethal+ | flagged |\n"
-       << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
+          "| ground RMS [m] | cost err | lethal+ | flagged | height sigma [m] |\n"
+       << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
     // The states flagged at a gravity drive's end: by name, in how many drives.
     std::map<std::string, int> flags;
     int gravity_drives = 0;
@@ -221,6 +226,7 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
         std::vector<double> tilt_deg;
         double rms = 0.0, ground = 0.0, cost = 0.0;
         int lethal_more = 0, flagged = 0, frames = 0;
+        double height_sigma = 0.0;
         for (int k = 0; k < source.seeds; ++k) {
           const TiltOutcome& o = outcomes[next++];
           tilt_deg.insert(tilt_deg.end(), o.tilt_deg.begin(), o.tilt_deg.end());
@@ -230,6 +236,7 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
           lethal_more += o.lethal_more;
           flagged += o.degenerate_frames;
           frames += o.frames;
+          height_sigma += o.height_sigma_m;
           if (std::string(mode) == "gravity") ++gravity_drives;
           for (const map::GravityDegeneracy& f : o.last_flags) ++flags[map::StateName(f.state)];
           std::string last;
@@ -240,7 +247,9 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
               << o.frames << "," << Fixed(Quantile(o.tilt_deg, 0.5), 3) << ","
               << Fixed(Quantile(o.tilt_deg, 0.95), 3) << "," << Fixed(o.elevation_rms_m, 4) << ","
               << Fixed(o.ground_rms_m, 4) << "," << Fixed(o.cost_error, 2) << "," << o.lethal_more
-              << "," << o.degenerate_frames << ",\"" << last << "\"\n";
+              << "," << o.degenerate_frames << ","
+              << (std::isfinite(o.height_sigma_m) ? Fixed(o.height_sigma_m, 4) : std::string())
+              << ",\"" << last << "\"\n";
         }
         const int n = source.seeds;
         md << "| " << source.label << " | " << mode << " | " << n << " | "
@@ -249,6 +258,10 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
            << Fixed(cost / n, 1) << " | " << Fixed(static_cast<double>(lethal_more) / n, 1) << " | "
            << (std::string(mode) == "gravity"
                    ? std::to_string(flagged) + "/" + std::to_string(frames)
+                   : std::string("-"))
+           << " | "
+           << (std::string(mode) == "gravity" && std::isfinite(height_sigma)
+                   ? Fixed(height_sigma / n, 3)
                    : std::string("-"))
            << " |\n";
       }

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -102,6 +103,10 @@ struct DriftRunResult {
   /// frame's flags (state and reason).
   int degenerate_frames = 0;
   std::vector<map::GravityDegeneracy> last_degeneracies;
+  /// Gravity mode: the estimator's own height sigma for the last frame [m] (NaN when it
+  /// computed no covariance): what it says it knows of the height, against the truth's
+  /// ground_height_rms_m.
+  double final_height_sigma_m = NAN;
 };
 
 /// Angle between the up vectors of two world-from-sensor rotations [rad].
