@@ -26,6 +26,16 @@ namespace {
 
 double Wrap(double a) { return std::remainder(a, 2.0 * kPi); }
 
+// A ground rise's figures are finite and its sigma positive (as given, or as restored).
+bool Usable(const GroundRise& r) {
+  return std::isfinite(r.rise_m) && r.R_world_sensor.allFinite() &&
+         r.R_world_sensor_earlier.allFinite() && r.R_world_body.allFinite() &&
+         r.R_world_body_earlier.allFinite() && r.sensor_on_body_m.allFinite() &&
+         r.offset_m.allFinite() && r.offset_earlier_m.allFinite() &&
+         r.odometry_step_m.allFinite() && r.gradient.allFinite() && std::isfinite(r.sigma_m) &&
+         r.sigma_m > 0.0;
+}
+
 Error GravityError(const std::string& field, const std::string& what) {
   return Error{"gravity." + field + ": " + what};
 }
@@ -638,12 +648,7 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
   for (std::size_t i = 0; i < frame.ground_rises.size(); ++i) {
     const GroundRise& r = frame.ground_rises[i];
     const std::string field = "frame.ground_rises[" + std::to_string(i) + "]";
-    if (!(std::isfinite(r.rise_m) && r.R_world_sensor.allFinite() &&
-          r.R_world_sensor_earlier.allFinite() && r.R_world_body.allFinite() &&
-          r.R_world_body_earlier.allFinite() && r.sensor_on_body_m.allFinite() &&
-          r.offset_m.allFinite() && r.offset_earlier_m.allFinite() &&
-          r.odometry_step_m.allFinite() && r.gradient.allFinite() && std::isfinite(r.sigma_m) &&
-          r.sigma_m > 0.0)) {
+    if (!Usable(r)) {
       return GravityError(field, "must be finite, with a sigma > 0");
     }
     if (!(r.earlier_stamp_s < frame.stamp_s)) {
@@ -1033,12 +1038,7 @@ std::unique_ptr<WindowFrame> FrameFrom(const json& j) {
       ArrayFrom(rj.at("step"), r.odometry_step_m.data(), 2, "step");
       ArrayFrom(rj.at("gradient"), r.gradient.data(), 2, "gradient");
       r.sigma_m = rj.at("sigma").get<double>();
-      if (!(std::isfinite(r.rise_m) && r.R_world_sensor.allFinite() &&
-            r.R_world_sensor_earlier.allFinite() && r.R_world_body.allFinite() &&
-            r.R_world_body_earlier.allFinite() && r.sensor_on_body_m.allFinite() &&
-            r.offset_m.allFinite() && r.offset_earlier_m.allFinite() &&
-            r.odometry_step_m.allFinite() && r.gradient.allFinite() && std::isfinite(r.sigma_m) &&
-            r.sigma_m > 0.0 && r.earlier_stamp_s < in.stamp_s)) {
+      if (!(Usable(r) && r.earlier_stamp_s < in.stamp_s)) {
         throw std::runtime_error(
             "rises: a rise is not finite, its sigma not > 0 or its earlier "
             "frame not before its own");
