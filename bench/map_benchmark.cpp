@@ -9,11 +9,12 @@
 //   MapperTilt/* the camera drive in each tilt mode, with the drive's raw IMU (100 Hz) for
 //                gravity: tilt_ms is the stage that mode adds;
 //   FreeRays/*   the free-space rays of a LiDAR-like frame (52,000 ends within 20 m, 0.1 m
-//                voxels, in azimuth order as a scan gives them) into a brick set: `walk` as TerrainMap casts them (ForEachRayKey
-//                into a set indexed in the rays' box), `computeRayKeys` as OctoMap does
-//                (each ray stored in a KeyRay, then inserted into a hashed set); one
-//                thread. The walk's counter octomap_x is the reference's time over its own,
-//                both measured in the same process; the sets are checked equal.
+//                voxels, in azimuth order as a scan gives them) into a brick set: `walk` as
+//                TerrainMap casts them (ForEachRayKeyInTurn, four rays at a time, into a box
+//                of bits, then into a set indexed in the rays' box), `computeRayKeys` as OctoMap
+//                does (each ray stored in a KeyRay, then inserted into a hashed set); one thread.
+//                The walk's counter octomap_x is the reference's time over its own, both measured
+//                in the same process; the sets are checked equal.
 //   MapFiles     every file `cairn map` writes of the map the camera drive built
 //                (map::WriteMapFiles: map.bt, map.ot, obstacles.ot, cost.pgm/.png,
 //                elevation.tiff, obstacles.json), into a temporary folder.
@@ -296,18 +297,21 @@ void CastWithComputeRayKeys(const RayFrame& f, map::internal::KeyBricks& keys) {
   }
 }
 
-// TerrainMap's way: the walk into a set indexed in the rays' box.
-std::int64_t CastWithWalk(const RayFrame& f, map::internal::KeyBricks& keys) {
+// TerrainMap's way: four rays at a time into a box of bits, then into a set indexed in the
+// rays' box.
+std::int64_t CastWithWalk(const RayFrame& f, map::internal::KeyBitBox& box,
+                          map::internal::KeyBricks& keys) {
   keys.Clear(f.lo, f.hi);
+  box.Reset(f.lo, f.hi);
+  map::internal::KeyLayout layout;
+  box.Layout(layout.lo, layout.stride);
   std::int64_t steps = 0;
-  for (const octomap::OcTreeKey& end : f.ends) {
-    map::internal::KeyBricks::Inserter insert(keys);
-    map::internal::ForEachRayKey(f.tree, f.sensor, f.tree.keyToCoord(end),
-                                 [&](unsigned k0, unsigned k1, unsigned k2) {
-                                   insert(k0, k1, k2);
-                                   ++steps;
-                                 });
-  }
+  map::internal::ForEachRayKeyInTurn(f.tree, f.sensor, f.ends.data(), f.ends.data() + f.ends.size(),
+                                     layout, [&](std::size_t, std::int64_t key) {
+                                       box.Set(key);
+                                       ++steps;
+                                     });
+  box.MoveInto(keys);
   return steps;
 }
 
@@ -320,10 +324,11 @@ double SecondsOf(const std::function<void()>& run) {
 void BM_FreeRays(benchmark::State& state, bool walk) {
   const RayFrame& f = Rays();
   map::internal::KeyBricks keys, reference;
+  map::internal::KeyBitBox box;
   std::int64_t steps = 0;
   for (auto _ : state) {
     if (walk) {
-      steps = CastWithWalk(f, keys);
+      steps = CastWithWalk(f, box, keys);
     } else {
       CastWithComputeRayKeys(f, keys);
     }
@@ -332,8 +337,13 @@ void BM_FreeRays(benchmark::State& state, bool walk) {
   if (!walk) return;
   // The reference, in the same process: the same keys, and how much longer it takes.
   const double reference_s = SecondsOf([&] { CastWithComputeRayKeys(f, reference); });
-  const double walk_s = SecondsOf([&] { CastWithWalk(f, keys); });
-  if (keys.size() != reference.size()) {
+  const double walk_s = SecondsOf([&] { CastWithWalk(f, box, keys); });
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+  bool all_in_reference = true;
+  keys.ForEachInMortonOrder(&reference, order, [&](const octomap::OcTreeKey&, bool in) {
+    all_in_reference = all_in_reference && in;
+  });
+  if (keys.size() != reference.size() || !all_in_reference) {
     state.SkipWithError("the walk's keys differ from computeRayKeys'");
     return;
   }

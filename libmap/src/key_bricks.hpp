@@ -155,6 +155,7 @@ class KeyBricks {
   }
 
  private:
+  friend class KeyBitBox;
   // A hash slot: a packed brick coordinate (+1; 0 marks a free slot) and its brick's index.
   struct Slot {
     std::uint64_t packed = 0;
@@ -322,6 +323,121 @@ class KeyBricks {
   std::vector<Brick> bricks_;
   std::uint64_t last_ = kNone;  // the brick of the last insertion (packed), and its index
   std::uint32_t last_index_ = 0;
+};
+
+/// Keys within a box of them, one bit each, numbered x fastest (a KeyLayout of ray_keys.hpp):
+/// a ray's walk steps by adding an axis' stride to the number, and sets its key with one or.
+/// KeyBricks finds a brick by its index in the box at every brick a ray enters and adds it
+/// when it is new, and which of these comes next is what the processor cannot guess. The
+/// keys then go into a KeyBricks set (MoveInto).
+class KeyBitBox {
+ public:
+  /// 16 MiB of bits at most (a 20 m range at 0.1 m voxels needs about 3 MiB).
+  static constexpr std::int64_t kMaxKeys = std::int64_t{1} << 27;
+
+  /// Empties the box for keys within [lo, hi] (inclusive, per axis), with a margin of one
+  /// key on every side. False, and the box unusable until the next Reset, when that holds
+  /// more than kMaxKeys keys.
+  bool Reset(const octomap::OcTreeKey& lo, const octomap::OcTreeKey& hi) {
+    if (dirty_) std::fill(words_.begin(), words_.end(), 0);
+    dirty_ = false;
+    // Bricks whole (8 keys a side from a multiple of 8), rows whole words.
+    std::int64_t size[3];
+    for (int i = 0; i < 3; ++i) {
+      lo_[i] = std::max<std::int64_t>(0, lo[i] - 1) & ~std::int64_t{7};
+      size[i] = ((hi[i] + 1 - lo_[i]) | 7) + 1;
+    }
+    size[0] = (size[0] + 63) & ~std::int64_t{63};
+    if (size[0] * size[1] * size[2] > kMaxKeys) {
+      size_[0] = size_[1] = size_[2] = 0;
+      return false;
+    }
+    for (int i = 0; i < 3; ++i) size_[i] = size[i];
+    const std::size_t words = static_cast<std::size_t>(size[0] * size[1] * size[2] / 64);
+    if (words_.size() < words) words_.resize(words, 0);
+    dirty_ = true;  // until MoveInto empties it
+    return true;
+  }
+
+  /// How the box numbers its keys: (k0 - lo0) + size0 ((k1 - lo1) + size1 (k2 - lo2)).
+  void Layout(std::int64_t (&lo)[3], std::int64_t (&stride)[3]) const {
+    for (int i = 0; i < 3; ++i) lo[i] = lo_[i];
+    stride[0] = 1;
+    stride[1] = size_[0];
+    stride[2] = size_[0] * size_[1];
+  }
+
+  /// Sets the key of number n (which lies in the box).
+  void Set(std::int64_t n) {
+    assert(n >= 0 && n < size_[0] * size_[1] * size_[2]);
+    words_[static_cast<std::size_t>(n >> 6)] |= std::uint64_t{1} << (n & 63);
+  }
+
+  /// Adds the keys held to `set` and empties the box.
+  void MoveInto(KeyBricks& set) {
+    // A brick's 64 rows of 8 keys along x, each a byte of the box's rows, spread to its
+    // Morton bits: x's low half to bits {0, 1, 8, 9} of one word, its high half the same
+    // in the next, both shifted by the row's y and z bits.
+    static constexpr std::uint64_t kSpreadNibble[16] = {0x000, 0x001, 0x002, 0x003, 0x100, 0x101,
+                                                        0x102, 0x103, 0x200, 0x201, 0x202, 0x203,
+                                                        0x300, 0x301, 0x302, 0x303};
+    const std::int64_t row_words = size_[0] / 64;
+    const std::int64_t bricks_x = size_[0] / 8;
+    std::vector<std::uint64_t>& bits = brick_row_;  // one row of bricks along x, 8 words each
+    bits.assign(static_cast<std::size_t>(bricks_x) * 8, 0);
+    std::vector<std::int32_t>& touched = touched_;
+    for (std::int64_t zb = 0; zb < size_[2] / 8; ++zb) {
+      for (std::int64_t yb = 0; yb < size_[1] / 8; ++yb) {
+        touched.clear();
+        for (unsigned zz = 0; zz < 8; ++zz) {
+          for (unsigned yy = 0; yy < 8; ++yy) {
+            const unsigned local = KeyBricks::Local(0, yy, zz);
+            const unsigned word = local >> 6, shift = local & 63;
+            std::uint64_t* row = &words_[static_cast<std::size_t>(
+                ((zb * 8 + zz) * size_[1] + (yb * 8 + yy)) * row_words)];
+            for (std::int64_t w = 0; w < row_words; ++w) {
+              std::uint64_t v = row[w];
+              if (v == 0) continue;
+              row[w] = 0;
+              for (; v != 0; v &= ~(std::uint64_t{0xff} << (__builtin_ctzll(v) & ~7))) {
+                const unsigned byte_at = static_cast<unsigned>(__builtin_ctzll(v)) >> 3;
+                const unsigned byte = static_cast<unsigned>(v >> (8 * byte_at) & 0xff);
+                const std::int64_t bx = w * 8 + byte_at;
+                std::uint64_t* b = &bits[static_cast<std::size_t>(bx) * 8];
+                if ((b[0] | b[1] | b[2] | b[3] | b[4] | b[5] | b[6] | b[7]) == 0) {
+                  touched.push_back(static_cast<std::int32_t>(bx));
+                }
+                b[word] |= kSpreadNibble[byte & 15] << shift;
+                b[word + 1] |= kSpreadNibble[byte >> 4] << shift;
+              }
+            }
+          }
+        }
+        for (const std::int32_t bx : touched) {
+          std::uint64_t* b = &bits[static_cast<std::size_t>(bx) * 8];
+          const std::uint64_t packed = KeyBricks::PackBrick(static_cast<unsigned>(lo_[0] + 8 * bx),
+                                                            static_cast<unsigned>(lo_[1] + 8 * yb),
+                                                            static_cast<unsigned>(lo_[2] + 8 * zb));
+          KeyBricks::Brick& mine =
+              set.bricks_[set.dense_.empty() ? set.FindOrAdd(packed) : set.FindOrAddDense(packed)];
+          for (int k = 0; k < 8; ++k) {
+            mine.bits[k] |= b[k];
+            b[k] = 0;
+          }
+        }
+      }
+    }
+    set.last_ = KeyBricks::kNone;
+    dirty_ = false;
+  }
+
+ private:
+  std::vector<std::uint64_t> words_;  // the box's bits, x fastest, rows of whole words
+  std::int64_t lo_[3] = {0, 0, 0};    // the box's first key (multiples of 8)
+  std::int64_t size_[3] = {0, 0, 0};  // its size in keys (x a multiple of 64, y and z of 8)
+  bool dirty_ = false;                // reset and not emptied since: keys may be set
+  std::vector<std::uint64_t> brick_row_;
+  std::vector<std::int32_t> touched_;
 };
 
 }  // namespace cairn::map::internal

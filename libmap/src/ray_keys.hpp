@@ -7,14 +7,25 @@
 // float and double arithmetic, so it visits the same keys in the same order (checked
 // against computeRayKeys on random rays in tests/map/terrain_map_test.cpp): the origin's
 // voxel first, the end's voxel never. It only calls f(key) for each.
+//
+// Each step waits on the one before (which axis is next decides the next comparison), so a
+// frame's rays are walked four at a time (ForEachRayKeyInTurn): the same double operations,
+// two rays to an SSE2 register, the axis picked by masks instead of branches, the key kept
+// as a number that a step adds an axis' stride to (a bit's index in a box of bits).
 #pragma once
 
 #include <octomap/OcTreeKey.h>
 #include <octomap/octomap_types.h>
 
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <type_traits>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace cairn::map::internal {
 
@@ -31,42 +42,55 @@ void Visit(F& f, int k0, int k1, int k2) {
   }
 }
 
-/// Calls f(key) for every voxel computeRayKeys(origin, end) would put in its ray. Returns
-/// false, calling nothing, when origin or end lies outside the tree (computeRayKeys' false).
-template <typename Tree, typename F>
-bool ForEachRayKey(const Tree& tree, const octomap::point3d& origin, const octomap::point3d& end,
-                   F&& f) {
-  octomap::OcTreeKey key, key_end;
-  if (!tree.coordToKeyChecked(origin, key) || !tree.coordToKeyChecked(end, key_end)) {
-    return false;
-  }
-  if (key == key_end) return true;
-  Visit(f, key[0], key[1], key[2]);
-  octomap::point3d direction = end - origin;
-  const float length = static_cast<float>(direction.norm());
-  direction /= length;
-  const double resolution = tree.getResolution();
-  int step[3];
-  double t_max[3], t_delta[3];
-  for (int i = 0; i < 3; ++i) {
-    step[i] = direction(i) > 0.0f ? 1 : (direction(i) < 0.0f ? -1 : 0);
-    if (step[i] != 0) {
-      // The border of the voxel on the ray's side, where the ray first leaves it along i.
-      double border = tree.keyToCoord(key[i]);
-      border += static_cast<float>(step[i] * resolution * 0.5);
-      t_max[i] = (border - origin(i)) / direction(i);
-      t_delta[i] = resolution / std::fabs(direction(i));
-    } else {
-      t_max[i] = t_delta[i] = std::numeric_limits<double>::max();
+/// One ray's walk, computeRayKeys' loop with its state in the open: Begin sets it up and
+/// Next takes one step.
+struct RayWalk {
+  enum class Start { kOutside, kEmpty, kWalk };
+
+  /// Sets up the walk from origin to end: kOutside when either lies outside the tree
+  /// (computeRayKeys' false), kEmpty when both lie in one voxel (no key), else kWalk with
+  /// the origin's voxel, the ray's first key, in k0, k1, k2.
+  template <typename Tree>
+  Start Begin(const Tree& tree, const octomap::point3d& origin, const octomap::point3d& end) {
+    octomap::OcTreeKey key, key_end;
+    if (!tree.coordToKeyChecked(origin, key) || !tree.coordToKeyChecked(end, key_end)) {
+      return Start::kOutside;
     }
+    if (key == key_end) return Start::kEmpty;
+    octomap::point3d direction = end - origin;
+    const float length = static_cast<float>(direction.norm());
+    direction /= length;
+    const double resolution = tree.getResolution();
+    double t_max[3];
+    for (int i = 0; i < 3; ++i) {
+      step[i] = direction(i) > 0.0f ? 1 : (direction(i) < 0.0f ? -1 : 0);
+      if (step[i] != 0) {
+        // The border of the voxel on the ray's side, where the ray first leaves it along i.
+        double border = tree.keyToCoord(key[i]);
+        border += static_cast<float>(step[i] * resolution * 0.5);
+        t_max[i] = (border - origin(i)) / direction(i);
+        t_delta[i] = resolution / std::fabs(direction(i));
+      } else {
+        t_max[i] = t_delta[i] = std::numeric_limits<double>::max();
+      }
+    }
+    t0 = t_max[0];
+    t1 = t_max[1];
+    t2 = t_max[2];
+    k0 = key[0];
+    k1 = key[1];
+    k2 = key[2];
+    e0 = key_end[0];
+    e1 = key_end[1];
+    e2 = key_end[2];
+    length_m = length;
+    return Start::kWalk;
   }
-  // The step's axis is the least t_max, ties as OctoMap breaks them (0 < 1, then < 2),
-  // chosen without branches: which axis comes next is what the processor cannot guess.
-  double t0 = t_max[0], t1 = t_max[1], t2 = t_max[2];
-  int k0 = key[0], k1 = key[1], k2 = key[2];
-  const int e0 = key_end[0], e1 = key_end[1], e2 = key_end[2];
-  const double length_d = length;
-  for (;;) {
+
+  /// One step: true with the next key in k0, k1, k2; false when the ray has ended (at the
+  /// end's voxel, which is not a key of the ray).
+  bool Next() {
+    // The step's axis is the least t, ties as OctoMap breaks them (0 < 1, then < 2).
     const bool first_01 = t0 < t1;
     const double t01 = first_01 ? t0 : t1;
     const int dim = t01 < t2 ? (first_01 ? 0 : 1) : 2;
@@ -76,11 +100,168 @@ bool ForEachRayKey(const Tree& tree, const octomap::point3d& origin, const octom
     t0 += dim == 0 ? t_delta[0] : 0.0;
     t1 += dim == 1 ? t_delta[1] : 0.0;
     t2 += dim == 2 ? t_delta[2] : 0.0;
-    if (k0 == e0 && k1 == e1 && k2 == e2) return true;
+    if (k0 == e0 && k1 == e1 && k2 == e2) return false;
     // Past the end's distance without meeting its voxel (rounding): stop, as OctoMap does.
-    const double t_least01 = t0 < t1 ? t0 : t1;  // by value: the t's stay in registers
-    if ((t_least01 < t2 ? t_least01 : t2) > length_d) return true;
-    Visit(f, k0, k1, k2);
+    const double t_least01 = t0 < t1 ? t0 : t1;
+    return (t_least01 < t2 ? t_least01 : t2) <= length_m;
+  }
+
+  double t0 = 0.0, t1 = 0.0, t2 = 0.0;  // where the ray leaves the voxel along each axis
+  double t_delta[3] = {0.0, 0.0, 0.0};  // a voxel's length along the ray, per axis
+  double length_m = 0.0;
+  int k0 = 0, k1 = 0, k2 = 0;  // the key
+  int e0 = 0, e1 = 0, e2 = 0;  // the end's key
+  int step[3] = {0, 0, 0};
+};
+
+/// Calls f(key) for every voxel computeRayKeys(origin, end) would put in its ray. Returns
+/// false, calling nothing, when origin or end lies outside the tree (computeRayKeys' false).
+template <typename Tree, typename F>
+bool ForEachRayKey(const Tree& tree, const octomap::point3d& origin, const octomap::point3d& end,
+                   F&& f) {
+  RayWalk walk;
+  const RayWalk::Start start = walk.Begin(tree, origin, end);
+  if (start != RayWalk::Start::kWalk) return start == RayWalk::Start::kEmpty;
+  do {
+    Visit(f, walk.k0, walk.k1, walk.k2);
+  } while (walk.Next());
+  return true;
+}
+
+/// How ForEachRayKeyInTurn numbers a key: sum over the axes of (k - lo) * stride, each
+/// stride a multiple of the one before larger than its axis' span of keys, so that a step
+/// along one axis is an addition of its stride (for example a box of keys' bits,
+/// KeyBitBox).
+struct KeyLayout {
+  std::int64_t lo[3] = {0, 0, 0};
+  std::int64_t stride[3] = {1, std::int64_t{1} << 21, std::int64_t{1} << 42};
+
+  std::int64_t Of(int k0, int k1, int k2) const {
+    return (k0 - lo[0]) * stride[0] + (k1 - lo[1]) * stride[1] + (k2 - lo[2]) * stride[2];
+  }
+  /// Key coordinate `axis` of the number n.
+  int Axis(std::int64_t n, int axis) const {
+    const std::int64_t below = axis == 2 ? n : n % stride[axis + 1];
+    return static_cast<int>(below / stride[axis] + lo[axis]);
+  }
+};
+
+/// ForEachRayKey from `origin` to the centre of each key in [first, last), four rays at a
+/// time (each step of a walk waits on the one before; the steps of four overlap): calls
+/// f(ray, n) for every key of every ray, `ray` the end's index in [first, last) and n the
+/// key's number in `layout`, each ray's keys in its order (those of the rays under way
+/// interleave). Every key of a ray must have a number in `layout` (a box: the keys between
+/// the origin's and the end's, one more on each side). Rays that ForEachRayKey would not walk
+/// (the origin outside the tree) are skipped.
+template <typename Tree, typename F>
+void ForEachRayKeyInTurn(const Tree& tree, const octomap::point3d& origin,
+                         const octomap::OcTreeKey* first, const octomap::OcTreeKey* last,
+                         const KeyLayout& layout, F&& f) {
+  constexpr int kLanes = 4;
+  const std::size_t count = static_cast<std::size_t>(last - first);
+  std::size_t next = 0;
+  RayWalk lane[kLanes];
+  std::int64_t number[kLanes] = {};  // the lane's key by its number (lane's k0, k1, k2 go stale)
+  std::size_t ray[kLanes] = {};
+  // Starts the next ray on lane l with its first key; false when there are no more.
+  const auto start = [&](int l) {
+    while (next < count) {
+      ray[l] = next++;
+      if (lane[l].Begin(tree, origin, tree.keyToCoord(first[ray[l]])) == RayWalk::Start::kWalk) {
+        number[l] = layout.Of(lane[l].k0, lane[l].k1, lane[l].k2);
+        f(ray[l], number[l]);
+        return true;
+      }
+    }
+    return false;
+  };
+  bool live[kLanes];
+  bool all_live = true;
+  for (int l = 0; l < kLanes; ++l) all_live = (live[l] = start(l)) && all_live;
+#if defined(__SSE2__)
+  // Two lanes per register, the keys by their numbers, the axis picked by masks, in the
+  // scalar walk's double operations.
+  while (all_live) {
+    __m128d t0[2], t1[2], t2[2], d0[2], d1[2], d2[2], length[2];
+    __m128i key[2], end[2], s0[2], s1[2], s2[2];
+    const auto both = [](std::int64_t lo, std::int64_t hi) {
+      return _mm_set_epi64x(static_cast<long long>(hi), static_cast<long long>(lo));
+    };
+    for (int p = 0; p < 2; ++p) {
+      const RayWalk& a = lane[2 * p];
+      const RayWalk& b = lane[2 * p + 1];
+      t0[p] = _mm_set_pd(b.t0, a.t0);
+      t1[p] = _mm_set_pd(b.t1, a.t1);
+      t2[p] = _mm_set_pd(b.t2, a.t2);
+      d0[p] = _mm_set_pd(b.t_delta[0], a.t_delta[0]);
+      d1[p] = _mm_set_pd(b.t_delta[1], a.t_delta[1]);
+      d2[p] = _mm_set_pd(b.t_delta[2], a.t_delta[2]);
+      length[p] = _mm_set_pd(b.length_m, a.length_m);
+      key[p] = both(number[2 * p], number[2 * p + 1]);
+      end[p] = both(layout.Of(a.e0, a.e1, a.e2), layout.Of(b.e0, b.e1, b.e2));
+      s0[p] = both(a.step[0] * layout.stride[0], b.step[0] * layout.stride[0]);
+      s1[p] = both(a.step[1] * layout.stride[1], b.step[1] * layout.stride[1]);
+      s2[p] = both(a.step[2] * layout.stride[2], b.step[2] * layout.stride[2]);
+    }
+    int done = 0;
+    while (done == 0) {
+#pragma GCC unroll 2
+      for (int p = 0; p < 2; ++p) {
+        const __m128d first_01 = _mm_cmplt_pd(t0[p], t1[p]);
+        const __m128d t01 = _mm_min_pd(t0[p], t1[p]);  // t0 < t1 ? t0 : t1
+        const __m128d before_2 = _mm_cmplt_pd(t01, t2[p]);
+        const __m128d on0 = _mm_and_pd(first_01, before_2);
+        const __m128d on1 = _mm_andnot_pd(first_01, before_2);
+        t0[p] = _mm_add_pd(t0[p], _mm_and_pd(on0, d0[p]));
+        t1[p] = _mm_add_pd(t1[p], _mm_and_pd(on1, d1[p]));
+        t2[p] = _mm_add_pd(t2[p], _mm_andnot_pd(before_2, d2[p]));
+        const __m128i move = _mm_or_si128(_mm_or_si128(_mm_and_si128(_mm_castpd_si128(on0), s0[p]),
+                                                       _mm_and_si128(_mm_castpd_si128(on1), s1[p])),
+                                          _mm_andnot_si128(_mm_castpd_si128(before_2), s2[p]));
+        key[p] = _mm_add_epi64(key[p], move);
+        const __m128i eq32 = _mm_cmpeq_epi32(key[p], end[p]);
+        const __m128i at_end = _mm_and_si128(eq32, _mm_shuffle_epi32(eq32, 0xb1));
+        const __m128d least = _mm_min_pd(_mm_min_pd(t0[p], t1[p]), t2[p]);
+        const int ended =
+            _mm_movemask_pd(_mm_or_pd(_mm_castsi128_pd(at_end), _mm_cmpgt_pd(least, length[p])));
+        if (!(ended & 1)) f(ray[2 * p], static_cast<std::int64_t>(_mm_cvtsi128_si64(key[p])));
+        if (!(ended & 2)) {
+          f(ray[2 * p + 1],
+            static_cast<std::int64_t>(_mm_cvtsi128_si64(_mm_unpackhi_epi64(key[p], key[p]))));
+        }
+        done |= ended << (2 * p);
+      }
+    }
+    // Back into the lanes; the ended ones start their next rays.
+    alignas(16) double v0[2], v1[2], v2[2];
+    for (int p = 0; p < 2; ++p) {
+      _mm_store_pd(v0, t0[p]);
+      _mm_store_pd(v1, t1[p]);
+      _mm_store_pd(v2, t2[p]);
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(number + 2 * p), key[p]);
+      for (int h = 0; h < 2; ++h) {
+        RayWalk& w = lane[2 * p + h];
+        w.t0 = v0[h];
+        w.t1 = v1[h];
+        w.t2 = v2[h];
+      }
+    }
+    for (int l = 0; l < kLanes; ++l) {
+      if (done >> l & 1) all_live = (live[l] = start(l)) && all_live;
+    }
+  }
+#endif
+  // The rays still under way, one at a time.
+  for (int l = 0; l < kLanes; ++l) {
+    if (live[l]) {
+      lane[l].k0 = layout.Axis(number[l], 0);
+      lane[l].k1 = layout.Axis(number[l], 1);
+      lane[l].k2 = layout.Axis(number[l], 2);
+    }
+    while (live[l]) {
+      while (lane[l].Next()) f(ray[l], layout.Of(lane[l].k0, lane[l].k1, lane[l].k2));
+      live[l] = start(l);
+    }
   }
 }
 

@@ -71,6 +71,7 @@ struct TerrainMap::Scratch {
   internal::KeyBricks free_keys;
   std::vector<octomap::OcTreeKey> ray_ends;        // the endpoints and the far ends
   std::vector<internal::KeyBricks> worker_keys;    // free keys of the other ray workers
+  std::vector<internal::KeyBitBox> ray_boxes;      // free keys of each ray worker, as bits
   std::vector<std::pair<std::uint64_t, std::uint32_t>> brick_order;
   std::vector<TerrainOcTree::FreeBrick> free_bricks;  // a frame's free voxels, brick by brick
   std::vector<CellIndex> ground_disc;  // cells that may hold a return within ground_radius
@@ -204,7 +205,8 @@ void AddGroundElevation(Cell& cell, float z) {
 // The free voxels of the rays from `sensor` to `ends`, into `free_keys` (0 threads: every core).
 void CastFreeRays(const TerrainOcTree& tree, const octomap::point3d& sensor,
                   const std::vector<octomap::OcTreeKey>& ends, int wanted_threads,
-                  internal::KeyBricks& free_keys, std::vector<internal::KeyBricks>& worker_keys) {
+                  internal::KeyBricks& free_keys, std::vector<internal::KeyBricks>& worker_keys,
+                  std::vector<internal::KeyBitBox>& worker_boxes) {
   // Every ray lies in the box of its two ends: the sets index their bricks in the box of
   // them all.
   octomap::OcTreeKey lo, hi;
@@ -219,11 +221,37 @@ void CastFreeRays(const TerrainOcTree& tree, const octomap::point3d& sensor,
       hi[i] = std::max(hi[i], end[i]);
     }
   }
-  // One ray per end voxel, 1,024 rays at a time to each worker, each worker into its own
-  // set (the first into free_keys); the union does not depend on the split.
+  // One ray per end voxel, in blocks of 1,024 rays to each worker, each worker into its own
+  // box of bits (four rays walked in turn, each key one or) or, where the box would be too
+  // large, its own set; the boxes then go into free_keys. The union does not depend on the
+  // split.
+  constexpr std::size_t kBlock = 1024;
   const int most = od::ThreadCount(wanted_threads);
-  if (static_cast<int>(worker_keys.size()) < most - 1) worker_keys.resize(most - 1);
+  if (static_cast<int>(worker_boxes.size()) < most) worker_boxes.resize(most);
+  bool boxed = true;
+  for (int t = 0; t < most; ++t) boxed = worker_boxes[t].Reset(lo, hi) && boxed;
   free_keys.Clear(lo, hi);
+  if (boxed) {
+    internal::KeyLayout layout;
+    worker_boxes[0].Layout(layout.lo, layout.stride);
+    std::vector<char> worked(static_cast<std::size_t>(most), 0);
+    od::ParallelFor(
+        static_cast<int>((ends.size() + kBlock - 1) / kBlock), most,
+        [&](int worker, int block) {
+          internal::KeyBitBox& box = worker_boxes[worker];
+          worked[worker] = 1;
+          const std::size_t begin = static_cast<std::size_t>(block) * kBlock;
+          internal::ForEachRayKeyInTurn(tree, sensor, ends.data() + begin,
+                                        ends.data() + std::min(ends.size(), begin + kBlock), layout,
+                                        [&box](std::size_t, std::int64_t key) { box.Set(key); });
+        },
+        1);
+    for (int t = 0; t < most; ++t) {
+      if (worked[t]) worker_boxes[t].MoveInto(free_keys);
+    }
+    return;
+  }
+  if (static_cast<int>(worker_keys.size()) < most - 1) worker_keys.resize(most - 1);
   for (int t = 0; t < most - 1; ++t) worker_keys[t].Clear(lo, hi);
   const int used = od::ParallelFor(
       static_cast<int>(ends.size()), most,
@@ -231,7 +259,7 @@ void CastFreeRays(const TerrainOcTree& tree, const octomap::point3d& sensor,
         internal::KeyBricks::Inserter insert(worker == 0 ? free_keys : worker_keys[worker - 1]);
         internal::ForEachRayKey(tree, sensor, tree.keyToCoord(ends[e]), insert);
       },
-      1024);
+      static_cast<int>(kBlock));
   for (int t = 1; t < used; ++t) free_keys.Merge(worker_keys[t - 1]);
 }
 
@@ -469,7 +497,8 @@ void TerrainMap::UpdateOctree(const Eigen::Vector3d& origin, std::int64_t stamp,
   CollectRayEnds();
   const octomap::point3d sensor(static_cast<float>(origin.x()), static_cast<float>(origin.y()),
                                 static_cast<float>(origin.z()));
-  CastFreeRays(tree, sensor, sc.ray_ends, config_.threads, sc.free_keys, sc.worker_keys);
+  CastFreeRays(tree, sensor, sc.ray_ends, config_.threads, sc.free_keys, sc.worker_keys,
+               sc.ray_boxes);
   // Endpoints win: their voxels are not updated as free. A brick at a time: the tree is
   // walked to each brick once, and the bricks' subtrees are updated on map.threads threads.
   std::vector<TerrainOcTree::FreeBrick>& bricks = sc.free_bricks;

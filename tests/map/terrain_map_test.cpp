@@ -544,6 +544,135 @@ TEST(RayKeys, TheWalkVisitsTheKeysOfComputeRayKeysInOrder) {
   EXPECT_GT(keys_compared, 1000000);
 }
 
+// Four rays walked in turn visit what each walks alone: every ray's keys in its order,
+// numbered as packed keys and as a box of bits numbers them, for rays from origins on and off
+// voxel centres, of every length (within one voxel, along the axes and diagonals, 250 voxels), in
+// blocks that leave 1-3 rays for the lanes at the end; from an origin outside the tree no key.
+TEST(RayKeys, FourRaysInTurnVisitTheKeysOfEachRayInOrder) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::int64_t keys_compared = 0;
+  for (const double resolution : {0.05, 0.1, 0.25}) {
+    const TerrainOcTree tree(resolution);
+    const float r = static_cast<float>(resolution);
+    const octomap::point3d centre = tree.keyToCoord(tree.coordToKey(0.0, 0.0, 1.0));
+    for (const octomap::point3d& origin : {octomap::point3d(0.3f, -0.2f, 1.0f), centre}) {
+      std::vector<octomap::OcTreeKey> ends;
+      for (int k = 0; k < 1500; ++k) {
+        const float length = k % 3 == 0 ? 250.0f * r : (k % 3 == 1 ? 5.0f : 0.7f * r);
+        const octomap::point3d d(u(rng), u(rng), u(rng) * 0.3f);
+        ends.push_back(tree.coordToKey(origin + d.normalized() * length));
+      }
+      for (const octomap::point3d& d :
+           {octomap::point3d(1, 0, 0), octomap::point3d(0, -1, 0), octomap::point3d(0, 0, 1),
+            octomap::point3d(1, 1, 0), octomap::point3d(-1, 1, 1), octomap::point3d(0, 0, 0)}) {
+        ends.push_back(tree.coordToKey(origin + d * 7.3f));
+      }
+      octomap::OcTreeKey lo = tree.coordToKey(origin), hi = lo;
+      std::vector<std::vector<octomap::OcTreeKey>> alone(ends.size());
+      for (std::size_t e = 0; e < ends.size(); ++e) {
+        ASSERT_TRUE(internal::ForEachRayKey(tree, origin, tree.keyToCoord(ends[e]),
+                                            [&](const octomap::OcTreeKey& k) {
+                                              alone[e].push_back(k);
+                                              for (int i = 0; i < 3; ++i) {
+                                                lo[i] = std::min(lo[i], k[i]);
+                                                hi[i] = std::max(hi[i], k[i]);
+                                              }
+                                            }));
+        for (int i = 0; i < 3; ++i) {
+          lo[i] = std::min(lo[i], ends[e][i]);
+          hi[i] = std::max(hi[i], ends[e][i]);
+        }
+      }
+      internal::KeyLayout packed, boxed;
+      internal::KeyBitBox box;
+      ASSERT_TRUE(box.Reset(lo, hi));
+      box.Layout(boxed.lo, boxed.stride);
+      for (const internal::KeyLayout& layout : {packed, boxed}) {
+        for (const std::size_t count : {ends.size(), std::size_t{1}, std::size_t{2}, std::size_t{3},
+                                        std::size_t{5}, std::size_t{7}}) {
+          std::vector<std::vector<octomap::OcTreeKey>> in_turn(count);
+          internal::ForEachRayKeyInTurn(tree, origin, ends.data(), ends.data() + count, layout,
+                                        [&](std::size_t ray, std::int64_t n) {
+                                          ASSERT_LT(ray, count);
+                                          in_turn[ray].emplace_back(
+                                              static_cast<octomap::key_type>(layout.Axis(n, 0)),
+                                              static_cast<octomap::key_type>(layout.Axis(n, 1)),
+                                              static_cast<octomap::key_type>(layout.Axis(n, 2)));
+                                        });
+          for (std::size_t e = 0; e < count; ++e) {
+            ASSERT_EQ(in_turn[e], alone[e])
+                << "ray " << e << " of " << count << " at " << resolution << " m";
+            keys_compared += static_cast<std::int64_t>(in_turn[e].size());
+          }
+        }
+      }
+    }
+    // From outside the tree: nothing.
+    const octomap::OcTreeKey end = tree.coordToKey(0.0, 0.0, 0.0);
+    int called = 0;
+    internal::ForEachRayKeyInTurn(tree, octomap::point3d(1e7f, 0.0f, 0.0f), &end, &end + 1,
+                                  internal::KeyLayout{},
+                                  [&](std::size_t, std::int64_t) { ++called; });
+    EXPECT_EQ(called, 0);
+  }
+  EXPECT_GT(keys_compared, 1000000);
+}
+
+// A box of bits hands over the keys set in it: the same set as inserting them one by one,
+// keys on the box's margin (one beyond the keys it was made for) included; MoveInto empties
+// it for the next frame, and so does a Reset after keys were set and not handed over; a box
+// too large is refused.
+TEST(KeyBitBox, HandsOverTheKeysSetInIt) {
+  std::mt19937 rng(23);
+  std::vector<octomap::OcTreeKey> keys = RayKeys(rng, 400);
+  keys.resize(keys.size() - 6);  // without RayKeys' keys at the ends of the key range
+  octomap::OcTreeKey lo = keys.front(), hi = keys.front();
+  for (const octomap::OcTreeKey& k : keys) {
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = std::min(lo[i], k[i]);
+      hi[i] = std::max(hi[i], k[i]);
+    }
+  }
+  const auto shifted = [](const octomap::OcTreeKey& k, int by) {
+    return octomap::OcTreeKey(static_cast<octomap::key_type>(k[0] + by),
+                              static_cast<octomap::key_type>(k[1] + by),
+                              static_cast<octomap::key_type>(k[2] + by));
+  };
+  keys.push_back(shifted(lo, -1));
+  keys.push_back(shifted(hi, 1));
+  internal::KeyBitBox box;
+  internal::KeyLayout layout;
+  const auto morton = [](const internal::KeyBricks& set) {
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+    std::vector<std::uint64_t> codes;
+    set.ForEachInMortonOrder(
+        nullptr, order, [&](const octomap::OcTreeKey& k, bool) { codes.push_back(MortonOf(k)); });
+    return codes;
+  };
+  for (int pass = 0; pass < 3; ++pass) {
+    ASSERT_TRUE(box.Reset(lo, hi));
+    box.Layout(layout.lo, layout.stride);
+    internal::KeyBricks reference, handed;
+    reference.Clear();
+    handed.Clear();
+    for (std::size_t k = pass; k < keys.size(); k += pass + 1) {  // a different subset each pass
+      box.Set(layout.Of(keys[k][0], keys[k][1], keys[k][2]));
+      reference.Insert(keys[k]);
+    }
+    if (pass == 2) {  // set and not handed over: the next Reset empties it
+      ASSERT_TRUE(box.Reset(lo, hi));
+      box.MoveInto(handed);
+      EXPECT_EQ(handed.size(), 0u);
+      continue;
+    }
+    box.MoveInto(handed);
+    EXPECT_GT(handed.size(), 5000u);
+    EXPECT_EQ(morton(handed), morton(reference)) << "pass " << pass;
+  }
+  EXPECT_FALSE(box.Reset(octomap::OcTreeKey(0, 0, 0), octomap::OcTreeKey(65535, 65535, 65535)));
+}
+
 // A set cleared for a box indexes its bricks densely: the same keys, order and Morton walk
 // as a hashed set, cleared and reused, and merged with another box set.
 TEST(KeyBricks, ADenseBoxHoldsTheSameKeysAsHashing) {
