@@ -44,9 +44,11 @@ std::size_t TerrainGrid::Slot(const CellIndex& index) const {
          PositiveMod(index.x(), buffer_.x());
 }
 
-TerrainGrid::SlotTable::SlotTable(const TerrainGrid& grid, const CellIndex& lo,
-                                  const CellIndex& hi)
-    : lo_(lo) {
+void TerrainGrid::SlotTable::Reset(const TerrainGrid& grid, const CellIndex& lo,
+                                   const CellIndex& hi) {
+  lo_ = lo;
+  row_.clear();
+  col_.clear();
   const CellIndex from = grid.min_;
   const CellIndex to = grid.min_ + grid.extent_;  // exclusive
   for (int j = lo.y(); j <= hi.y(); ++j) {

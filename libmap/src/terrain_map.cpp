@@ -65,6 +65,9 @@ struct TerrainMap::Scratch {
   std::vector<Eigen::Vector3f> around;  // per cell that asked: the lowest returns within reach
   std::vector<std::uint8_t> point_class;
   std::vector<Eigen::Vector3d> world;  // per pixel: the return (or the clipped ray end)
+  std::vector<CellIndex> point_cell;   // per pixel with a return: its cell
+  std::vector<std::ptrdiff_t> point_slot;  // and that cell's slot, -1 outside the grid
+  TerrainGrid::SlotTable frame_slots;      // the frame's cells and those within the ground disc
   internal::KeyBricks endpoints;           // voxels where in-range returns end
   internal::KeyBricks obstacle_endpoints;  // those where obstacle returns end
   internal::KeyBricks far_ends;            // ends of the rays of returns beyond max_range
@@ -74,6 +77,7 @@ struct TerrainMap::Scratch {
   std::vector<internal::KeyBitBox> ray_boxes;      // free keys of each ray worker, as bits
   std::vector<std::pair<std::uint64_t, std::uint32_t>> brick_order;
   std::vector<TerrainOcTree::FreeBrick> free_bricks;  // a frame's free voxels, brick by brick
+  TerrainGrid::SlotTable slot_table;                  // UpdateTerrain's, kept from frame to frame
   std::vector<CellIndex> ground_disc;  // cells that may hold a return within ground_radius
   std::vector<CellIndex> fit_disc;     // offsets within plane_fit_radius
   std::vector<CellIndex> merge_disc;   // offsets within merge_distance
@@ -82,7 +86,10 @@ struct TerrainMap::Scratch {
 
   // Cell c's slot for frame `stamp`: reset and listed in `touched` when first met.
   Slot& Stamp(const TerrainGrid& grid, const CellIndex& c, std::int64_t stamp) {
-    Slot& slot = slots[grid.Slot(c)];
+    return Stamp(grid.Slot(c), c, stamp);
+  }
+  Slot& Stamp(std::size_t grid_slot, const CellIndex& c, std::int64_t stamp) {
+    Slot& slot = slots[grid_slot];
     if (slot.stamp != stamp) {
       slot = Slot{};
       slot.stamp = stamp;
@@ -320,6 +327,7 @@ Status TerrainMap::PlaceReturns(const od::RangeImage& image,
   const int n = image.size();
   sc.point_class.assign(n, kNone);
   sc.world.resize(n);
+  sc.point_cell.resize(n);
   CellIndex lo = grid_.IndexOf(T_world_sensor.translation().head<2>());
   CellIndex hi = lo;
   for (int i = 0; i < n; ++i) {
@@ -336,6 +344,7 @@ Status TerrainMap::PlaceReturns(const od::RangeImage& image,
       sc.world[i] = T_world_sensor * p;
     }
     const CellIndex c = grid_.IndexOf(sc.world[i].head<2>());
+    sc.point_cell[i] = c;
     lo = lo.cwiseMin(c);
     hi = hi.cwiseMax(c);
   }
@@ -353,6 +362,15 @@ Status TerrainMap::PlaceReturns(const od::RangeImage& image,
     }
     if (grid_.Reserve(lo, hi)) PrepareScratch();
   }
+  // Each return's slot, from a table of the frame's cells (Slot divides twice per call),
+  // which also covers the cells within the ground disc of any of them.
+  int reach = 0;
+  for (const CellIndex& d : sc.ground_disc) reach = std::max(reach, d.cwiseAbs().maxCoeff());
+  sc.frame_slots.Reset(grid_, Grow(lo, -reach), Grow(hi, reach));
+  sc.point_slot.assign(n, -1);
+  for (int i = 0; i < n; ++i) {
+    if (sc.point_class[i] != kNone) sc.point_slot[i] = sc.frame_slots(sc.point_cell[i]);
+  }
   return Status::Ok();
 }
 
@@ -362,11 +380,10 @@ void TerrainMap::FindLowestReturns(std::int64_t stamp, FrameSummary& summary) {
   sc.touched.clear();
   const int n = static_cast<int>(sc.point_class.size());
   for (int i = 0; i < n; ++i) {
-    if (sc.point_class[i] != kGround) continue;
-    const CellIndex c = grid_.IndexOf(sc.world[i].head<2>());
-    if (!grid_.Contains(c)) continue;
+    if (sc.point_class[i] != kGround || sc.point_slot[i] < 0) continue;
     ++summary.points_in_range;
-    Scratch::Slot& slot = sc.Stamp(grid_, c, stamp);
+    Scratch::Slot& slot =
+        sc.Stamp(static_cast<std::size_t>(sc.point_slot[i]), sc.point_cell[i], stamp);
     if (sc.world[i].z() < slot.lowest.z()) slot.lowest = sc.world[i].cast<float>();
   }
 }
@@ -376,23 +393,23 @@ void TerrainMap::FindLowestReturns(std::int64_t stamp, FrameSummary& summary) {
 // tan, reach2 the squared ground_radius). Returns that and the plain height above the lowest
 // return within reach.
 std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, const CellIndex& c,
-                                                      std::int64_t stamp, float rise,
-                                                      float reach2) {
+                                                      std::size_t grid_slot, std::int64_t stamp,
+                                                      float rise, float reach2) {
   Scratch& sc = *scratch_;
   const Eigen::Vector3f pf = p.cast<float>();
   float height = -kInfinity;
   float plain = -kInfinity;
   // The lowest returns of the cells within reach, gathered once per cell and frame (the
   // points of a segment crowd into few cells); their lowest settles most points, the foot.
-  Scratch::Slot& slot = sc.slots[grid_.Slot(c)];
+  Scratch::Slot& slot = sc.slots[grid_slot];
   if (slot.around_stamp != stamp) {
     slot.around_stamp = stamp;
     slot.lowest_around = kInfinity;
     slot.around_begin = static_cast<int>(sc.around.size());
     for (const CellIndex& d : sc.ground_disc) {
-      const CellIndex other = c + d;
-      if (!grid_.Contains(other)) continue;
-      const Scratch::Slot& o = sc.slots[grid_.Slot(other)];
+      const std::ptrdiff_t other = sc.frame_slots(c + d);
+      if (other < 0) continue;
+      const Scratch::Slot& o = sc.slots[static_cast<std::size_t>(other)];
       if (o.stamp != stamp) continue;
       sc.around.push_back(o.lowest);
       slot.lowest_around = std::min(slot.lowest_around, o.lowest.z());
@@ -424,18 +441,18 @@ std::vector<TerrainMap::FrameSegment> TerrainMap::ClassifyReturns(
   std::vector<FrameSegment> segments(detection.segments.size() + 1);
   const int n = static_cast<int>(sc.point_class.size());
   for (int i = 0; i < n; ++i) {
-    if (sc.point_class[i] != kGround) continue;
+    if (sc.point_class[i] != kGround || sc.point_slot[i] < 0) continue;
     const Eigen::Vector3d& p = sc.world[i];
-    const CellIndex c = grid_.IndexOf(p.head<2>());
-    if (!grid_.Contains(c)) continue;
+    const CellIndex& c = sc.point_cell[i];
+    const std::size_t grid_slot = static_cast<std::size_t>(sc.point_slot[i]);
     const int label = detection.labels[i];
-    Cell& cell = grid_.At(c);
-    Scratch::Slot& slot = sc.slots[grid_.Slot(c)];
+    Cell& cell = grid_.AtSlot(grid_slot);
+    Scratch::Slot& slot = sc.slots[grid_slot];
     const float z = static_cast<float>(p.z());
     const bool kept =
         label > 0 && classification.verdicts[label - 1].cls == od::SegmentClass::kKept;
     const auto [height, plain_height] =
-        kept ? HeightAboveGround(p, c, stamp, rise, reach2) : std::make_pair(0.0f, 0.0f);
+        kept ? HeightAboveGround(p, c, grid_slot, stamp, rise, reach2) : std::make_pair(0.0f, 0.0f);
     if (kept && height >= config_.obstacle_min_height_m) {
       sc.point_class[i] = kObstacle;
       ++summary.obstacle_points;
@@ -617,7 +634,8 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
   if (from.x() > to.x() || from.y() > to.y()) return;
   const double s = config_.cell_size_m;
   const int fit = static_cast<int>(std::floor(config_.plane_fit_radius_m / s));
-  const TerrainGrid::SlotTable slots(grid_, Grow(from, -fit), Grow(to, fit));
+  TerrainGrid::SlotTable& slots = scratch_->slot_table;
+  slots.Reset(grid_, Grow(from, -fit), Grow(to, fit));
   // The neighbour at offset d of cell (i, j), or null outside the grid.
   const auto neighbour = [&](int i, int j, const CellIndex& d) -> const Cell* {
     const std::ptrdiff_t slot = slots(CellIndex(i + d.x(), j + d.y()));

@@ -4,10 +4,134 @@
 #include <array>
 #include <iterator>
 #include <limits>
+#include <memory>
+#include <mutex>
+#include <tuple>
+#include <utility>
+#include <vector>
 
 #include "cairn/od/parallel.hpp"
 
+#if defined(__SANITIZE_ADDRESS__)
+#define CAIRN_NODE_POOL 0
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define CAIRN_NODE_POOL 0
+#endif
+#endif
+#ifndef CAIRN_NODE_POOL
+#define CAIRN_NODE_POOL 1
+#endif
+
 namespace cairn::map {
+
+#if CAIRN_NODE_POOL
+namespace {
+
+// The pool: blocks of one node, carved from chunks that live as long as the process (nodes
+// may outlive any static). Each thread keeps a list of free blocks; lists of kBatch blocks
+// go to and from a shared list under a mutex, so that threads that make nodes (the free
+// updates' workers) and the thread that frees them (pruning) trade them in bulk.
+union Block {
+  Block* next;
+  alignas(TerrainOcTreeNode) unsigned char bytes[sizeof(TerrainOcTreeNode)];
+};
+constexpr std::size_t kBatch = 1024;
+constexpr std::size_t kChunk = 16 * kBatch;
+
+struct SharedBlocks {
+  std::mutex mutex;
+  std::vector<std::pair<Block*, std::size_t>> batches;  // lists of free blocks, and their length
+  std::vector<std::unique_ptr<Block[]>> chunks;
+};
+SharedBlocks& Shared() {
+  static SharedBlocks* shared = new SharedBlocks;  // never destroyed (see above)
+  return *shared;
+}
+
+// The first `n` blocks of the list at `head`, cut off it (head moves past them).
+Block* CutList(Block*& head, std::size_t n) {
+  Block* first = head;
+  Block* last = head;
+  for (std::size_t k = 1; k < n; ++k) last = last->next;
+  head = last->next;
+  last->next = nullptr;
+  return first;
+}
+
+struct LocalBlocks {
+  Block* head = nullptr;
+  std::size_t count = 0;
+
+  void* Take() {
+    if (head == nullptr) Refill();
+    Block* b = head;
+    head = b->next;
+    --count;
+    return b;
+  }
+  void Give(void* p) {
+    Block* b = static_cast<Block*>(p);
+    b->next = head;
+    head = b;
+    if (++count >= 2 * kBatch) {
+      Block* batch = CutList(head, kBatch);
+      count -= kBatch;
+      SharedBlocks& shared = Shared();
+      const std::lock_guard<std::mutex> lock(shared.mutex);
+      shared.batches.emplace_back(batch, kBatch);
+    }
+  }
+  void Refill() {
+    SharedBlocks& shared = Shared();
+    const std::lock_guard<std::mutex> lock(shared.mutex);
+    if (!shared.batches.empty()) {
+      std::tie(head, count) = shared.batches.back();
+      shared.batches.pop_back();
+      return;
+    }
+    shared.chunks.emplace_back(new Block[kChunk]);
+    Block* chunk = shared.chunks.back().get();
+    for (std::size_t k = 0; k + 1 < kChunk; ++k) chunk[k].next = &chunk[k + 1];
+    chunk[kChunk - 1].next = nullptr;
+    head = chunk;
+    count = kChunk;
+  }
+  // A thread that ends hands its free blocks back.
+  ~LocalBlocks() {
+    if (count == 0) return;
+    SharedBlocks& shared = Shared();
+    const std::lock_guard<std::mutex> lock(shared.mutex);
+    shared.batches.emplace_back(head, count);
+  }
+};
+
+LocalBlocks& Local() {
+  thread_local LocalBlocks local;
+  return local;
+}
+
+}  // namespace
+
+void* TerrainOcTreeNode::operator new(std::size_t size) {
+  if (size != sizeof(TerrainOcTreeNode)) return ::operator new(size);
+  return Local().Take();
+}
+
+void TerrainOcTreeNode::operator delete(void* node, std::size_t size) noexcept {
+  if (node == nullptr) return;
+  if (size != sizeof(TerrainOcTreeNode)) {
+    ::operator delete(node);
+    return;
+  }
+  Local().Give(node);
+}
+#else
+void* TerrainOcTreeNode::operator new(std::size_t size) { return ::operator new(size); }
+void TerrainOcTreeNode::operator delete(void* node, std::size_t) noexcept {
+  ::operator delete(node);
+}
+#endif
 
 void TerrainOcTreeNode::updateOccupancyChildren() {
   if (children == nullptr) return;
@@ -56,8 +180,8 @@ TerrainOcTreeNode* TerrainOcTree::Root(bool& created) {
 // at a pruned node saturated free: it would change nothing below it. `created` says
 // whether `node` was made by this walk (a new node has no children, which then is no sign
 // of pruning); it is updated to the child.
-TerrainOcTreeNode* TerrainOcTree::Step(TerrainOcTreeNode* node, unsigned pos, bool& created,
-                                       bool free_update, std::size_t& made) {
+inline TerrainOcTreeNode* TerrainOcTree::Step(TerrainOcTreeNode* node, unsigned pos, bool& created,
+                                              bool free_update, std::size_t& made) {
   if (nodeChildExists(node, pos)) {
     created = false;
   } else if (!nodeHasChildren(node) && !created) {
@@ -121,7 +245,7 @@ constexpr unsigned kSubtreeLevels = 3;
 }  // namespace
 
 // The leaf's update once the walk has reached it.
-TerrainOcTree::FreeUpdate TerrainOcTree::FreeLeaf(TerrainOcTreeNode* leaf) const {
+inline TerrainOcTree::FreeUpdate TerrainOcTree::FreeLeaf(TerrainOcTreeNode* leaf) const {
   if (leaf == nullptr || IsSaturatedFree(*leaf)) return {};
   FreeUpdate result;
   result.changed = true;
@@ -264,17 +388,6 @@ void TerrainOcTree::UpdateFreeBricks(std::vector<FreeBrick>& bricks, int threads
       },
       1);
   for (std::size_t m : made) CountMade(m);
-}
-
-void TerrainOcTree::Update(TerrainOcTreeNode* leaf, bool occupied, bool obstacle) const {
-  const float occupancy = leaf->getLogOdds() + (occupied ? prob_hit_log : prob_miss_log);
-  leaf->setLogOdds(std::clamp(occupancy, clamping_thres_min, clamping_thres_max));
-  const float evidence = leaf->obstacle_log_odds() + (obstacle ? prob_hit_log : prob_miss_log);
-  leaf->set_obstacle_log_odds(std::clamp(evidence, clamping_thres_min, clamping_thres_max));
-}
-
-bool TerrainOcTree::IsSaturatedFree(const TerrainOcTreeNode& node) const {
-  return node.getLogOdds() <= clamping_thres_min && node.obstacle_log_odds() <= clamping_thres_min;
 }
 
 void TerrainOcTree::DeleteDescendants(TerrainOcTreeNode* node, std::size_t& count) {

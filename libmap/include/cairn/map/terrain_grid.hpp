@@ -97,8 +97,14 @@ class TerrainGrid {
   /// while the extent and the buffer stay as they were.
   class SlotTable {
    public:
+    SlotTable() = default;
     /// The box [lo, hi] (inclusive); its cells may lie outside the extent.
-    SlotTable(const TerrainGrid& grid, const CellIndex& lo, const CellIndex& hi);
+    SlotTable(const TerrainGrid& grid, const CellIndex& lo, const CellIndex& hi) {
+      Reset(grid, lo, hi);
+    }
+    /// Made afresh for the box [lo, hi], in the buffers it holds (a frame's table without
+    /// allocating).
+    void Reset(const TerrainGrid& grid, const CellIndex& lo, const CellIndex& hi);
     /// The slot of `index` (which must lie in the box), or -1 outside the extent.
     std::ptrdiff_t operator()(const CellIndex& index) const {
       const std::ptrdiff_t row = row_[index.y() - lo_.y()];

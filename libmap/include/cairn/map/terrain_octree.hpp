@@ -20,6 +20,7 @@
 #include <octomap/OccupancyOcTreeBase.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <istream>
@@ -33,6 +34,12 @@ class TerrainOcTreeNode : public octomap::OcTreeNode {
  public:
   TerrainOcTreeNode() = default;
   TerrainOcTreeNode(const TerrainOcTreeNode& rhs) = default;
+
+  /// Nodes come from a pool of their own (terrain_octree.cpp): a frame makes and prunes
+  /// hundreds of thousands, which malloc serves at about the cost of the ray walk. Plain
+  /// new and delete under AddressSanitizer, which then watches every node.
+  static void* operator new(std::size_t size);
+  static void operator delete(void* node, std::size_t size) noexcept;
 
   float obstacle_log_odds() const { return obstacle_; }
   void set_obstacle_log_odds(float l) { obstacle_ = l; }
@@ -110,7 +117,12 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   /// One update of both log-odds of a leaf, clamped with the tree's thresholds:
   /// `occupied` adds the hit (else the miss) log-odds to occupancy; `obstacle` adds the hit
   /// (else the miss) log-odds to the obstacle value.
-  void Update(TerrainOcTreeNode* leaf, bool occupied, bool obstacle) const;
+  void Update(TerrainOcTreeNode* leaf, bool occupied, bool obstacle) const {
+    const float occupancy = leaf->getLogOdds() + (occupied ? prob_hit_log : prob_miss_log);
+    leaf->setLogOdds(std::clamp(occupancy, clamping_thres_min, clamping_thres_max));
+    const float evidence = leaf->obstacle_log_odds() + (obstacle ? prob_hit_log : prob_miss_log);
+    leaf->set_obstacle_log_odds(std::clamp(evidence, clamping_thres_min, clamping_thres_max));
+  }
 
   /// One free update (a ray passed through) of the voxel `key`, walking the tree once: a
   /// voxel inside a pruned node saturated free in both values is left alone (the update
@@ -152,7 +164,10 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   void UpdateFreeBricks(std::vector<FreeBrick>& bricks, int threads);
 
   /// Whether a node is saturated free in both values (a free update changes nothing).
-  bool IsSaturatedFree(const TerrainOcTreeNode& node) const;
+  bool IsSaturatedFree(const TerrainOcTreeNode& node) const {
+    return node.getLogOdds() <= clamping_thres_min &&
+           node.obstacle_log_odds() <= clamping_thres_min;
+  }
   bool IsObstacle(const TerrainOcTreeNode& node) const {
     return isNodeOccupied(node) && node.obstacle_log_odds() > 0.0f;
   }
@@ -164,8 +179,9 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
 
  private:
   TerrainOcTreeNode* Root(bool& created);
-  TerrainOcTreeNode* Step(TerrainOcTreeNode* node, unsigned pos, bool& created, bool free_update,
-                          std::size_t& made);
+  // (Defined in terrain_octree.cpp, the only user, inline in its walks.)
+  inline TerrainOcTreeNode* Step(TerrainOcTreeNode* node, unsigned pos, bool& created,
+                                 bool free_update, std::size_t& made);
   // The walk from the root down to `depth` along `key` (free updates), as UpdateFreeBrick
   // makes it; null inside a pruned node saturated free.
   TerrainOcTreeNode* WalkFree(const octomap::OcTreeKey& key, unsigned depth, bool& created);
@@ -177,7 +193,7 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
     tree_size += made;
     if (made > 0) size_changed = true;
   }
-  FreeUpdate FreeLeaf(TerrainOcTreeNode* leaf) const;
+  inline FreeUpdate FreeLeaf(TerrainOcTreeNode* leaf) const;
   // Deletes every descendant of `node` (not the node itself); counts them.
   void DeleteDescendants(TerrainOcTreeNode* node, std::size_t& count);
   // Returns true when `node` has no child left and must go too.
