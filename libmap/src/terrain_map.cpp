@@ -80,6 +80,8 @@ struct TerrainMap::Scratch {
   TerrainGrid::SlotTable slot_table;                  // UpdateTerrain's, kept from frame to frame
   std::vector<CellIndex> ground_disc;  // cells that may hold a return within ground_radius
   std::vector<CellIndex> fit_disc;     // offsets within plane_fit_radius
+  std::vector<Eigen::Vector3d> fit_rows;     // per offset: (1, dx, dy) [m], the fit's row
+  std::vector<Eigen::Matrix3d> fit_normals;  // and its outer product
   std::vector<CellIndex> merge_disc;   // offsets within merge_distance
   std::vector<std::pair<CellIndex, Cost>> inflation;  // offsets within inflation_radius
   int inflation_cells = 0;
@@ -142,6 +144,11 @@ TerrainMap::TerrainMap(const MapConfig& config)
   // Any point of a cell within ground_radius of any point of the centre cell.
   scratch_->ground_disc = DiscOffsets(config.ground_radius_m + std::sqrt(2.0) * s, s);
   scratch_->fit_disc = DiscOffsets(config.plane_fit_radius_m, s);
+  for (const CellIndex& d : scratch_->fit_disc) {
+    const Eigen::Vector3d row(1.0, d.x() * s, d.y() * s);
+    scratch_->fit_rows.push_back(row);
+    scratch_->fit_normals.push_back(row * row.transpose());
+  }
   scratch_->merge_disc = DiscOffsets(config.merge_distance_m, s);
   for (const CellIndex& d : DiscOffsets(config.inflation_radius_m, s)) {
     if (d.isZero()) continue;
@@ -655,12 +662,12 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
       Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
       Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
       int count = 0;
-      for (const CellIndex& d : scratch_->fit_disc) {
-        const Cell* other = neighbour(i, j, d);
+      const std::vector<CellIndex>& disc = scratch_->fit_disc;
+      for (std::size_t o = 0; o < disc.size(); ++o) {
+        const Cell* other = neighbour(i, j, disc[o]);
         if (other == nullptr || !other->has_elevation()) continue;
-        const Eigen::Vector3d row(1.0, d.x() * s, d.y() * s);
-        normal += row * row.transpose();
-        rhs += row * other->elevation_mean_m;
+        normal += scratch_->fit_normals[o];
+        rhs += scratch_->fit_rows[o] * other->elevation_mean_m;
         ++count;
       }
       if (count < 3) continue;
