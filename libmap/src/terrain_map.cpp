@@ -569,7 +569,7 @@ void TerrainMap::UpdateOctree(const Eigen::Vector3d& origin, std::int64_t stamp,
   // Inner nodes and pruning cost a walk over the whole tree: done every few frames, and
   // whenever the tree is looked at (octree()); the leaves are always current.
   octree_stale_ = true;
-  if (stamp % kOctreeFlushFrames == 0) FlushOctree();
+  if (stamp % kOctreeFlushFrames == 0) tree.PruneSaturatedFree();
 }
 
 // Obstacle evidence, one update per touched cell, then terrain and cost around what changed.

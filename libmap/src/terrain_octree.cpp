@@ -401,6 +401,29 @@ void TerrainOcTree::DeleteDescendants(TerrainOcTreeNode* node, std::size_t& coun
   }
 }
 
+bool TerrainOcTree::PruneSaturatedFreeRecurs(TerrainOcTreeNode* node, std::size_t& count) {
+  if (!nodeHasChildren(node)) return IsSaturatedFree(*node);
+  bool all = true;
+  for (unsigned i = 0; i < 8; ++i) {
+    // Every child is visited (not stopping at the first that is not saturated): its own
+    // subtrees collapse too.
+    all = nodeChildExists(node, i) && PruneSaturatedFreeRecurs(getNodeChild(node, i), count) && all;
+  }
+  if (!all) return false;
+  node->copyData(*getNodeChild(node, 0));
+  for (unsigned i = 0; i < 8; ++i) deleteNodeChild(node, i);
+  node->ReleaseChildArray();
+  count += 8;
+  return true;
+}
+
+std::size_t TerrainOcTree::PruneSaturatedFree() {
+  if (root == nullptr) return 0;
+  std::size_t count = 0;
+  PruneSaturatedFreeRecurs(root, count);
+  return count;
+}
+
 bool TerrainOcTree::DeleteOutsideRecurs(TerrainOcTreeNode* node, const octomap::OcTreeKey& key,
                                         unsigned depth, const Eigen::Vector2d& min,
                                         const Eigen::Vector2d& max, std::size_t& count) {

@@ -880,6 +880,57 @@ TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
   EXPECT_EQ(sa.str(), sb.str());
 }
 
+// Collapsing only what is saturated free keeps every leaf's values, deletes nodes, and
+// leaves a tree that OctoMap's full prune then makes into the tree it makes unhelped.
+TEST(TerrainOcTree, PruningWhatIsSaturatedFreeKeepsTheLeavesAndTheFullPrune) {
+  std::mt19937 rng(41);
+  TerrainOcTree a(0.1), b(0.1);
+  std::uniform_int_distribution<int> near(32700, 32835);
+  std::vector<octomap::OcTreeKey> occupied;
+  for (int k = 0; k < 3000; ++k) {
+    occupied.emplace_back(static_cast<octomap::key_type>(near(rng)),
+                          static_cast<octomap::key_type>(near(rng)),
+                          static_cast<octomap::key_type>(near(rng)));
+  }
+  // Free space along rays, some voxels saturated (seen free 8 times), some once, and the
+  // occupied voxels (some of them obstacles) among them.
+  const std::vector<octomap::OcTreeKey> rays = RayKeys(rng, 600);
+  for (TerrainOcTree* t : {&a, &b}) {
+    for (std::size_t k = 0; k < rays.size(); ++k) {
+      for (int r = 0; r < (k % 5 == 0 ? 1 : 8); ++r) t->UpdateFree(rays[k]);
+    }
+    for (std::size_t k = 0; k < occupied.size(); ++k) {
+      t->Update(t->TouchLeaf(occupied[k]), true, k % 3 == 0);
+    }
+  }
+  const auto values = [&](const TerrainOcTree& t) {
+    std::vector<std::pair<float, float>> v;
+    for (const std::vector<octomap::OcTreeKey>* keys :
+         {&rays, static_cast<const std::vector<octomap::OcTreeKey>*>(&occupied)}) {
+      for (const octomap::OcTreeKey& key : *keys) {
+        const TerrainOcTreeNode* n = t.search(key);
+        v.emplace_back(n ? n->getLogOdds() : 99.0f, n ? n->obstacle_log_odds() : 99.0f);
+      }
+    }
+    return v;
+  };
+  const std::size_t nodes_before = a.size();
+  const std::size_t deleted = a.PruneSaturatedFree();
+  EXPECT_GT(deleted, 1000u);
+  EXPECT_EQ(a.size(), nodes_before - deleted);
+  EXPECT_EQ(values(a), values(b));
+  EXPECT_EQ(a.PruneSaturatedFree(), 0u);  // nothing left to collapse
+  for (TerrainOcTree* t : {&a, &b}) {
+    t->updateInnerOccupancy();
+    t->prune();
+  }
+  std::ostringstream sa, sb;
+  a.writeData(sa);
+  b.writeData(sb);
+  EXPECT_EQ(sa.str(), sb.str());
+  EXPECT_EQ(a.size(), b.size());
+}
+
 // Touching leaves with a LeafWalk (each walk resumed from the path it shares with the walk
 // before) makes the tree TouchLeaf makes from the root, through pruned, existing and new
 // nodes, and hands out the same leaves.

@@ -172,6 +172,12 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
     return isNodeOccupied(node) && node.obstacle_log_odds() > 0.0f;
   }
 
+  /// Collapses every node whose eight children are leaves saturated free into one leaf
+  /// saturated free, bottom up (OctoMap's prune() does that too, and also collapses equal
+  /// leaves that are not saturated, which the next frame's rays then expand again). Leaves
+  /// keep their values; inner nodes are not updated. Returns the nodes deleted.
+  std::size_t PruneSaturatedFree();
+
   /// Deletes every node whose box lies entirely outside [min, max] in x and y (world) and
   /// returns how many nodes went; nodes that straddle the border stay, and inner nodes keep
   /// the maximum of the children left.
@@ -194,6 +200,8 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
     if (made > 0) size_changed = true;
   }
   inline FreeUpdate FreeLeaf(TerrainOcTreeNode* leaf) const;
+  // PruneSaturatedFree below `node`; true when `node` is (now) a leaf saturated free.
+  bool PruneSaturatedFreeRecurs(TerrainOcTreeNode* node, std::size_t& count);
   // Deletes every descendant of `node` (not the node itself); counts them.
   void DeleteDescendants(TerrainOcTreeNode* node, std::size_t& count);
   // Returns true when `node` has no child left and must go too.
