@@ -5,7 +5,8 @@
 // does (the Mapper starts afresh when the drive wraps, outside the timing). range(0) is
 // max_range [m]. The counters split the time: detection, the tilt step, and fusion by
 // TerrainMap's stages.
-//   Mapper*      the whole frame, tilt mode prior (the odometry pose as it is);
+//   Mapper*      the whole frame, tilt mode prior (the odometry pose as it is), on every
+//                core (OneCore: the detector and the map on one thread);
 //   MapperTilt/* the camera drive in each tilt mode, with the drive's raw IMU (100 Hz) for
 //                gravity: tilt_ms is the stage that mode adds;
 //   FreeRays/*   the free-space rays of a LiDAR-like frame (52,000 ends within 20 m, 0.1 m
@@ -136,10 +137,13 @@ const DriveFrames& Drive(bool lidar) {
   return it->second;
 }
 
-map::MapperConfig Config(double max_range_m, map::TiltMode tilt) {
+// threads: the detector's and the map's (0: every core).
+map::MapperConfig Config(double max_range_m, map::TiltMode tilt, int threads = 0) {
   map::MapperConfig config;
   config.detector = Settings().detector;
   config.rules = Settings().rules;
+  config.detector.threads = threads;
+  config.map.threads = threads;
   config.map.max_range_m = max_range_m;
   config.tilt.mode = tilt;
   return config;
@@ -151,14 +155,14 @@ std::unique_ptr<map::Mapper> NewMapper(const map::MapperConfig& config, const Dr
   return mapper;
 }
 
-void Process(benchmark::State& state, bool lidar, map::TiltMode tilt) {
+void Process(benchmark::State& state, bool lidar, map::TiltMode tilt, int threads = 0) {
   const DriveFrames& drive = Drive(lidar);
   const std::vector<Frame>& frames = drive.frames;
   if (frames.empty()) {
     state.SkipWithError("cannot make the drive (datasets/worlds, config/default.yaml)");
     return;
   }
-  const map::MapperConfig config = Config(static_cast<double>(state.range(0)), tilt);
+  const map::MapperConfig config = Config(static_cast<double>(state.range(0)), tilt, threads);
   std::unique_ptr<map::Mapper> mapper;
   std::size_t next = 0;
   double free_voxels = 0.0, detect_s = 0.0, tilt_s = 0.0, fuse_s = 0.0, octree_s = 0.0,
@@ -202,6 +206,9 @@ void BM_MapperDepth640x480(benchmark::State& state) {
   Process(state, false, map::TiltMode::kPrior);
 }
 void BM_MapperLidar64x2048(benchmark::State& state) { Process(state, true, map::TiltMode::kPrior); }
+void BM_MapperLidar64x2048OneCore(benchmark::State& state) {
+  Process(state, true, map::TiltMode::kPrior, 1);
+}
 void BM_MapperTilt(benchmark::State& state, map::TiltMode tilt) { Process(state, false, tilt); }
 
 // Every map file of the camera drive's map, written afresh per iteration.
@@ -367,6 +374,7 @@ BENCHMARK(BM_MapperLidar64x2048)
     ->Arg(40)
     ->Iterations(12)
     ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_MapperLidar64x2048OneCore)->Arg(20)->Iterations(12)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_MapperTilt, prior, map::TiltMode::kPrior)
     ->Arg(20)
     ->Iterations(12)
