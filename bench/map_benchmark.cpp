@@ -309,7 +309,7 @@ void CastWithComputeRayKeys(const RayFrame& f, map::internal::KeyBricks& keys) {
 std::int64_t CastWithWalk(const RayFrame& f, map::internal::KeyBitBox& box,
                           map::internal::KeyBricks& keys) {
   keys.Clear(f.lo, f.hi);
-  box.Reset(f.lo, f.hi);
+  if (!box.Reset(f.lo, f.hi)) return -1;  // too large a box: the caller fails the benchmark
   map::internal::KeyLayout layout;
   box.Layout(layout.lo, layout.stride);
   std::int64_t steps = 0;
@@ -350,7 +350,7 @@ void BM_FreeRays(benchmark::State& state, bool walk) {
   keys.ForEachInMortonOrder(&reference, order, [&](const octomap::OcTreeKey&, bool in) {
     all_in_reference = all_in_reference && in;
   });
-  if (keys.size() != reference.size() || !all_in_reference) {
+  if (steps < 0 || keys.size() != reference.size() || !all_in_reference) {
     state.SkipWithError("the walk's keys differ from computeRayKeys'");
     return;
   }

@@ -369,7 +369,7 @@ class KeyBitBox {
 
   /// Sets the key of number n (which lies in the box).
   void Set(std::int64_t n) {
-    assert(n >= 0 && n < size_[0] * size_[1] * size_[2]);
+    assert(n >= 0 && n < size_[0] * size_[1] * size_[2]);  // a refused box holds none
     words_[static_cast<std::size_t>(n >> 6)] |= std::uint64_t{1} << (n & 63);
   }
 

@@ -23,7 +23,8 @@
 #include <limits>
 #include <type_traits>
 
-#if defined(__SSE2__)
+#if defined(__SSE2__) && defined(__x86_64__)
+#define CAIRN_RAY_LANES_SSE2 1
 #include <emmintrin.h>
 #endif
 
@@ -178,7 +179,7 @@ void ForEachRayKeyInTurn(const Tree& tree, const octomap::point3d& origin,
   bool live[kLanes];
   bool all_live = true;
   for (int l = 0; l < kLanes; ++l) all_live = (live[l] = start(l)) && all_live;
-#if defined(__SSE2__)
+#if defined(CAIRN_RAY_LANES_SSE2)
   // Two lanes per register, the keys by their numbers, the axis picked by masks, in the
   // scalar walk's double operations.
   while (all_live) {

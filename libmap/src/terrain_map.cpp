@@ -241,19 +241,22 @@ void CastFreeRays(const TerrainOcTree& tree, const octomap::point3d& sensor,
   // split.
   constexpr std::size_t kBlock = 1024;
   const int most = od::ThreadCount(wanted_threads);
-  if (static_cast<int>(worker_boxes.size()) < most) worker_boxes.resize(most);
-  bool boxed = true;
-  for (int t = 0; t < most; ++t) boxed = worker_boxes[t].Reset(lo, hi) && boxed;
   free_keys.Clear(lo, hi);
-  if (boxed) {
+  if (static_cast<int>(worker_boxes.size()) < most) worker_boxes.resize(most);
+  if (worker_boxes[0].Reset(lo, hi)) {
+    // The caller is worker 0; a helper resets its box when it joins (the same box).
     internal::KeyLayout layout;
     worker_boxes[0].Layout(layout.lo, layout.stride);
     std::vector<char> worked(static_cast<std::size_t>(most), 0);
+    worked[0] = 1;
     od::ParallelFor(
         static_cast<int>((ends.size() + kBlock - 1) / kBlock), most,
         [&](int worker, int block) {
           internal::KeyBitBox& box = worker_boxes[worker];
-          worked[worker] = 1;
+          if (!worked[worker]) {
+            box.Reset(lo, hi);
+            worked[worker] = 1;
+          }
           const std::size_t begin = static_cast<std::size_t>(block) * kBlock;
           internal::ForEachRayKeyInTurn(tree, sensor, ends.data() + begin,
                                         ends.data() + std::min(ends.size(), begin + kBlock), layout,

@@ -59,6 +59,34 @@ Block* CutList(Block*& head, std::size_t n) {
   return first;
 }
 
+// The shared list, a block at a time: for a thread whose own list is gone (nodes freed by
+// the destructors of statics, which run after the main thread's thread-local objects').
+void* TakeShared() {
+  SharedBlocks& shared = Shared();
+  const std::lock_guard<std::mutex> lock(shared.mutex);
+  while (!shared.batches.empty() && shared.batches.back().second == 0) shared.batches.pop_back();
+  if (shared.batches.empty()) return ::operator new(sizeof(Block));  // never given back
+  auto& [head, count] = shared.batches.back();
+  Block* b = head;
+  head = b->next;
+  --count;
+  return b;
+}
+void GiveShared(void* p) noexcept {
+  SharedBlocks& shared = Shared();
+  const std::lock_guard<std::mutex> lock(shared.mutex);
+  Block* b = static_cast<Block*>(p);
+  try {
+    b->next = nullptr;
+    shared.batches.emplace_back(b, 1);
+  } catch (...) {
+    // No memory for the list: the block stays unused in its chunk.
+  }
+}
+
+// Trivially destructible, so still readable once the thread's LocalBlocks is gone.
+thread_local bool t_local_gone = false;
+
 struct LocalBlocks {
   Block* head = nullptr;
   std::size_t count = 0;
@@ -79,12 +107,17 @@ struct LocalBlocks {
       count -= kBatch;
       SharedBlocks& shared = Shared();
       const std::lock_guard<std::mutex> lock(shared.mutex);
-      shared.batches.emplace_back(batch, kBatch);
+      try {
+        shared.batches.emplace_back(batch, kBatch);
+      } catch (...) {
+        // No memory for the list (Give runs in a noexcept delete): the batch stays unused.
+      }
     }
   }
   void Refill() {
     SharedBlocks& shared = Shared();
     const std::lock_guard<std::mutex> lock(shared.mutex);
+    while (!shared.batches.empty() && shared.batches.back().second == 0) shared.batches.pop_back();
     if (!shared.batches.empty()) {
       std::tie(head, count) = shared.batches.back();
       shared.batches.pop_back();
@@ -97,12 +130,18 @@ struct LocalBlocks {
     head = chunk;
     count = kChunk;
   }
-  // A thread that ends hands its free blocks back.
+  // A thread that ends hands its free blocks back; its later nodes go to the shared list.
   ~LocalBlocks() {
+    t_local_gone = true;
     if (count == 0) return;
     SharedBlocks& shared = Shared();
     const std::lock_guard<std::mutex> lock(shared.mutex);
-    shared.batches.emplace_back(head, count);
+    try {
+      shared.batches.emplace_back(head, count);
+    } catch (...) {
+    }
+    head = nullptr;
+    count = 0;
   }
 };
 
@@ -115,7 +154,7 @@ LocalBlocks& Local() {
 
 void* TerrainOcTreeNode::operator new(std::size_t size) {
   if (size != sizeof(TerrainOcTreeNode)) return ::operator new(size);
-  return Local().Take();
+  return t_local_gone ? TakeShared() : Local().Take();
 }
 
 void TerrainOcTreeNode::operator delete(void* node, std::size_t size) noexcept {
@@ -124,7 +163,11 @@ void TerrainOcTreeNode::operator delete(void* node, std::size_t size) noexcept {
     ::operator delete(node);
     return;
   }
-  Local().Give(node);
+  if (t_local_gone) {
+    GiveShared(node);
+  } else {
+    Local().Give(node);
+  }
 }
 #else
 void* TerrainOcTreeNode::operator new(std::size_t size) { return ::operator new(size); }
@@ -409,6 +452,9 @@ bool TerrainOcTree::PruneSaturatedFreeRecurs(TerrainOcTreeNode* node, std::size_
     // subtrees collapse too.
     all = nodeChildExists(node, i) && PruneSaturatedFreeRecurs(getNodeChild(node, i), count) && all;
   }
+  // Saturated at the clamping thresholds, the eight are equal; a tree read with other
+  // thresholds may hold leaves below them that differ, which stay apart.
+  for (unsigned i = 1; all && i < 8; ++i) all = *getNodeChild(node, i) == *getNodeChild(node, 0);
   if (!all) return false;
   node->copyData(*getNodeChild(node, 0));
   for (unsigned i = 0; i < 8; ++i) deleteNodeChild(node, i);
@@ -427,7 +473,17 @@ std::size_t TerrainOcTree::PruneSaturatedFree() {
 bool TerrainOcTree::DeleteOutsideRecurs(TerrainOcTreeNode* node, const octomap::OcTreeKey& key,
                                         unsigned depth, const Eigen::Vector2d& min,
                                         const Eigen::Vector2d& max, std::size_t& count) {
-  if (!nodeHasChildren(node)) return false;  // a leaf straddling the border stays
+  if (!nodeHasChildren(node)) {
+    // A voxel straddling the border stays; a pruned node straddling it is expanded, so that
+    // what stays does not depend on when the tree was pruned.
+    const octomap::point3d c = keyToCoord(key, depth);
+    const double half = getNodeSize(depth) / 2.0;
+    const bool inside = c.x() - half >= min.x() && c.x() + half <= max.x() &&
+                        c.y() - half >= min.y() && c.y() + half <= max.y();
+    if (inside || depth >= tree_depth) return false;
+    node->Expand();
+    CountMade(8);
+  }
   const octomap::key_type offset = tree_max_val >> (depth + 1);
   bool any_left = false;
   for (unsigned i = 0; i < 8; ++i) {

@@ -302,7 +302,9 @@ TEST(Mapper, ResumedWithTheGravityEstimatorsGroundRisesGivesTheSameMap) {
     Expected<MapperRecord> r = Feed(*mapper, frames[k]);
     ASSERT_TRUE(r.ok()) << r.error().message;
     ASSERT_TRUE(r->tilt.gravity.has_value());
-    if (k < 4) EXPECT_EQ(r->tilt.gravity->cues.ground_rises, 0) << "frame " << k;
+    if (k < 4) {
+      EXPECT_EQ(r->tilt.gravity->cues.ground_rises, 0) << "frame " << k;
+    }
     rises += r->tilt.gravity->cues.ground_rises;
   }
   EXPECT_GT(rises, 5);

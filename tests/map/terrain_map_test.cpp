@@ -9,9 +9,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <set>
 #include <sstream>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -881,7 +883,8 @@ TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
 }
 
 // Collapsing only what is saturated free keeps every leaf's values, deletes nodes, and
-// leaves a tree that OctoMap's full prune then makes into the tree it makes unhelped.
+// leaves a tree that OctoMap's full prune then makes into the tree it makes unhelped; and a
+// rolling window's cut leaves the same voxels whether the tree was pruned fully or not.
 TEST(TerrainOcTree, PruningWhatIsSaturatedFreeKeepsTheLeavesAndTheFullPrune) {
   std::mt19937 rng(41);
   TerrainOcTree a(0.1), b(0.1);
@@ -920,15 +923,103 @@ TEST(TerrainOcTree, PruningWhatIsSaturatedFreeKeepsTheLeavesAndTheFullPrune) {
   EXPECT_EQ(a.size(), nodes_before - deleted);
   EXPECT_EQ(values(a), values(b));
   EXPECT_EQ(a.PruneSaturatedFree(), 0u);  // nothing left to collapse
-  for (TerrainOcTree* t : {&a, &b}) {
-    t->updateInnerOccupancy();
-    t->prune();
+  const auto same_after_full_prune = [](TerrainOcTree& x, TerrainOcTree& y) {
+    for (TerrainOcTree* t : {&x, &y}) {
+      t->updateInnerOccupancy();
+      t->prune();
+    }
+    std::ostringstream sx, sy;
+    x.writeData(sx);
+    y.writeData(sy);
+    EXPECT_TRUE(sx.str() == sy.str()) << "the trees' bytes differ";
+    EXPECT_EQ(x.size(), y.size());
+  };
+  // A rolling window's cut through nodes pruned in one and not in the other (b fully pruned
+  // first, as before every 8 frames): the same voxels stay.
+  // A block of 32 x 32 x 8 voxels seen free twice (equal, not saturated: OctoMap's prune
+  // collapses it into nodes up to 1.6 m wide) among the rays, and the window's border
+  // through it on voxel boundaries.
+  TerrainOcTree c(0.1), d(0.1);
+  const octomap::OcTreeKey corner(32768, 32768, 32768);
+  for (TerrainOcTree* t : {&c, &d}) {
+    for (std::size_t k = 0; k < rays.size(); ++k) {
+      for (int r = 0; r < (k % 5 == 0 ? 1 : 8); ++r) t->UpdateFree(rays[k]);
+    }
+    for (int dx = 0; dx < 32; ++dx) {
+      for (int dy = 0; dy < 32; ++dy) {
+        for (int dz = 0; dz < 8; ++dz) {
+          const octomap::OcTreeKey key(static_cast<octomap::key_type>(corner[0] + dx),
+                                       static_cast<octomap::key_type>(corner[1] + dy),
+                                       static_cast<octomap::key_type>(corner[2] + dz));
+          for (int r = 0; r < 2; ++r) t->UpdateFree(key);
+        }
+      }
+    }
+    for (std::size_t k = 0; k < occupied.size(); ++k) {
+      t->Update(t->TouchLeaf(occupied[k]), true, k % 3 == 0);
+    }
   }
-  std::ostringstream sa, sb;
-  a.writeData(sa);
-  b.writeData(sb);
-  EXPECT_EQ(sa.str(), sb.str());
-  EXPECT_EQ(a.size(), b.size());
+  c.PruneSaturatedFree();
+  d.updateInnerOccupancy();
+  d.prune();
+  const double v = 0.1;
+  const octomap::point3d base = c.keyToCoord(corner) - octomap::point3d(0.05f, 0.05f, 0.05f);
+  const Eigen::Vector2d lo(base.x() + 13 * v, base.y() - 40 * v);
+  const Eigen::Vector2d hi(base.x() + 90 * v, base.y() + 21 * v);
+  EXPECT_GT(c.DeleteOutsideXY(lo, hi), 1000u);
+  d.DeleteOutsideXY(lo, hi);
+  same_after_full_prune(c, d);
+  same_after_full_prune(a, b);
+}
+
+// Nodes come from a pool with a free list per thread: trees made on one thread and
+// destroyed on another, and threads that end holding free nodes, leave every tree made
+// afterwards with the values it was given (run in the CI's ThreadSanitizer stage too).
+TEST(TerrainOcTree, NodesMadeAndFreedOnDifferentThreadsKeepEveryTreeWhole) {
+  const auto fill = [](TerrainOcTree& t, int seed) {
+    std::mt19937 rng(static_cast<unsigned>(seed));
+    std::uniform_int_distribution<int> near(32600, 32935);
+    std::vector<octomap::OcTreeKey> keys;
+    for (int k = 0; k < 20000; ++k) {
+      keys.emplace_back(static_cast<octomap::key_type>(near(rng)),
+                        static_cast<octomap::key_type>(near(rng)),
+                        static_cast<octomap::key_type>(near(rng)));
+      t.Update(t.TouchLeaf(keys.back()), true, k % 2 == 0);
+    }
+    return keys;
+  };
+  const auto whole = [](const TerrainOcTree& t, const std::vector<octomap::OcTreeKey>& keys) {
+    int wrong = 0;
+    for (const octomap::OcTreeKey& key : keys) {
+      const TerrainOcTreeNode* n = t.search(key);
+      wrong += n == nullptr || !(n->getLogOdds() > 0.0f);
+    }
+    return wrong;
+  };
+  std::unique_ptr<TerrainOcTree> made_there;
+  std::vector<octomap::OcTreeKey> there_keys;
+  std::thread([&] {
+    made_there = std::make_unique<TerrainOcTree>(0.1);
+    there_keys = fill(*made_there, 1);
+    TerrainOcTree gone(0.1);  // freed on that thread, which then ends holding its nodes
+    fill(gone, 2);
+  }).join();
+  EXPECT_EQ(whole(*made_there, there_keys), 0);
+  made_there.reset();  // freed here
+  std::vector<std::unique_ptr<TerrainOcTree>> trees(3);
+  std::vector<std::vector<octomap::OcTreeKey>> keys(3);
+  std::vector<std::thread> threads;
+  for (int k = 0; k < 2; ++k) {
+    threads.emplace_back([&, k] {
+      trees[k] = std::make_unique<TerrainOcTree>(0.1);
+      keys[k] = fill(*trees[k], 10 + k);
+    });
+  }
+  trees[2] = std::make_unique<TerrainOcTree>(0.1);
+  keys[2] = fill(*trees[2], 12);
+  for (std::thread& t : threads) t.join();
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(whole(*trees[k], keys[k]), 0) << "tree " << k;
+  EXPECT_GT(trees[0]->size(), 20000u);
 }
 
 // Touching leaves with a LeafWalk (each walk resumed from the path it shares with the walk
@@ -1007,8 +1098,8 @@ TEST(GroundSurface, APlaneIsFoundOnEverySideOfTheSensor) {
   config.max_points = 100000;
   const internal::GroundSurface surface(internal::ThinGroundPoints(points, config), T_world_sensor,
                                         config);
-  for (const Eigen::Vector2d q : {Eigen::Vector2d(-1.7, -5.9), Eigen::Vector2d(7.2, 1.3),
-                                  Eigen::Vector2d(2.9, -2.1), Eigen::Vector2d(0.4, 2.6)}) {
+  for (const Eigen::Vector2d& q : {Eigen::Vector2d(-1.7, -5.9), Eigen::Vector2d(7.2, 1.3),
+                                   Eigen::Vector2d(2.9, -2.1), Eigen::Vector2d(0.4, 2.6)}) {
     const std::optional<internal::GroundSurface::Plane> p = surface.PlaneAt(q.x(), q.y());
     ASSERT_TRUE(p.has_value()) << q.transpose();
     EXPECT_NEAR(p->height_m, plane(q.x(), q.y()), 1e-4) << q.transpose();

@@ -179,8 +179,9 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   std::size_t PruneSaturatedFree();
 
   /// Deletes every node whose box lies entirely outside [min, max] in x and y (world) and
-  /// returns how many nodes went; nodes that straddle the border stay, and inner nodes keep
-  /// the maximum of the children left.
+  /// returns how many nodes went; voxels that straddle the border stay, and inner nodes keep
+  /// the maximum of the children left. A pruned node that straddles the border is expanded
+  /// first: the voxels left do not depend on when the tree was pruned.
   std::size_t DeleteOutsideXY(const Eigen::Vector2d& min, const Eigen::Vector2d& max);
 
  private:
