@@ -2,13 +2,147 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <cstdint>
+#include <cstdlib>
 #include <iterator>
 #include <limits>
+#include <mutex>
+#include <new>
 #include <vector>
 
 #include "cairn/od/parallel.hpp"
 
+#if defined(__SANITIZE_ADDRESS__)
+#define CAIRN_NODE_CHUNKS 0
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define CAIRN_NODE_CHUNKS 0
+#endif
+#endif
+#ifndef CAIRN_NODE_CHUNKS
+#define CAIRN_NODE_CHUNKS 1
+#endif
+
 namespace cairn::map {
+
+#if CAIRN_NODE_CHUNKS
+namespace {
+
+// Nodes in chunks of 64 KiB aligned to their size, each with a bit per block that is free.
+// A thread takes the free bits of a chunk a word at a time, lowest address first, from the
+// lowest chunk (in the order they were made) with enough free blocks: a map built after
+// another gets its nodes in the order of their addresses, as a fresh one does. (Free lists
+// hand back the last freed first: in one process each map built after another then got
+// slower, its nodes scattered over memory.) A node is freed by setting its bit, from any
+// thread. Chunks live as long as the process (nodes may outlive any static).
+constexpr std::size_t kBlockBytes = 16;
+static_assert(sizeof(TerrainOcTreeNode) <= kBlockBytes &&
+              alignof(TerrainOcTreeNode) <= kBlockBytes);
+constexpr std::size_t kChunkBytes = std::size_t{1} << 16;
+constexpr std::size_t kChunkBlocks = kChunkBytes / kBlockBytes;  // 4,096
+constexpr std::size_t kWords = kChunkBlocks / 64;
+constexpr std::int64_t kMinFree = 256;  // fewer free blocks: a chunk is passed over
+
+struct Chunk {
+  std::atomic<std::uint64_t> free[kWords];  // bit b of word w: block 64 w + b is free
+  std::atomic<std::int64_t> free_count;
+};
+constexpr std::size_t kHeaderBlocks = (sizeof(Chunk) + kBlockBytes - 1) / kBlockBytes;
+
+struct Chunks {
+  std::mutex mutex;
+  std::vector<Chunk*> made;
+};
+Chunks& AllChunks() {
+  static Chunks* chunks = new Chunks;  // never destroyed (see above)
+  return *chunks;
+}
+
+// The lowest chunk with kMinFree free blocks, or a new one.
+Chunk* NextChunk() {
+  Chunks& chunks = AllChunks();
+  const std::lock_guard<std::mutex> lock(chunks.mutex);
+  for (Chunk* c : chunks.made) {
+    if (c->free_count.load(std::memory_order_relaxed) >= kMinFree) return c;
+  }
+  void* memory = std::aligned_alloc(kChunkBytes, kChunkBytes);
+  if (memory == nullptr) throw std::bad_alloc();
+  Chunk* c = new (memory) Chunk;
+  for (std::size_t w = 0; w < kWords; ++w) {
+    std::uint64_t bits = ~std::uint64_t{0};
+    for (std::size_t b = 0; b < 64; ++b) {
+      if (64 * w + b < kHeaderBlocks) bits &= ~(std::uint64_t{1} << b);
+    }
+    c->free[w].store(bits, std::memory_order_relaxed);
+  }
+  c->free_count.store(static_cast<std::int64_t>(kChunkBlocks - kHeaderBlocks),
+                      std::memory_order_relaxed);
+  chunks.made.push_back(c);
+  return c;
+}
+
+// A thread's place: its chunk, the next word to take, and the free blocks taken from the
+// word before. Trivially destructible: still there while statics are destroyed. Blocks taken
+// and not handed out when the thread ends stay unused.
+struct Cursor {
+  Chunk* chunk = nullptr;
+  std::size_t next_word = kWords;
+  std::size_t word = 0;
+  std::uint64_t taken = 0;
+};
+thread_local Cursor t_cursor;
+
+void* TakeBlock() {
+  Cursor& c = t_cursor;
+  for (;;) {
+    if (c.taken != 0) {
+      const unsigned bit = static_cast<unsigned>(__builtin_ctzll(c.taken));
+      c.taken &= c.taken - 1;
+      return reinterpret_cast<unsigned char*>(c.chunk) + (64 * c.word + bit) * kBlockBytes;
+    }
+    if (c.chunk != nullptr && c.next_word < kWords) {
+      c.word = c.next_word++;
+      c.taken = c.chunk->free[c.word].exchange(0, std::memory_order_acquire);
+      if (c.taken != 0) {
+        c.chunk->free_count.fetch_sub(__builtin_popcountll(c.taken), std::memory_order_relaxed);
+      }
+      continue;
+    }
+    c.chunk = NextChunk();
+    c.next_word = 0;
+  }
+}
+
+void GiveBlock(void* p) noexcept {
+  const auto address = reinterpret_cast<std::uintptr_t>(p);
+  Chunk* chunk = reinterpret_cast<Chunk*>(address & ~(kChunkBytes - 1));
+  const std::size_t block = (address & (kChunkBytes - 1)) / kBlockBytes;
+  chunk->free[block / 64].fetch_or(std::uint64_t{1} << (block % 64), std::memory_order_release);
+  chunk->free_count.fetch_add(1, std::memory_order_relaxed);
+}
+
+}  // namespace
+
+void* TerrainOcTreeNode::operator new(std::size_t size) {
+  if (size != sizeof(TerrainOcTreeNode)) return ::operator new(size);
+  return TakeBlock();
+}
+
+void TerrainOcTreeNode::operator delete(void* node, std::size_t size) noexcept {
+  if (node == nullptr) return;
+  if (size != sizeof(TerrainOcTreeNode)) {
+    ::operator delete(node);
+    return;
+  }
+  GiveBlock(node);
+}
+#else
+void* TerrainOcTreeNode::operator new(std::size_t size) { return ::operator new(size); }
+void TerrainOcTreeNode::operator delete(void* node, std::size_t) noexcept {
+  ::operator delete(node);
+}
+#endif
 
 void TerrainOcTreeNode::updateOccupancyChildren() {
   if (children == nullptr) return;

@@ -9,9 +9,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <set>
 #include <sstream>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -968,6 +970,57 @@ TEST(TerrainOcTree, PruningWhatIsSaturatedFreeKeepsTheLeavesAndTheFullPrune) {
   d.DeleteOutsideXY(lo, hi);
   same_after_full_prune(c, d);
   same_after_full_prune(a, b);
+}
+
+// Nodes come from chunks of their own, taken and freed by any thread: trees made on one
+// thread and destroyed on another, threads that end while holding free blocks, and threads
+// making trees at once leave every tree with the values it was given (run in the CI's
+// ThreadSanitizer stage too).
+TEST(TerrainOcTree, NodesMadeAndFreedOnDifferentThreadsKeepEveryTreeWhole) {
+  const auto fill = [](TerrainOcTree& t, int seed) {
+    std::mt19937 rng(static_cast<unsigned>(seed));
+    std::uniform_int_distribution<int> near(32600, 32935);
+    std::vector<octomap::OcTreeKey> keys;
+    for (int k = 0; k < 20000; ++k) {
+      keys.emplace_back(static_cast<octomap::key_type>(near(rng)),
+                        static_cast<octomap::key_type>(near(rng)),
+                        static_cast<octomap::key_type>(near(rng)));
+      t.Update(t.TouchLeaf(keys.back()), true, k % 2 == 0);
+    }
+    return keys;
+  };
+  const auto whole = [](const TerrainOcTree& t, const std::vector<octomap::OcTreeKey>& keys) {
+    int wrong = 0;
+    for (const octomap::OcTreeKey& key : keys) {
+      const TerrainOcTreeNode* n = t.search(key);
+      wrong += n == nullptr || !(n->getLogOdds() > 0.0f);
+    }
+    return wrong;
+  };
+  std::unique_ptr<TerrainOcTree> made_there;
+  std::vector<octomap::OcTreeKey> there_keys;
+  std::thread([&] {
+    made_there = std::make_unique<TerrainOcTree>(0.1);
+    there_keys = fill(*made_there, 1);
+    TerrainOcTree gone(0.1);  // freed on that thread, which then ends holding its nodes
+    fill(gone, 2);
+  }).join();
+  EXPECT_EQ(whole(*made_there, there_keys), 0);
+  made_there.reset();  // freed here
+  std::vector<std::unique_ptr<TerrainOcTree>> trees(3);
+  std::vector<std::vector<octomap::OcTreeKey>> keys(3);
+  std::vector<std::thread> threads;
+  for (int k = 0; k < 2; ++k) {
+    threads.emplace_back([&, k] {
+      trees[k] = std::make_unique<TerrainOcTree>(0.1);
+      keys[k] = fill(*trees[k], 10 + k);
+    });
+  }
+  trees[2] = std::make_unique<TerrainOcTree>(0.1);
+  keys[2] = fill(*trees[2], 12);
+  for (std::thread& t : threads) t.join();
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(whole(*trees[k], keys[k]), 0) << "tree " << k;
+  EXPECT_GT(trees[0]->size(), 20000u);
 }
 
 // Touching leaves with a LeafWalk (each walk resumed from the path it shares with the walk
