@@ -46,7 +46,9 @@ constexpr std::int64_t kMinFree = 256;  // fewer free blocks: a chunk is passed 
 
 struct Chunk {
   std::atomic<std::uint64_t> free[kWords];  // bit b of word w: block 64 w + b is free
-  std::atomic<std::int64_t> free_count;
+  // On a cache line of its own: blocks next to it would share it with every take and free.
+  alignas(64) std::atomic<std::int64_t> free_count;
+  unsigned char padding[64 - sizeof(std::atomic<std::int64_t>)];
 };
 constexpr std::size_t kHeaderBlocks = (sizeof(Chunk) + kBlockBytes - 1) / kBlockBytes;
 
@@ -59,13 +61,15 @@ Chunks& AllChunks() {
   return *chunks;
 }
 
-// The lowest chunk with kMinFree free blocks, or a new one.
-Chunk* NextChunk() {
+// The lowest chunk with kMinFree free blocks other than `passed` (a chunk whose words just
+// gave too few: others may hold the rest for a moment), or a new one.
+Chunk* NextChunk(const Chunk* passed) {
   Chunks& chunks = AllChunks();
   const std::lock_guard<std::mutex> lock(chunks.mutex);
   for (Chunk* c : chunks.made) {
-    if (c->free_count.load(std::memory_order_relaxed) >= kMinFree) return c;
+    if (c != passed && c->free_count.load(std::memory_order_relaxed) >= kMinFree) return c;
   }
+  chunks.made.reserve(chunks.made.size() + 1);  // before the chunk: a throw loses nothing
   void* memory = std::aligned_alloc(kChunkBytes, kChunkBytes);
   if (memory == nullptr) throw std::bad_alloc();
   Chunk* c = new (memory) Chunk;
@@ -109,7 +113,7 @@ void* TakeBlock() {
       }
       continue;
     }
-    c.chunk = NextChunk();
+    c.chunk = NextChunk(c.chunk);
     c.next_word = 0;
   }
 }

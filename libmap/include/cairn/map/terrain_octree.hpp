@@ -33,7 +33,10 @@ namespace cairn::map {
 class TerrainOcTreeNode : public octomap::OcTreeNode {
  public:
   TerrainOcTreeNode() = default;
-  TerrainOcTreeNode(const TerrainOcTreeNode& rhs) = default;
+  // OctoMap's node copy constructor copies children with global new, as its own base type:
+  // no copies (a node's delete hands it back to the chunks of terrain_octree.cpp).
+  TerrainOcTreeNode(const TerrainOcTreeNode& rhs) = delete;
+  TerrainOcTreeNode& operator=(const TerrainOcTreeNode& rhs) = delete;
 
   /// Nodes come from chunks of their own (terrain_octree.cpp), handed out in the order of
   /// their addresses, freed ones too: a frame makes and prunes hundreds of thousands, which
