@@ -898,14 +898,19 @@ TEST(TerrainOcTree, PruningWhatIsSaturatedFreeKeepsTheLeavesAndTheFullPrune) {
   // Free space along rays, some voxels saturated (seen free 8 times), some once, and the
   // occupied voxels (some of them obstacles) among them.
   const std::vector<octomap::OcTreeKey> rays = RayKeys(rng, 600);
-  for (TerrainOcTree* t : {&a, &b}) {
+  const auto fill = [&](TerrainOcTree& t, const std::vector<octomap::OcTreeKey>& seen_twice) {
     for (std::size_t k = 0; k < rays.size(); ++k) {
-      for (int r = 0; r < (k % 5 == 0 ? 1 : 8); ++r) t->UpdateFree(rays[k]);
+      for (int r = 0; r < (k % 5 == 0 ? 1 : 8); ++r) t.UpdateFree(rays[k]);
+    }
+    for (const octomap::OcTreeKey& key : seen_twice) {
+      for (int r = 0; r < 2; ++r) t.UpdateFree(key);
     }
     for (std::size_t k = 0; k < occupied.size(); ++k) {
-      t->Update(t->TouchLeaf(occupied[k]), true, k % 3 == 0);
+      t.Update(t.TouchLeaf(occupied[k]), true, k % 3 == 0);
     }
-  }
+  };
+  fill(a, {});
+  fill(b, {});
   const auto values = [&](const TerrainOcTree& t) {
     std::vector<std::pair<float, float>> v;
     for (const std::vector<octomap::OcTreeKey>* keys :
@@ -941,24 +946,18 @@ TEST(TerrainOcTree, PruningWhatIsSaturatedFreeKeepsTheLeavesAndTheFullPrune) {
   // through it on voxel boundaries.
   TerrainOcTree c(0.1), d(0.1);
   const octomap::OcTreeKey corner(32768, 32768, 32768);
-  for (TerrainOcTree* t : {&c, &d}) {
-    for (std::size_t k = 0; k < rays.size(); ++k) {
-      for (int r = 0; r < (k % 5 == 0 ? 1 : 8); ++r) t->UpdateFree(rays[k]);
-    }
-    for (int dx = 0; dx < 32; ++dx) {
-      for (int dy = 0; dy < 32; ++dy) {
-        for (int dz = 0; dz < 8; ++dz) {
-          const octomap::OcTreeKey key(static_cast<octomap::key_type>(corner[0] + dx),
-                                       static_cast<octomap::key_type>(corner[1] + dy),
-                                       static_cast<octomap::key_type>(corner[2] + dz));
-          for (int r = 0; r < 2; ++r) t->UpdateFree(key);
-        }
+  std::vector<octomap::OcTreeKey> block;
+  for (int dx = 0; dx < 32; ++dx) {
+    for (int dy = 0; dy < 32; ++dy) {
+      for (int dz = 0; dz < 8; ++dz) {
+        block.emplace_back(static_cast<octomap::key_type>(corner[0] + dx),
+                           static_cast<octomap::key_type>(corner[1] + dy),
+                           static_cast<octomap::key_type>(corner[2] + dz));
       }
     }
-    for (std::size_t k = 0; k < occupied.size(); ++k) {
-      t->Update(t->TouchLeaf(occupied[k]), true, k % 3 == 0);
-    }
   }
+  fill(c, block);
+  fill(d, block);
   c.PruneSaturatedFree();
   d.updateInnerOccupancy();
   d.prune();
