@@ -207,9 +207,9 @@ PointTree::PointTree(const LevelPoints& level, const std::vector<std::uint8_t>& 
   leaf_rows = std::clamp(leaf_rows, 1, kMaxLeafPoints);
   leaf_cols = std::clamp(leaf_cols, 1, kMaxLeafPoints / leaf_rows);
   const std::size_t n = static_cast<std::size_t>(width) * height;
-  x.reserve(n);
-  y.reserve(n);
-  z.reserve(n);
+  x.reserve(n + kPadding);
+  y.reserve(n + kPadding);
+  z.reserve(n + kPadding);
   pixel.reserve(n);
   if (per_column) {
     for (int c = 0; c < width; ++c) {
@@ -217,6 +217,12 @@ PointTree::PointTree(const LevelPoints& level, const std::vector<std::uint8_t>& 
     }
   } else {
     roots.push_back(Build(level, mask, width, 0, height, 0, width, leaf_rows, leaf_cols));
+  }
+  // Padding, so that four points read from a leaf's last stay within the vectors.
+  for (int k = 0; k < kPadding; ++k) {
+    x.push_back(0.0f);
+    y.push_back(0.0f);
+    z.push_back(std::numeric_limits<float>::infinity());
   }
 }
 
@@ -581,7 +587,8 @@ class alignas(64) Search {
   // each through the pair test's slope condition; partner(j) for each in ascending order,
   // until it returns true. Returns the index after the last point tested.
   template <class Partner>
-  int ScanWindow(const Node& B, const float* p, int j, const Partner& partner) const {
+  int ScanWindow(const Node& B, const float* p, int j, std::uint64_t active,
+                 const Partner& partner) const {
     const float* ux = up_.x.data();
     const float* uy = up_.y.data();
     const float* uz = up_.z.data();
@@ -592,27 +599,48 @@ class alignas(64) Search {
     const __m128 px = _mm_set1_ps(p[0]), py = _mm_set1_ps(p[1]), pz = _mm_set1_ps(p[2]);
     const __m128 vh = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
     for (; j + 4 <= B.end; j += 4) {
+      if ((active >> (j - B.begin)) == 0) return j;  // none left that can change anything
       const __m128 dz = _mm_sub_ps(_mm_loadu_ps(uz + j), pz);
       const int window = _mm_movemask_ps(_mm_cmplt_ps(dz, vh));
       if (window == 0) return j;
       const __m128 dx = _mm_sub_ps(_mm_loadu_ps(ux + j), px);
       const __m128 dy = _mm_sub_ps(_mm_loadu_ps(uy + j), py);
       const __m128 reach = _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)));
-      for (int hits = _mm_movemask_ps(_mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach)) & window; hits != 0;
-           hits &= hits - 1) {
+      const int live = static_cast<int>((active >> (j - B.begin)) & 0xf);
+      for (int hits = _mm_movemask_ps(_mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach)) & window & live;
+           hits != 0; hits &= hits - 1) {
         const int k = __builtin_ctz(static_cast<unsigned>(hits));
         if (partner(j + k)) return j + k + 1;
       }
       // Heights ascend: a window short of four ends in these (its bits are the low ones).
       if (window != 0xf) return j + __builtin_ctz(~static_cast<unsigned>(window));
     }
-#endif
+    if (j < B.end) {
+      // The last one to three points, with lanes beyond the leaf masked out (they read the
+      // next leaf's points, or the padding after the last leaf).
+      const int valid = (1 << (B.end - j)) - 1;
+      const __m128 dz = _mm_sub_ps(_mm_loadu_ps(uz + j), pz);
+      const int window = _mm_movemask_ps(_mm_cmplt_ps(dz, vh)) & valid;
+      const __m128 dx = _mm_sub_ps(_mm_loadu_ps(ux + j), px);
+      const __m128 dy = _mm_sub_ps(_mm_loadu_ps(uy + j), py);
+      const __m128 reach = _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)));
+      const int live = static_cast<int>((active >> (j - B.begin)) & 0xf);
+      for (int hits = _mm_movemask_ps(_mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach)) & window & live;
+           hits != 0; hits &= hits - 1) {
+        const int k = __builtin_ctz(static_cast<unsigned>(hits));
+        if (partner(j + k)) return j + k + 1;
+      }
+      return j + __builtin_ctz(~static_cast<unsigned>(window));
+    }
+    return j;
+#else
     for (; j < B.end && uz[j] - p[2] < hmax; ++j) {
       const float dx = ux[j] - p[0], dy = uy[j] - p[1], dz = uz[j] - p[2];
-      if (!(dz * dz > tan2 * (dx * dx + dy * dy))) continue;
+      if (!((active >> (j - B.begin)) & 1) || !(dz * dz > tan2 * (dx * dx + dy * dy))) continue;
       if (partner(j)) return j + 1;
     }
     return j;
+#endif
   }
 
   // Two leaves, point by point; a lower point whose partners are all or none of the upper
@@ -635,6 +663,8 @@ class alignas(64) Search {
     while (i_begin < i_end && !(B.lo[2] - lz[i_begin] < hmax)) ++i_begin;
     while (i_end > i_begin && !(B.hi[2] - lz[i_end - 1] > test_.min_height)) --i_end;
     int first_from = B.begin;  // the lower points come by height: their first candidates too
+    int done_root = -1;        // the set DoneBits was last taken for
+    std::uint64_t done_bits = 0;  // and its answer
     // Each point's verdict against B's box, all at once: `keep` those not rejected.
     std::uint64_t keep = 0, accept = 0;
     ClassifyPoints(B, i_begin, i_end, keep, accept);
@@ -657,6 +687,17 @@ class alignas(64) Search {
       int root = unions_ ? Find(pi) : 0;
       const int first = FirstAbove(B, p[2], first_from);
       first_from = first;
+      // A point with a partner already meets, among B's points raised in its set, none that
+      // can change anything: only the others are looked at.
+      std::uint64_t active = ~std::uint64_t{0};
+      if (unions_ && lower_[pi]) {
+        if (root != done_root) {
+          done_root = root;
+          done_bits = DoneBits(B, root);
+        }
+        active = ~done_bits;
+        if (first >= B.end || ((active >> (first - B.begin)) << (first - B.begin)) == 0) continue;
+      }
       bool any = false;
       // One partner (upper point j): raised, joined; true when the rest of B can change
       // nothing.
@@ -674,12 +715,25 @@ class alignas(64) Search {
         }
         return b_done && (!unions_ || parent_[b_first] == root || root == Find(b_first));
       };
-      const int j = ScanWindow(B, p, first, partner);
+      const int j = ScanWindow(B, p, first, active, partner);
       stats_.pairs_tested += j - first;
       if (any) lower_.Add(pi, 1);
     }
     UpdateLeaf(lo_, flags_lo_, a, lower_);
     UpdateLeaf(up_, flags_up_, b, raised_);
+  }
+
+  // Bit j - B.begin for each point j of leaf B that is raised and in the set of `root`: a
+  // pair of it with a lower point of that set that has a partner changes nothing. Facts only
+  // grow, so bits taken earlier stay true.
+  std::uint64_t DoneBits(const Node& B, int root) {
+    std::uint64_t bits = 0;
+    for (int j = B.begin; j < B.end; ++j) {
+      const int pj = up_.pixel[j];
+      const bool done = raised_[pj] && (parent_[pj] == root || Find(pj) == root);
+      bits |= static_cast<std::uint64_t>(done) << (j - B.begin);
+    }
+    return bits;
   }
 
   // Sets kFull on a leaf when every point has `point_flag`, and then tries to see the leaf

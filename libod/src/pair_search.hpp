@@ -18,7 +18,9 @@
 //    once); settled, and skipped, when it can change nothing (every lower point has a
 //    partner, every upper point is raised, both nodes are one segment already); else split,
 //    down to leaves, where each lower point meets the height-sorted upper points between
-//    HT and Hmax above it, four at a time where the compiler has SSE2.
+//    HT and Hmax above it, four at a time where the compiler has SSE2; a lower point that
+//    has a partner already meets only the upper points not yet raised in its set (a pair of
+//    two such points changes nothing).
 // 4. Tasks. The lower tree is cut into 256 or more tasks (its largest nodes first), each searched
 //    against the whole upper tree; the workers share one set of marks, flags and sets
 //    (relaxed atomics, a lock-free union-find that links the larger root under the smaller),
@@ -61,8 +63,10 @@ struct PointTree {
   /// Per tree: one for the whole image, or one per column (column mode; -1 when the column
   /// holds no point).
   std::vector<std::int32_t> roots;
-  /// Stored points in tree order (each leaf's points together, by ascending height).
+  /// Stored points in tree order (each leaf's points together, by ascending height), then
+  /// kPadding more (z infinite), so that the search reads four at a time from any point.
   std::vector<float> x, y, z;
+  static constexpr int kPadding = 3;
   std::vector<std::int32_t> pixel;  ///< image index of each stored point
 
   /// The most points a leaf holds (the search keeps a leaf's points as bits of one word).
