@@ -105,11 +105,13 @@ int RunMap(const MapOptions& options) {
   std::signal(SIGTERM, OnInterrupt);
 
   // Checkpoints: the Mapper and the run's state, every --checkpoint-every frames and when
-  // interrupted, in DIR/map.checkpoint (atomically); removed once the map files are written.
+  // interrupted, in DIR/map.checkpoint (atomically), the per-frame records it counts in
+  // DIR/map.checkpoint.records (added to at each); removed once the map files are written.
   Expected<std::string> config_text =
       options.config.empty() ? Expected<std::string>(std::string()) : util::ReadTextFile(options.config);
   if (!config_text) return MapFail(config_text.error().message);
   const fs::path checkpoint = fs::path(options.out) / map::kCheckpointFileName;
+  const fs::path records_file = fs::path(options.out) / kRecordsFileName;
   RunState state;
   state.input = SourceJson(source.Describe());
   state.config_text = *config_text;
@@ -134,6 +136,7 @@ int RunMap(const MapOptions& options) {
     }
     Expected<RunState> saved = ResumeStateFromJson(app_data, checkpoint.string());
     if (!saved) return MapFail(saved.error().message);
+    if (Status s = LoadRecords(*saved, records_file); !s) return MapFail(s.message());
     if (Status s = SameRun(*saved, state, checkpoint.string(), options.config); !s) {
       return MapFail(s.message());
     }
@@ -152,6 +155,9 @@ int RunMap(const MapOptions& options) {
     const Clock::time_point t0 = Clock::now();
     state.wall_s = earlier_wall_s + SecondsSince(run_start);
     state.times = times;
+    // The records first: the checkpoint counts them, and until it is in place the one before
+    // counts fewer (what lies beyond is cut when saved again or resumed).
+    if (Status s = SaveRecords(state, records_file); !s) return s;
     Status saved = mapper.SaveCheckpoint(checkpoint, ResumeStateJson(state));
     times.checkpoint_s += SecondsSince(t0);
     return saved;
@@ -269,6 +275,7 @@ int RunMap(const MapOptions& options) {
   }
   fs::remove(staging, ec);
   fs::remove(checkpoint, ec);  // the map files hold it all now
+  fs::remove(records_file, ec);
   cleanup.armed = false;
   std::cout << *text << "  files in " << options.out << ":";
   for (const fs::path& p : written) std::cout << " " << p.filename().string();

@@ -101,16 +101,31 @@ struct RunState {
   double wall_s = 0.0;      ///< wall time of the runs before this one [s]
   int frames_read = 0;      ///< frames taken from the source, skipped ones included
   std::vector<FrameRecord> records;
+  /// The first records_saved records are in the records file (kRecordsFileName), one JSON
+  /// line each, in its first records_bytes bytes: a checkpoint names how many, so that it
+  /// does not carry the run's whole list (which grows with the run) each time.
+  std::size_t records_saved = 0;
+  std::uint64_t records_bytes = 0;
   std::vector<SkippedFrame> skipped;
   int refined_frames = 0;
   StageTimes times;
 };
 
+/// Beside DIR/map.checkpoint: the per-frame records the checkpoint counts.
+inline constexpr const char* kRecordsFileName = "map.checkpoint.records";
+
 nlohmann::json SourceJson(const sources::SourceInfo& info);
 /// The options besides the input and --config that change what is fused.
 nlohmann::json RunOptions(const MapOptions& o, map::TiltMode tilt, double window_size_m);
+/// The run's state without its records, which SaveRecords keeps: the resume state of a
+/// checkpoint; and back (records_saved and records_bytes set, records empty until LoadRecords).
 std::string ResumeStateJson(const RunState& state);
 Expected<RunState> ResumeStateFromJson(const std::string& text, const std::string& path);
+/// Adds the records not yet saved to `file` (after its first records_bytes bytes, cutting what
+/// an interrupted save left beyond them; from the start when none are saved), flushed to disk.
+Status SaveRecords(RunState& state, const std::filesystem::path& file);
+/// Reads the records_saved records a resumed checkpoint counts from `file`.
+Status LoadRecords(RunState& state, const std::filesystem::path& file);
 /// Checks a checkpoint's run state against this run: the same input, options and settings
 /// (`config`: the --config path, empty for the defaults); the error names what differs.
 Status SameRun(const RunState& saved, const RunState& now, const std::string& checkpoint,

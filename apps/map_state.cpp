@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 #include <stdexcept>
 
 #include "cairn/sources/rawlog_frames.hpp"
+#include "cairn/util/atomic_file.hpp"
 #include "cairn/util/format.hpp"
 #include "map_run.hpp"
 #include "process_memory.hpp"
@@ -33,7 +35,7 @@ Eigen::Isometry3d IsometryFromJson(const json& m) {
   return T;
 }
 
-constexpr const char* kFormat = "cairn map resume state 3";
+constexpr const char* kFormat = "cairn map resume state 4";
 
 }  // namespace
 
@@ -77,23 +79,44 @@ Expected<std::unique_ptr<sources::FrameSource>> OpenFrameSource(const MapOptions
   X(obstacles_s)
 #define CAIRN_TIME_FIELDS(X) X(read_s) X(detect_s) X(refine_s) X(fuse_s) X(write_s) X(checkpoint_s)
 
-std::string ResumeStateJson(const RunState& state) {
-  json records = json::array();
-  for (const FrameRecord& r : state.records) {
-    json j, fused;
+namespace {
+
+json RecordJson(const FrameRecord& r) {
+  json j, fused;
 #define CAIRN_PUT(f) j[#f] = r.f;
-    CAIRN_RECORD_FIELDS(CAIRN_PUT)
+  CAIRN_RECORD_FIELDS(CAIRN_PUT)
 #undef CAIRN_PUT
 #define CAIRN_PUT(f) fused[#f] = r.fused.f;
-    CAIRN_SUMMARY_FIELDS(CAIRN_PUT)
+  CAIRN_SUMMARY_FIELDS(CAIRN_PUT)
 #undef CAIRN_PUT
-    j["fused"] = fused;
-    j["not_observable"] = r.not_observable;
-    j["verticals"] = r.verticals;
-    j["T_world_body"] = IsometryJson(r.T_world_body);
-    j["T_world_sensor"] = IsometryJson(r.T_world_sensor);
-    records.push_back(std::move(j));
-  }
+  j["fused"] = fused;
+  j["not_observable"] = r.not_observable;
+  j["verticals"] = r.verticals;
+  j["T_world_body"] = IsometryJson(r.T_world_body);
+  j["T_world_sensor"] = IsometryJson(r.T_world_sensor);
+  return j;
+}
+
+// Throws (json's exceptions, std::runtime_error) on a record that is not whole.
+FrameRecord RecordFromJson(const json& rj) {
+  FrameRecord r;
+#define CAIRN_GET(f) rj.at(#f).get_to(r.f);
+  CAIRN_RECORD_FIELDS(CAIRN_GET)
+#undef CAIRN_GET
+  const json& fused = rj.at("fused");
+#define CAIRN_GET(f) fused.at(#f).get_to(r.fused.f);
+  CAIRN_SUMMARY_FIELDS(CAIRN_GET)
+#undef CAIRN_GET
+  r.not_observable = rj.at("not_observable").get<std::string>();
+  r.verticals = rj.at("verticals").get<int>();
+  r.T_world_body = IsometryFromJson(rj.at("T_world_body"));
+  r.T_world_sensor = IsometryFromJson(rj.at("T_world_sensor"));
+  return r;
+}
+
+}  // namespace
+
+std::string ResumeStateJson(const RunState& state) {
   json skipped = json::array();
   for (const SkippedFrame& s : state.skipped) {
     skipped.push_back({{"name", s.name}, {"reason", s.reason}, {"detail", s.detail}});
@@ -110,7 +133,7 @@ std::string ResumeStateJson(const RunState& state) {
                   {"frames_read", state.frames_read},
                   {"refined_frames", state.refined_frames},
                   {"times", times},
-                  {"records", records},
+                  {"records", {{"count", state.records_saved}, {"bytes", state.records_bytes}}},
                   {"skipped", skipped}};
   return j.dump();
 }
@@ -119,7 +142,9 @@ Expected<RunState> ResumeStateFromJson(const std::string& text, const std::strin
   try {
     const json j = json::parse(text);
     if (j.at("format") != kFormat) {
-      return Error{path + ": not a cairn map checkpoint (its resume state is of another format)"};
+      return Error{path +
+                   ": not a cairn map checkpoint of this version (its resume state is of "
+                   "another format)"};
     }
     RunState state;
     state.input = j.at("input");
@@ -132,22 +157,8 @@ Expected<RunState> ResumeStateFromJson(const std::string& text, const std::strin
 #define CAIRN_GET(f) times.at(#f).get_to(state.times.f);
     CAIRN_TIME_FIELDS(CAIRN_GET)
 #undef CAIRN_GET
-    for (const json& rj : j.at("records")) {
-      FrameRecord r;
-#define CAIRN_GET(f) rj.at(#f).get_to(r.f);
-      CAIRN_RECORD_FIELDS(CAIRN_GET)
-#undef CAIRN_GET
-      const json& fused = rj.at("fused");
-#define CAIRN_GET(f) fused.at(#f).get_to(r.fused.f);
-      CAIRN_SUMMARY_FIELDS(CAIRN_GET)
-#undef CAIRN_GET
-      // Written since 2026-12-04; a checkpoint from before has none.
-      r.not_observable = rj.value("not_observable", std::string());
-      r.verticals = rj.value("verticals", 0);
-      r.T_world_body = IsometryFromJson(rj.at("T_world_body"));
-      r.T_world_sensor = IsometryFromJson(rj.at("T_world_sensor"));
-      state.records.push_back(r);
-    }
+    state.records_saved = j.at("records").at("count").get<std::size_t>();
+    state.records_bytes = j.at("records").at("bytes").get<std::uint64_t>();
     for (const json& s : j.at("skipped")) {
       state.skipped.push_back({s.at("name").get<std::string>(), s.at("reason").get<std::string>(),
                                s.at("detail").get<std::string>()});
@@ -157,6 +168,54 @@ Expected<RunState> ResumeStateFromJson(const std::string& text, const std::strin
     return Error{path + ": the run's resume state is unreadable (" + e.what() + ")"};
   }
 }
+
+Status SaveRecords(RunState& state, const std::filesystem::path& file) {
+  std::string lines;
+  for (std::size_t i = state.records_saved; i < state.records.size(); ++i) {
+    lines += RecordJson(state.records[i]).dump();
+    lines += '\n';
+  }
+  if (Status s = util::WriteFileAt(file, state.records_bytes, lines); !s) return s;
+  state.records_saved = state.records.size();
+  state.records_bytes += lines.size();
+  return Status::Ok();
+}
+
+Status LoadRecords(RunState& state, const std::filesystem::path& file) {
+  const std::string name = file.string();
+  std::ifstream in(file, std::ios::binary);
+  if (!in) {
+    return Error{name + ": cannot open the records the checkpoint counts (" +
+                 std::to_string(state.records_saved) + ")"};
+  }
+  std::string bytes(state.records_bytes, '\0');
+  in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  if (static_cast<std::uint64_t>(in.gcount()) != state.records_bytes) {
+    return Error{name + ": holds " + std::to_string(in.gcount()) +
+                 " bytes, the checkpoint counts " + std::to_string(state.records_bytes)};
+  }
+  state.records.clear();
+  state.records.reserve(state.records_saved);
+  std::size_t at = 0;
+  while (at < bytes.size()) {
+    const std::size_t end = bytes.find('\n', at);
+    if (end == std::string::npos) break;
+    try {
+      state.records.push_back(RecordFromJson(json::parse(bytes.begin() + at, bytes.begin() + end)));
+    } catch (const std::exception& e) {
+      return Error{name + ": record " + std::to_string(state.records.size() + 1) +
+                   " is unreadable (" + e.what() + ")"};
+    }
+    at = end + 1;
+  }
+  if (at != bytes.size() || state.records.size() != state.records_saved) {
+    return Error{name + ": " + std::to_string(state.records.size()) +
+                 " whole records in the bytes the checkpoint counts, expected " +
+                 std::to_string(state.records_saved)};
+  }
+  return Status::Ok();
+}
+
 #undef CAIRN_RECORD_FIELDS
 #undef CAIRN_SUMMARY_FIELDS
 #undef CAIRN_TIME_FIELDS

@@ -227,6 +227,7 @@ TEST_F(MapFaults, SigkillAtRandomPointsThenResumeGivesTheUninterruptedMap) {
   EXPECT_GT(kills, 0);
   ASSERT_TRUE(fs::exists(parts / "map.bt"));
   EXPECT_FALSE(fs::exists(parts / "map.checkpoint"));
+  EXPECT_FALSE(fs::exists(parts / "map.checkpoint.records"));
   const std::map<std::string, std::string> resumed = Files(parts);
   for (const char* name : {"map.bt", "map.ot", "obstacles.ot", "cost.pgm", "cost.yaml",
                            "elevation.tiff", "obstacles.json", "poses.tum"}) {

@@ -139,6 +139,31 @@ TEST(AtomicFile, AFailedWriteLeavesNothingAndNamesTheFile) {
   EXPECT_NE(missing.message().find((dir / "no" / "a.txt").string()), std::string::npos);
 }
 
+// A log whose committed length a checkpoint keeps: each write cuts what lies beyond the
+// length it is given (an interrupted write's tail) and leaves the bytes before it alone.
+TEST(AtomicFile, WriteAtCutsTheTailAndKeepsTheCommittedBytes) {
+  test::TempDir dir;
+  const std::filesystem::path log = dir / "log.txt";
+  const auto read = [&log]() {
+    std::ifstream in(log, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  ASSERT_TRUE(util::WriteFileAt(log, 0, "one\n").ok());  // created
+  ASSERT_TRUE(util::WriteFileAt(log, 4, "two\nhalf").ok());
+  EXPECT_EQ(read(), "one\ntwo\nhalf");
+  ASSERT_TRUE(util::WriteFileAt(log, 8, "three\n").ok());  // "half" was never committed
+  EXPECT_EQ(read(), "one\ntwo\nthree\n");
+  ASSERT_TRUE(util::WriteFileAt(log, 0, "").ok());  // a fresh start empties it
+  EXPECT_EQ(read(), "");
+  // Asked to keep more than the file holds: refused, naming the file, and left as it was.
+  ASSERT_TRUE(util::WriteFileAt(log, 0, "abc").ok());
+  const Status s = util::WriteFileAt(log, 10, "x");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find(log.string()), std::string::npos) << s.message();
+  EXPECT_EQ(read(), "abc");
+  EXPECT_FALSE(util::WriteFileAt(dir / "no" / "log.txt", 0, "x").ok());
+}
+
 TEST(DetectionFiles, WritesTheFiveFilesIntoANewDirectory) {
   test::TempDir dir;
   RunDescription run;

@@ -1,6 +1,7 @@
 #include "cairn/util/atomic_file.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -69,6 +70,40 @@ Status WriteFileAtomic(const std::filesystem::path& path, std::string_view bytes
     ::fsync(dir_fd);
     ::close(dir_fd);
   }
+  return Status::Ok();
+}
+
+Status WriteFileAt(const std::filesystem::path& path, std::uint64_t at, std::string_view bytes) {
+  const std::string name = path.string();
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) return Error{name + ": cannot open for writing: " + SystemError(errno)};
+  const auto fail = [&](const std::string& what, int error) -> Status {
+    ::close(fd);
+    return Error{name + ": " + what + ": " + SystemError(error)};
+  };
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) return fail("cannot read its size", errno);
+  if (static_cast<std::uint64_t>(st.st_size) < at) {
+    ::close(fd);
+    return Error{name + ": holds " + std::to_string(st.st_size) + " bytes, expected at least " +
+                 std::to_string(at)};
+  }
+  if (::ftruncate(fd, static_cast<off_t>(at)) != 0) return fail("cannot cut it", errno);
+  const char* data = bytes.data();
+  std::size_t left = bytes.size();
+  auto offset = static_cast<off_t>(at);
+  while (left > 0) {
+    const ssize_t n = ::pwrite(fd, data, left, offset);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return fail("write failed", errno);
+    }
+    data += n;
+    offset += n;
+    left -= static_cast<std::size_t>(n);
+  }
+  if (::fsync(fd) != 0) return fail("fsync failed", errno);
+  if (::close(fd) != 0) return Error{name + ": close failed: " + SystemError(errno)};
   return Status::Ok();
 }
 

@@ -3,6 +3,7 @@
 // old file or the new one, never a half-written one, and a failed write leaves no temporary.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <string_view>
 
@@ -13,5 +14,11 @@ namespace cairn::util {
 /// Writes `bytes` to `path` atomically (POSIX rename). The directory must exist. Errors
 /// name the file and the system's reason.
 Status WriteFileAtomic(const std::filesystem::path& path, std::string_view bytes);
+
+/// For a log that only grows and whose committed length is kept elsewhere (a checkpoint):
+/// cuts `path` to its first `at` bytes (creating it when missing), writes `bytes` there and
+/// flushes them to disk. Whatever an earlier, interrupted call left beyond `at` is dropped;
+/// the first `at` bytes are never touched. Fails, naming the file, when it holds fewer.
+Status WriteFileAt(const std::filesystem::path& path, std::uint64_t at, std::string_view bytes);
 
 }  // namespace cairn::util
