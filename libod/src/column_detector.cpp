@@ -8,6 +8,10 @@
 #include <string>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "detection_internal.hpp"
 
 namespace cairn::od {
@@ -89,14 +93,31 @@ void SortColumn(ColumnPoint* points, int m) {
   }
 }
 
+#if defined(__SSE2__)
+// Lanes k with bit k of `bits` set all ones, the others zero.
+__m128 LaneMask(int bits) {
+  return _mm_castsi128_ps(
+      _mm_set_epi32(-((bits >> 3) & 1), -((bits >> 2) & 1), -((bits >> 1) & 1), -(bits & 1)));
+}
+#endif
+
+// Set bits of four (a table: x86-64 without POPCNT makes __builtin_popcount a call).
+constexpr std::uint8_t kBitCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+
+// Neighbourhoods (a bin and the two beside it) of at most this many points are searched
+// four points at a time without windows; larger ones (dense images) by windows.
+constexpr int kDirectPoints = 48;
+
 // The compatible pairs within each column, fast. A partner q of a lower point p lies less
 // than reach = Hmax / tan(theta) from it horizontally, so less than reach along any
 // horizontal direction: the column's points are put in bins of that width along the
 // column's mean horizontal direction u, each bin sorted by height, and p meets the points
 // of its own and the two neighbouring bins from the first more than HT above it (as the
 // pair test rounds the difference, which grows with the upper height) to the last less than
-// Hmax above, one by one. The points of a bin stop at the first with no point of those bins
-// more than HT above it. Each column is gathered, bottom row first, into one reused buffer.
+// Hmax above (four at a time where the compiler has SSE2; where the three bins hold at most
+// kDirectPoints, all of them, the window a mask). The points of a bin stop at the first with
+// no point of those bins more than HT above it. Each column is gathered, bottom row first,
+// into one reused buffer, and the marks of its pairs are stored once it is done.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
                             int height) {
   const int n = width * height;
@@ -112,6 +133,20 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
   };
   std::vector<ColumnPoint> column(height);
   std::vector<Bin> bins;
+#if defined(__SSE2__)
+  // The SIMD path's copies of the column, with room for reading four from the last point.
+  std::vector<float> xyz(3 * (static_cast<std::size_t>(height) + 4), 0.0f);
+  float* const cx = xyz.data();
+  float* const cy = cx + height + 4;
+  float* const cz = cy + height + 4;
+  std::vector<std::int32_t> hits(2 * (static_cast<std::size_t>(height) + 4), 0);
+  std::int32_t* const upper_hit = hits.data();
+  std::int32_t* const lower_hit = upper_hit + height + 4;
+  const __m128 kLaneMasks[16] = {LaneMask(0),  LaneMask(1),  LaneMask(2),  LaneMask(3),
+                                 LaneMask(4),  LaneMask(5),  LaneMask(6),  LaneMask(7),
+                                 LaneMask(8),  LaneMask(9),  LaneMask(10), LaneMask(11),
+                                 LaneMask(12), LaneMask(13), LaneMask(14), LaneMask(15)};
+#endif
   const float ht = test.min_height, hmax = test.max_height, tan2 = test.tan2_theta;
   // The bins are wider than the reach by a margin covering the rounding of u. Bin numbers
   // are clamped to +-1e9: a bin that far out holds nothing within reach of the others.
@@ -160,22 +195,108 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       if (bins.empty() || bins.back().bin != bin) bins.push_back({bin, k, k});
       bins.back().end = k + 1;
     }
+#if defined(__SSE2__)
+    // The column's points side by side (x, y, z), padded so that four are read from any,
+    // and per point whether it is the upper point of a pair found (all ones) or the lower.
+    for (int k = 0; k < m; ++k) {
+      cx[k] = column[k].x;
+      cy[k] = column[k].y;
+      cz[k] = column[k].z;
+      upper_hit[k] = 0;
+      lower_hit[k] = 0;
+    }
+#endif
     for (int g = 0; g < static_cast<int>(bins.size()); ++g) {
-      // The bins within one of g's, each with the first point more than HT above the
-      // current lower point (which only moves up, as the lower points of g do).
+      // The bins within one of g's: consecutive in the column (sorted by bin), [r0, r1).
+      const int nb = static_cast<int>(bins.size());
+      const int r0 =
+          g > 0 && bins[g - 1].bin == bins[g].bin - 1 ? bins[g - 1].begin : bins[g].begin;
+      const int r1 =
+          g + 1 < nb && bins[g + 1].bin == bins[g].bin + 1 ? bins[g + 1].end : bins[g].end;
+      float top = -std::numeric_limits<float>::infinity();
+      for (int h = std::max(0, g - 1); h <= g + 1 && h < nb; ++h) {
+        if (bins[h].bin < bins[g].bin - 1 || bins[h].bin > bins[g].bin + 1) continue;
+        top = std::max(top, column[bins[h].end - 1].z);
+      }
+#if defined(__SSE2__)
+      if (r1 - r0 <= kDirectPoints) {
+        // Few points near: each lower point meets all of them four at a time, the window
+        // HT..Hmax and the slope as bit masks (the pair test's float operations in its
+        // order), without a branch on either.
+        const __m128 vht = _mm_set1_ps(ht), vhmax = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
+        for (int k = bins[g].begin; k < bins[g].end; ++k) {
+          const float pz_scalar = column[k].z;
+          if (!(top - pz_scalar > ht)) break;  // nothing more than HT above this point or the next
+          const __m128 px = _mm_set1_ps(column[k].x), py = _mm_set1_ps(column[k].y);
+          const __m128 pz = _mm_set1_ps(pz_scalar);
+          int any = 0;
+          for (int j = r0; j < r1; j += 4) {
+            const int valid = r1 - j >= 4 ? 0xf : (1 << (r1 - j)) - 1;
+            const __m128 dz = _mm_sub_ps(_mm_loadu_ps(cz + j), pz);
+            const __m128 dx = _mm_sub_ps(_mm_loadu_ps(cx + j), px);
+            const __m128 dy = _mm_sub_ps(_mm_loadu_ps(cy + j), py);
+            const __m128 window = _mm_and_ps(_mm_cmpgt_ps(dz, vht), _mm_cmplt_ps(dz, vhmax));
+            const __m128 steep =
+                _mm_cmpgt_ps(_mm_mul_ps(dz, dz),
+                             _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
+            const __m128 hit = _mm_and_ps(_mm_and_ps(window, steep), kLaneMasks[valid]);
+            const int bits = _mm_movemask_ps(hit);
+            pairs_tested += kBitCount[_mm_movemask_ps(window) & valid];
+            pairs_compatible += kBitCount[bits];
+            any |= bits;
+            __m128i* marks = reinterpret_cast<__m128i*>(upper_hit + j);
+            _mm_storeu_si128(marks, _mm_or_si128(_mm_loadu_si128(marks), _mm_castps_si128(hit)));
+          }
+          lower_hit[k] |= any;
+        }
+        continue;
+      }
+#endif
+      // Many points near (a dense image's column): each bin's points from the first more
+      // than HT above the current lower point (which only moves up, as the lower points of g
+      // do) to the last less than Hmax above.
       const ColumnPoint* first[3];
       const ColumnPoint* end[3];
       int near = 0;
-      float top = -std::numeric_limits<float>::infinity();
-      for (int h = std::max(0, g - 1); h <= g + 1 && h < static_cast<int>(bins.size()); ++h) {
+      for (int h = std::max(0, g - 1); h <= g + 1 && h < nb; ++h) {
         if (bins[h].bin < bins[g].bin - 1 || bins[h].bin > bins[g].bin + 1) continue;
         first[near] = column.data() + bins[h].begin;
         end[near++] = column.data() + bins[h].end;
-        top = std::max(top, column[bins[h].end - 1].z);
       }
       for (int k = bins[g].begin; k < bins[g].end; ++k) {
         const float px = column[k].x, py = column[k].y, pz = column[k].z;
         if (!(top - pz > ht)) break;  // nothing more than HT above this point or the next
+#if defined(__SSE2__)
+        // Each bin's window four points at a time (heights ascend: past the first point
+        // Hmax or more above, none is less), its hits marked as above.
+        const __m128 vpx = _mm_set1_ps(px), vpy = _mm_set1_ps(py), vpz = _mm_set1_ps(pz);
+        const __m128 vhmax = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
+        int any_bits = 0;
+        for (int h = 0; h < near; ++h) {
+          while (first[h] < end[h] && !(first[h]->z - pz > ht)) ++first[h];
+          const int j_end = static_cast<int>(end[h] - column.data());
+          for (int j = static_cast<int>(first[h] - column.data()); j < j_end; j += 4) {
+            const int valid = j_end - j >= 4 ? 0xf : (1 << (j_end - j)) - 1;
+            const __m128 dz = _mm_sub_ps(_mm_loadu_ps(cz + j), vpz);
+            const __m128 dx = _mm_sub_ps(_mm_loadu_ps(cx + j), vpx);
+            const __m128 dy = _mm_sub_ps(_mm_loadu_ps(cy + j), vpy);
+            const __m128 window = _mm_and_ps(_mm_cmplt_ps(dz, vhmax), kLaneMasks[valid]);
+            const __m128 steep =
+                _mm_cmpgt_ps(_mm_mul_ps(dz, dz),
+                             _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
+            const __m128 hit = _mm_and_ps(window, steep);
+            const int in_window = _mm_movemask_ps(window);
+            const int bits = _mm_movemask_ps(hit);
+            pairs_tested += kBitCount[in_window];
+            pairs_compatible += kBitCount[bits];
+            any_bits |= bits;
+            __m128i* marks = reinterpret_cast<__m128i*>(upper_hit + j);
+            _mm_storeu_si128(marks, _mm_or_si128(_mm_loadu_si128(marks), _mm_castps_si128(hit)));
+            if (in_window != 0xf) break;
+          }
+        }
+        lower_hit[k] |= any_bits;
+#else
         // Every tested partner's marks are stored, as they were or raised by the test: no
         // branch on its outcome, which the processor cannot foresee.
         std::uint8_t any = 0;
@@ -194,8 +315,17 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
           pairs_tested += q - first[h];
         }
         obstacle[column[k].pixel] |= any;
+#endif
       }
     }
+#if defined(__SSE2__)
+    for (int k = 0; k < m; ++k) {
+      const int pixel = column[k].pixel;
+      const std::uint8_t up = upper_hit[k] != 0;
+      obstacle[pixel] |= static_cast<std::uint8_t>(up | (lower_hit[k] != 0));
+      raised[pixel] |= up;
+    }
+#endif
   }
   out.stats.pairs_compatible = pairs_compatible;
   out.stats.pairs_tested = pairs_tested;
