@@ -120,7 +120,8 @@ int RunMap(const MapOptions& options) {
   if (!options.resume && fs::exists(checkpoint)) {
     return MapFail(checkpoint.string() +
                    ": an interrupted run's checkpoint is here: continue it with --resume, or "
-                   "remove it (or choose another --out) to start afresh");
+                   "remove it and map.checkpoint.records (or choose another --out) to start "
+                   "afresh");
   }
   if (options.resume) {
     if (!fs::exists(checkpoint)) {
@@ -136,10 +137,10 @@ int RunMap(const MapOptions& options) {
     }
     Expected<RunState> saved = ResumeStateFromJson(app_data, checkpoint.string());
     if (!saved) return MapFail(saved.error().message);
-    if (Status s = LoadRecords(*saved, records_file); !s) return MapFail(s.message());
     if (Status s = SameRun(*saved, state, checkpoint.string(), options.config); !s) {
       return MapFail(s.message());
     }
+    if (Status s = LoadRecords(*saved, records_file); !s) return MapFail(s.message());
     const Clock::time_point skip_start = Clock::now();
     if (Status s = source.Skip(saved->frames_read); !s) return MapFail(s.message());
     const double open_s = times.read_s + SecondsSince(skip_start);

@@ -188,6 +188,13 @@ Status LoadRecords(RunState& state, const std::filesystem::path& file) {
     return Error{name + ": cannot open the records the checkpoint counts (" +
                  std::to_string(state.records_saved) + ")"};
   }
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(file, ec);
+  if (ec || size < state.records_bytes || state.records_saved > state.records_bytes) {
+    return Error{name + ": holds " + (ec ? std::string("no readable") : std::to_string(size)) +
+                 " bytes, the checkpoint counts " + std::to_string(state.records_bytes) + " (" +
+                 std::to_string(state.records_saved) + " records)"};
+  }
   std::string bytes(state.records_bytes, '\0');
   in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   if (static_cast<std::uint64_t>(in.gcount()) != state.records_bytes) {

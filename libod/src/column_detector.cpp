@@ -94,19 +94,19 @@ void SortColumn(ColumnPoint* points, int m) {
 }
 
 #if defined(__SSE2__)
-// Lanes k with bit k of `bits` set all ones, the others zero.
-__m128 LaneMask(int bits) {
-  return _mm_castsi128_ps(
-      _mm_set_epi32(-((bits >> 3) & 1), -((bits >> 2) & 1), -((bits >> 1) & 1), -(bits & 1)));
-}
-#endif
-
 // Set bits of four (a table: x86-64 without POPCNT makes __builtin_popcount a call).
 constexpr std::uint8_t kBitCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
 
 // Neighbourhoods (a bin and the two beside it) of at most this many points are searched
 // four points at a time without windows; larger ones (dense images) by windows.
 constexpr int kDirectPoints = 48;
+
+// Lanes k with bit k of `bits` set all ones, the others zero.
+__m128 LaneMask(int bits) {
+  return _mm_castsi128_ps(
+      _mm_set_epi32(-((bits >> 3) & 1), -((bits >> 2) & 1), -((bits >> 1) & 1), -(bits & 1)));
+}
+#endif
 
 // The compatible pairs within each column, fast. A partner q of a lower point p lies less
 // than reach = Hmax / tan(theta) from it horizontally, so less than reach along any
@@ -209,9 +209,9 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     for (int g = 0; g < static_cast<int>(bins.size()); ++g) {
       // The bins within one of g's: consecutive in the column (sorted by bin), [r0, r1).
       const int nb = static_cast<int>(bins.size());
-      const int r0 =
+      [[maybe_unused]] const int r0 =
           g > 0 && bins[g - 1].bin == bins[g].bin - 1 ? bins[g - 1].begin : bins[g].begin;
-      const int r1 =
+      [[maybe_unused]] const int r1 =
           g + 1 < nb && bins[g + 1].bin == bins[g].bin + 1 ? bins[g + 1].end : bins[g].end;
       float top = -std::numeric_limits<float>::infinity();
       for (int h = std::max(0, g - 1); h <= g + 1 && h < nb; ++h) {

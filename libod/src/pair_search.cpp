@@ -723,8 +723,9 @@ class alignas(64) Search {
     UpdateLeaf(up_, flags_up_, b, raised_);
   }
 
-  // Bit j - B.begin for each point j of leaf B that is raised and in the set of `root`: a
-  // pair of it with a lower point of that set that has a partner changes nothing. Facts only
+  // Bit j - B.begin for each point j of leaf B that is raised and in the set of `root` (and
+  // every bit past the leaf): a pair of it with a lower point of that set that has a partner
+  // changes nothing. Facts only
   // grow, so bits taken earlier stay true.
   std::uint64_t DoneBits(const Node& B, int root) {
     std::uint64_t bits = 0;
@@ -733,6 +734,9 @@ class alignas(64) Search {
       const bool done = raised_[pj] && (parent_[pj] == root || Find(pj) == root);
       bits |= static_cast<std::uint64_t>(done) << (j - B.begin);
     }
+    // The bits past the leaf are set too: where none of its points is left, nothing is.
+    const int size = B.end - B.begin;
+    if (size < 64) bits |= ~std::uint64_t{0} << size;
     return bits;
   }
 

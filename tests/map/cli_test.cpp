@@ -481,6 +481,18 @@ TEST_F(MapCli, AnInterruptedRunResumesFromItsCheckpointToTheSameMap) {
   EXPECT_NE(short_run.err.find((short_of / "map.checkpoint.records").string()), std::string::npos)
       << short_run.err;
 
+  // A record broken inside what the checkpoint counts (its length kept): refused, naming the
+  // file and the record.
+  std::string records = ReadFile(parts / "map.checkpoint.records");
+  ASSERT_GT(records.size(), 2u);
+  records[1] = '#';
+  std::ofstream(short_of / "map.checkpoint.records", std::ios::binary | std::ios::trunc) << records;
+  const CommandRun broken = Cairn(common + short_of.string() + "' --resume", dir());
+  EXPECT_EQ(broken.status, 1);
+  EXPECT_NE(broken.err.find((short_of / "map.checkpoint.records").string() + ": record 1"),
+            std::string::npos)
+      << broken.err;
+
   const CommandRun resumed = Cairn(common + parts.string() + "' --resume", dir());
   ASSERT_EQ(resumed.status, 0) << resumed.err;
   EXPECT_NE(resumed.err.find("after " + frames_done + " frames"), std::string::npos)

@@ -75,7 +75,8 @@ Status WriteFileAtomic(const std::filesystem::path& path, std::string_view bytes
 
 Status WriteFileAt(const std::filesystem::path& path, std::uint64_t at, std::string_view bytes) {
   const std::string name = path.string();
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  // Created only when nothing of it is to be kept.
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC | (at == 0 ? O_CREAT : 0), 0644);
   if (fd < 0) return Error{name + ": cannot open for writing: " + SystemError(errno)};
   const auto fail = [&](const std::string& what, int error) -> Status {
     ::close(fd);
