@@ -598,10 +598,12 @@ class alignas(64) Search {
     // operations in its order.
     const __m128 px = _mm_set1_ps(p[0]), py = _mm_set1_ps(p[1]), pz = _mm_set1_ps(p[2]);
     const __m128 vh = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
-    for (; j + 4 <= B.end; j += 4) {
+    for (; j < B.end; j += 4) {
       if ((active >> (j - B.begin)) == 0) return j;  // none left that can change anything
+      // Lanes past the leaf (the next leaf's points, or the padding after the last) masked.
+      const int valid = B.end - j >= 4 ? 0xf : (1 << (B.end - j)) - 1;
       const __m128 dz = _mm_sub_ps(_mm_loadu_ps(uz + j), pz);
-      const int window = _mm_movemask_ps(_mm_cmplt_ps(dz, vh));
+      const int window = _mm_movemask_ps(_mm_cmplt_ps(dz, vh)) & valid;
       if (window == 0) return j;
       const __m128 dx = _mm_sub_ps(_mm_loadu_ps(ux + j), px);
       const __m128 dy = _mm_sub_ps(_mm_loadu_ps(uy + j), py);
@@ -614,23 +616,6 @@ class alignas(64) Search {
       }
       // Heights ascend: a window short of four ends in these (its bits are the low ones).
       if (window != 0xf) return j + __builtin_ctz(~static_cast<unsigned>(window));
-    }
-    if (j < B.end) {
-      // The last one to three points, with lanes beyond the leaf masked out (they read the
-      // next leaf's points, or the padding after the last leaf).
-      const int valid = (1 << (B.end - j)) - 1;
-      const __m128 dz = _mm_sub_ps(_mm_loadu_ps(uz + j), pz);
-      const int window = _mm_movemask_ps(_mm_cmplt_ps(dz, vh)) & valid;
-      const __m128 dx = _mm_sub_ps(_mm_loadu_ps(ux + j), px);
-      const __m128 dy = _mm_sub_ps(_mm_loadu_ps(uy + j), py);
-      const __m128 reach = _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)));
-      const int live = static_cast<int>((active >> (j - B.begin)) & 0xf);
-      for (int hits = _mm_movemask_ps(_mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach)) & window & live;
-           hits != 0; hits &= hits - 1) {
-        const int k = __builtin_ctz(static_cast<unsigned>(hits));
-        if (partner(j + k)) return j + k + 1;
-      }
-      return j + __builtin_ctz(~static_cast<unsigned>(window));
     }
     return j;
 #else
