@@ -1,6 +1,7 @@
 #include "cairn/od/column_detector.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -63,8 +64,13 @@ struct ColumnPairs {
 struct ColumnPoint {
   std::uint64_t key;
   float x, y, z;
-  std::int32_t pixel;
+  std::int32_t row;
 };
+
+// Columns are gathered and their marks stored this many at a time, row by row: a column
+// alone strides the image by its width, a power of two on LiDAR scans (2048), whose rows then
+// share a handful of cache sets and evict one another.
+constexpr int kBlockColumns = 16;
 
 std::uint64_t ColumnKey(std::int32_t bin, float z) {
   std::uint32_t bits;
@@ -116,8 +122,9 @@ __m128 LaneMask(int bits) {
 // pair test rounds the difference, which grows with the upper height) to the last less than
 // Hmax above (four at a time where the compiler has SSE2; where the three bins hold at most
 // kDirectPoints, all of them, the window a mask). The points of a bin stop at the first with
-// no point of those bins more than HT above it. Each column is gathered, bottom row first,
-// into one reused buffer, and the marks of its pairs are stored once it is done.
+// no point of those bins more than HT above it. The columns are gathered kBlockColumns at a
+// time, row by row, bottom row first, into reused buffers, and their marks stored the same
+// way once the block is done.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
                             int height) {
   const int n = width * height;
@@ -131,8 +138,36 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     std::int32_t bin;
     int begin, end;  // its points in the column
   };
-  std::vector<ColumnPoint> column(height);
   std::vector<Bin> bins;
+  // A block of columns: per column its valid points, bottom row first (their keys set when
+  // the column's turn comes), and per row its marks (bit 0 obstacle, bit 1 raised).
+  std::vector<ColumnPoint> gathered(static_cast<std::size_t>(kBlockColumns) * height);
+  std::array<int, kBlockColumns> gathered_count{};
+  std::vector<std::uint8_t> block_marks(static_cast<std::size_t>(kBlockColumns) * height);
+  const auto gather_block = [&](int c0) {
+    const int block = std::min(kBlockColumns, width - c0);
+    gathered_count.fill(0);
+    for (int r = height - 1; r >= 0; --r) {
+      for (int b = 0; b < block; ++b) {
+        const int i = r * width + c0 + b;
+        const float z = level.z[i];
+        if (std::isnan(z)) continue;
+        gathered[static_cast<std::size_t>(b) * height + gathered_count[b]++] = {0, level.x[i],
+                                                                                level.y[i], z, r};
+      }
+    }
+    std::fill(block_marks.begin(), block_marks.end(), std::uint8_t{0});
+  };
+  const auto store_block = [&](int c0) {
+    const int block = std::min(kBlockColumns, width - c0);
+    for (int r = 0; r < height; ++r) {
+      for (int b = 0; b < block; ++b) {
+        const std::uint8_t v = block_marks[static_cast<std::size_t>(b) * height + r];
+        obstacle[r * width + c0 + b] = v & 1;
+        raised[r * width + c0 + b] = v >> 1;
+      }
+    }
+  };
 #if defined(__SSE2__)
   // The SIMD path's copies of the column, with room for reading four from the last point.
   std::vector<float> xyz(3 * (static_cast<std::size_t>(height) + 4), 0.0f);
@@ -174,21 +209,27 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     direction(mx, my);
   }
   for (int c = 0; c < width; ++c) {
-    int m = 0;
+    const int b = c % kBlockColumns;
+    if (b == 0) {
+      if (c > 0) store_block(c - kBlockColumns);
+      gather_block(c);
+    }
+    std::uint8_t* const column_marks = block_marks.data() + static_cast<std::size_t>(b) * height;
+    ColumnPoint* const column = gathered.data() + static_cast<std::size_t>(b) * height;
+    const int m = gathered_count[b];
     double mx = 0.0, my = 0.0;
-    for (int i = (height - 1) * width + c; i >= 0; i -= width) {
-      const float x = level.x[i], y = level.y[i], z = level.z[i];
-      if (std::isnan(z)) continue;
+    for (int k = 0; k < m; ++k) {
+      const float x = column[k].x, y = column[k].y;
       const double u = std::clamp((ux * x + uy * y) * per_width, -1e9, 1e9);
       int bin = static_cast<int>(u);
       bin -= static_cast<double>(bin) > u;  // floor
-      column[m++] = {ColumnKey(bin, z), x, y, z, i};
+      column[k].key = ColumnKey(bin, column[k].z);
       mx += x;
       my += y;
     }
     direction(mx, my);
     if (m < 2) continue;
-    SortColumn(column.data(), m);
+    SortColumn(column, m);
     bins.clear();
     for (int k = 0; k < m; ++k) {
       const auto bin = static_cast<std::int32_t>((column[k].key >> 32) ^ 0x80000000u);
@@ -260,8 +301,8 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       int near = 0;
       for (int h = std::max(0, g - 1); h <= g + 1 && h < nb; ++h) {
         if (bins[h].bin < bins[g].bin - 1 || bins[h].bin > bins[g].bin + 1) continue;
-        first[near] = column.data() + bins[h].begin;
-        end[near++] = column.data() + bins[h].end;
+        first[near] = column + bins[h].begin;
+        end[near++] = column + bins[h].end;
       }
       for (int k = bins[g].begin; k < bins[g].end; ++k) {
         const float px = column[k].x, py = column[k].y, pz = column[k].z;
@@ -274,8 +315,8 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
         int any_bits = 0;
         for (int h = 0; h < near; ++h) {
           while (first[h] < end[h] && !(first[h]->z - pz > ht)) ++first[h];
-          const int j_end = static_cast<int>(end[h] - column.data());
-          for (int j = static_cast<int>(first[h] - column.data()); j < j_end; j += 4) {
+          const int j_end = static_cast<int>(end[h] - column);
+          for (int j = static_cast<int>(first[h] - column); j < j_end; j += 4) {
             const int valid = j_end - j >= 4 ? 0xf : (1 << (j_end - j)) - 1;
             const __m128 dz = _mm_sub_ps(_mm_loadu_ps(cz + j), vpz);
             const __m128 dx = _mm_sub_ps(_mm_loadu_ps(cx + j), vpx);
@@ -306,27 +347,24 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
           for (; q < end[h] && q->z - pz < hmax; ++q) {
             const float dx = q->x - px, dy = q->y - py, dz = q->z - pz;
             const std::uint8_t compatible = dz * dz > tan2 * (dx * dx + dy * dy);
-            const int pixel = q->pixel;
             pairs_compatible += compatible;
             any |= compatible;
-            obstacle[pixel] |= compatible;
-            raised[pixel] |= compatible;
+            column_marks[q->row] |= static_cast<std::uint8_t>(compatible * 3);
           }
           pairs_tested += q - first[h];
         }
-        obstacle[column[k].pixel] |= any;
+        column_marks[column[k].row] |= any;
 #endif
       }
     }
 #if defined(__SSE2__)
     for (int k = 0; k < m; ++k) {
-      const int pixel = column[k].pixel;
-      const std::uint8_t up = upper_hit[k] != 0;
-      obstacle[pixel] |= static_cast<std::uint8_t>(up | (lower_hit[k] != 0));
-      raised[pixel] |= up;
+      const int up = upper_hit[k] != 0;
+      column_marks[column[k].row] = static_cast<std::uint8_t>(3 * up | (lower_hit[k] != 0));
     }
 #endif
   }
+  if (width > 0) store_block((width - 1) / kBlockColumns * kBlockColumns);
   out.stats.pairs_compatible = pairs_compatible;
   out.stats.pairs_tested = pairs_tested;
   return out;
