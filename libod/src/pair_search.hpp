@@ -83,6 +83,7 @@ struct PointTree {
  private:
   std::int32_t Build(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width,
                      int r0, int r1, int c0, int c1, int leaf_rows, int leaf_cols);
+  std::int32_t stored_ = 0;  // points stored so far (Build)
 };
 
 struct PairSearchOptions {
