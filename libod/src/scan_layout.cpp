@@ -251,9 +251,9 @@ Expected<RingBreaks> FindRingBreaks(const std::vector<Eigen::Vector3f>& points,
   std::vector<double> first(result.rings, -1.0), last(result.rings, 0.0);
   for (std::size_t k = 0; k < m; ++k) {
     const int r = result.ring[index[k]];
-    const double phase = WrapPositive(sweep * (azimuth[k] - result.seam_rad));
-    if (first[r] < 0.0) first[r] = phase;
-    last[r] = phase;
+    const double from_seam = WrapPositive(sweep * (azimuth[k] - result.seam_rad));
+    if (first[r] < 0.0) first[r] = from_seam;
+    last[r] = from_seam;
   }
   std::vector<double> travel(result.rings);
   for (int r = 0; r < result.rings; ++r) travel[r] = last[r] - first[r];
