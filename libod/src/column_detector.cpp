@@ -123,8 +123,8 @@ __m128 LaneMask(int bits) {
 // Hmax above (four at a time where the compiler has SSE2; where the three bins hold at most
 // kDirectPoints, all of them, the window a mask). The points of a bin stop at the first with
 // no point of those bins more than HT above it. The columns are gathered kBlockColumns at a
-// time, row by row, bottom row first, into reused buffers, and their marks stored the same
-// way once the block is done.
+// time, row by row, bottom row first, into reused buffers, and their marks stored row by
+// row once the block is done.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
                             int height) {
   const int n = width * height;
@@ -140,7 +140,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
   };
   std::vector<Bin> bins;
   // A block of columns: per column its valid points, bottom row first (their keys set when
-  // the column's turn comes), and per row its marks (bit 0 obstacle, bit 1 raised).
+  // the column's turn comes), and its marks per row (bit 0 obstacle, bit 1 raised).
   std::vector<ColumnPoint> gathered(static_cast<std::size_t>(kBlockColumns) * height);
   std::array<int, kBlockColumns> gathered_count{};
   std::vector<std::uint8_t> block_marks(static_cast<std::size_t>(kBlockColumns) * height);
