@@ -584,9 +584,52 @@ class alignas(64) Search {
     }
   }
 
+  // Bit j - B.begin for each point j of upper leaf B that Classify(A's box, j) does not
+  // reject, and every bit past the leaf: a point without its bit is no partner of any lower
+  // point of A.
+  std::uint64_t NearLower(const Node& A, const Node& B) const {
+    const float* ux = up_.x.data();
+    const float* uy = up_.y.data();
+    const float* uz = up_.z.data();
+    std::uint64_t near = 0;
+    int j = B.begin;
+#if defined(__SSE2__)
+    // Four at a time, with Classify's float operations in its order; the lanes past the leaf
+    // are set below whatever they give.
+    const __m128 ht = _mm_set1_ps(test_.min_height), hmax = _mm_set1_ps(test_.max_height);
+    const __m128 tan2 = _mm_set1_ps(test_.tan2_theta), zero = _mm_setzero_ps();
+    const __m128 ax_lo = _mm_set1_ps(A.lo[0]), ax_hi = _mm_set1_ps(A.hi[0]);
+    const __m128 ay_lo = _mm_set1_ps(A.lo[1]), ay_hi = _mm_set1_ps(A.hi[1]);
+    const __m128 az_lo = _mm_set1_ps(A.lo[2]), az_hi = _mm_set1_ps(A.hi[2]);
+    for (; j < B.end; j += 4) {
+      const __m128 qx = _mm_loadu_ps(ux + j), qy = _mm_loadu_ps(uy + j);
+      const __m128 qz = _mm_loadu_ps(uz + j);
+      const __m128 dz_hi = _mm_sub_ps(qz, az_lo), dz_lo = _mm_sub_ps(qz, az_hi);
+      const __m128 heights = _mm_and_ps(_mm_cmpgt_ps(dz_hi, ht), _mm_cmplt_ps(dz_lo, hmax));
+      const __m128 dz_best = _mm_min_ps(dz_hi, hmax);
+      // Gap: the one positive of (q - box high, box low - q), else 0.
+      const __m128 gx = _mm_max_ps(_mm_max_ps(_mm_sub_ps(qx, ax_hi), _mm_sub_ps(ax_lo, qx)), zero);
+      const __m128 gy = _mm_max_ps(_mm_max_ps(_mm_sub_ps(qy, ay_hi), _mm_sub_ps(ay_lo, qy)), zero);
+      const __m128 kept = _mm_and_ps(
+          heights,
+          _mm_cmpgt_ps(_mm_mul_ps(dz_best, dz_best),
+                       _mm_mul_ps(tan2, _mm_add_ps(_mm_mul_ps(gx, gx), _mm_mul_ps(gy, gy)))));
+      near |= static_cast<std::uint64_t>(_mm_movemask_ps(kept)) << (j - B.begin);
+    }
+#else
+    for (; j < B.end; ++j) {
+      const float q[3] = {ux[j], uy[j], uz[j]};
+      near |= static_cast<std::uint64_t>(Classify(A.lo, A.hi, q, q, test_) != kReject)
+              << (j - B.begin);
+    }
+#endif
+    const int size = B.end - B.begin;
+    return size < 64 ? near | ~std::uint64_t{0} << size : near;
+  }
+
   // Upper leaf B's candidates from `first` (more than HT above p) while less than Hmax above,
-  // each through the pair test's slope condition; partner(j) for each in ascending order,
-  // until it returns true. Returns the index after the last point tested.
+  // each through the pair test's slope condition; partner(j) for each of those `active` in
+  // ascending order, until it returns true. Returns the window's size (the points tested).
   template <class Partner>
   int ScanWindow(const Node& B, const float* p, int j, std::uint64_t active,
                  const Partner& partner) const {
@@ -599,33 +642,45 @@ class alignas(64) Search {
     // operations in its order.
     const __m128 px = _mm_set1_ps(p[0]), py = _mm_set1_ps(p[1]), pz = _mm_set1_ps(p[2]);
     const __m128 vh = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
+    // The window's hits as one mask first, then the partners in order: fewer branches for the
+    // processor to mispredict than a stop after each four.
+    std::uint64_t hits = 0;
+    const int from = j;
     for (; j < B.end; j += 4) {
-      if ((active >> (j - B.begin)) == 0) return j;  // none left that can change anything
-      // Lanes past the leaf (the next leaf's points, or the padding after the last) masked.
-      const int valid = B.end - j >= 4 ? 0xf : (1 << (B.end - j)) - 1;
       const __m128 dz = _mm_sub_ps(_mm_loadu_ps(uz + j), pz);
-      const int window = _mm_movemask_ps(_mm_cmplt_ps(dz, vh)) & valid;
-      if (window == 0) return j;
+      const int window = _mm_movemask_ps(_mm_cmplt_ps(dz, vh));
       const __m128 dx = _mm_sub_ps(_mm_loadu_ps(ux + j), px);
       const __m128 dy = _mm_sub_ps(_mm_loadu_ps(uy + j), py);
       const __m128 reach = _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)));
-      const int live = static_cast<int>((active >> (j - B.begin)) & 0xf);
-      for (int hits = _mm_movemask_ps(_mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach)) & window & live;
-           hits != 0; hits &= hits - 1) {
-        const int k = __builtin_ctz(static_cast<unsigned>(hits));
-        if (partner(j + k)) return j + k + 1;
-      }
+      hits |= static_cast<std::uint64_t>(_mm_movemask_ps(_mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach)) &
+                                         window)
+              << (j - B.begin);
       // Heights ascend: a window short of four ends in these (its bits are the low ones).
-      if (window != 0xf) return j + __builtin_ctz(~static_cast<unsigned>(window));
+      if (window != 0xf) {
+        j += __builtin_ctz(~static_cast<unsigned>(window));
+        break;
+      }
     }
-    return j;
+    // Lanes past the leaf (the next leaf's points, or the padding after the last) dropped.
+    j = std::min(j, B.end);
+    const int size = B.end - B.begin;
+    if (size < 64) hits &= ~(~std::uint64_t{0} << size);
+    hits &= active;
+    for (; hits != 0; hits &= hits - 1) {
+      if (partner(B.begin + __builtin_ctzll(hits))) break;
+    }
+    return j - from;
 #else
+    const int from = j;
+    bool done = false;
     for (; j < B.end && uz[j] - p[2] < hmax; ++j) {
       const float dx = ux[j] - p[0], dy = uy[j] - p[1], dz = uz[j] - p[2];
-      if (!((active >> (j - B.begin)) & 1) || !(dz * dz > tan2 * (dx * dx + dy * dy))) continue;
-      if (partner(j)) return j + 1;
+      if (done || !((active >> (j - B.begin)) & 1) || !(dz * dz > tan2 * (dx * dx + dy * dy))) {
+        continue;
+      }
+      done = partner(j);
     }
-    return j;
+    return j - from;
 #endif
   }
 
@@ -654,6 +709,8 @@ class alignas(64) Search {
     // Each point's verdict against B's box, all at once: `keep` those not rejected.
     std::uint64_t keep = 0, accept = 0;
     ClassifyPoints(B, i_begin, i_end, keep, accept);
+    // B's points that some point of A may pair with; the others are never looked at.
+    const std::uint64_t near = keep != 0 ? NearLower(A, B) : 0;
     for (; keep != 0; keep &= keep - 1) {
       const int k = __builtin_ctzll(keep);
       const int i = i_begin + k;
@@ -670,19 +727,20 @@ class alignas(64) Search {
         }
         continue;
       }
-      int root = unions_ ? Find(pi) : 0;
       const int first = FirstAbove(B, p[2], first_from);
       first_from = first;
+      std::uint64_t active = near;
+      if (first >= B.end || (active >> (first - B.begin)) == 0) continue;
+      int root = unions_ ? Find(pi) : 0;
       // A point with a partner already meets, among B's points raised in its set, none that
       // can change anything: only the others are looked at.
-      std::uint64_t active = ~std::uint64_t{0};
       if (unions_ && lower_[pi]) {
         if (root != done_root) {
           done_root = root;
           done_bits = DoneBits(B, root);
         }
-        active = ~done_bits;
-        if (first >= B.end || ((active >> (first - B.begin)) << (first - B.begin)) == 0) continue;
+        active &= ~done_bits;
+        if ((active >> (first - B.begin)) == 0) continue;
       }
       bool any = false;
       // One partner (upper point j): raised, joined; true when the rest of B can change
@@ -701,8 +759,7 @@ class alignas(64) Search {
         }
         return b_done && (!unions_ || parent_[b_first] == root || root == Find(b_first));
       };
-      const int j = ScanWindow(B, p, first, active, partner);
-      stats_.pairs_tested += j - first;
+      stats_.pairs_tested += ScanWindow(B, p, first, active, partner);
       if (any) lower_.Add(pi, 1);
     }
     UpdateLeaf(lo_, flags_lo_, a, lower_);
