@@ -532,9 +532,9 @@ class alignas(64) Search {
     return j;
   }
 
-  // Classify(p, p, B's box) of the lower points [begin, end) (at most 64): bit k of `keep`
-  // is set unless point begin + k is rejected, of `accept` when it is accepted.
-  void ClassifyPoints(const Node& B, int begin, int end, std::uint64_t& keep,
+  // Classify(p, p, box b_lo..b_hi) of the lower points [begin, end) (at most 64): bit k of
+  // `keep` is set unless point begin + k is rejected, of `accept` when it is accepted.
+  void ClassifyPoints(const float* b_lo, const float* b_hi, int begin, int end, std::uint64_t& keep,
                       std::uint64_t& accept) const {
     const float* lx = lo_.x.data();
     const float* ly = lo_.y.data();
@@ -545,9 +545,9 @@ class alignas(64) Search {
     const __m128 ht = _mm_set1_ps(test_.min_height), hmax = _mm_set1_ps(test_.max_height);
     const __m128 tan2 = _mm_set1_ps(test_.tan2_theta), zero = _mm_setzero_ps();
     const __m128 sign = _mm_set1_ps(-0.0f);
-    const __m128 bx_lo = _mm_set1_ps(B.lo[0]), bx_hi = _mm_set1_ps(B.hi[0]);
-    const __m128 by_lo = _mm_set1_ps(B.lo[1]), by_hi = _mm_set1_ps(B.hi[1]);
-    const __m128 bz_lo = _mm_set1_ps(B.lo[2]), bz_hi = _mm_set1_ps(B.hi[2]);
+    const __m128 bx_lo = _mm_set1_ps(b_lo[0]), bx_hi = _mm_set1_ps(b_hi[0]);
+    const __m128 by_lo = _mm_set1_ps(b_lo[1]), by_hi = _mm_set1_ps(b_hi[1]);
+    const __m128 bz_lo = _mm_set1_ps(b_lo[2]), bz_hi = _mm_set1_ps(b_hi[2]);
     for (; i + 4 <= end; i += 4) {
       const __m128 px = _mm_loadu_ps(lx + i), py = _mm_loadu_ps(ly + i);
       const __m128 pz = _mm_loadu_ps(lz + i);
@@ -578,16 +578,17 @@ class alignas(64) Search {
 #endif
     for (; i < end; ++i) {
       const float p[3] = {lx[i], ly[i], lz[i]};
-      const Verdict v = Classify(p, p, B.lo, B.hi, test_);
+      const Verdict v = Classify(p, p, b_lo, b_hi, test_);
       keep |= static_cast<std::uint64_t>(v != kReject) << (i - begin);
       accept |= static_cast<std::uint64_t>(v == kAccept) << (i - begin);
     }
   }
 
   // Bit j - B.begin for each point j of upper leaf B that Classify(A's box, j) does not
-  // reject, and every bit past the leaf: a point without its bit is no partner of any lower
-  // point of A.
-  std::uint64_t NearLower(const Node& A, const Node& B) const {
+  // reject (none past the leaf): a point without its bit is no partner of any lower point of
+  // A. `lo` and `hi` get the box of those points (empty when there are none).
+  std::uint64_t NearLower(const Node& A, const Node& B, float* lo, float* hi) const {
+    constexpr float kInfinity = std::numeric_limits<float>::infinity();
     const float* ux = up_.x.data();
     const float* uy = up_.y.data();
     const float* uz = up_.z.data();
@@ -595,12 +596,15 @@ class alignas(64) Search {
     int j = B.begin;
 #if defined(__SSE2__)
     // Four at a time, with Classify's float operations in its order; the lanes past the leaf
-    // are set below whatever they give.
+    // are dropped. The box as four lanes' boxes, a lane not kept adding +-infinity.
     const __m128 ht = _mm_set1_ps(test_.min_height), hmax = _mm_set1_ps(test_.max_height);
     const __m128 tan2 = _mm_set1_ps(test_.tan2_theta), zero = _mm_setzero_ps();
     const __m128 ax_lo = _mm_set1_ps(A.lo[0]), ax_hi = _mm_set1_ps(A.hi[0]);
     const __m128 ay_lo = _mm_set1_ps(A.lo[1]), ay_hi = _mm_set1_ps(A.hi[1]);
     const __m128 az_lo = _mm_set1_ps(A.lo[2]), az_hi = _mm_set1_ps(A.hi[2]);
+    const __m128 inf = _mm_set1_ps(kInfinity), minus_inf = _mm_set1_ps(-kInfinity);
+    const __m128 lane = _mm_set_ps(3.0f, 2.0f, 1.0f, 0.0f);
+    __m128 x_lo = inf, y_lo = inf, z_lo = inf, x_hi = minus_inf, y_hi = minus_inf, z_hi = minus_inf;
     for (; j < B.end; j += 4) {
       const __m128 qx = _mm_loadu_ps(ux + j), qy = _mm_loadu_ps(uy + j);
       const __m128 qz = _mm_loadu_ps(uz + j);
@@ -610,21 +614,52 @@ class alignas(64) Search {
       // Gap: the one positive of (q - box high, box low - q), else 0.
       const __m128 gx = _mm_max_ps(_mm_max_ps(_mm_sub_ps(qx, ax_hi), _mm_sub_ps(ax_lo, qx)), zero);
       const __m128 gy = _mm_max_ps(_mm_max_ps(_mm_sub_ps(qy, ay_hi), _mm_sub_ps(ay_lo, qy)), zero);
+      const __m128 in_leaf = _mm_cmplt_ps(lane, _mm_set1_ps(static_cast<float>(B.end - j)));
       const __m128 kept = _mm_and_ps(
-          heights,
+          _mm_and_ps(heights, in_leaf),
           _mm_cmpgt_ps(_mm_mul_ps(dz_best, dz_best),
                        _mm_mul_ps(tan2, _mm_add_ps(_mm_mul_ps(gx, gx), _mm_mul_ps(gy, gy)))));
       near |= static_cast<std::uint64_t>(_mm_movemask_ps(kept)) << (j - B.begin);
+      const auto pick = [&kept](__m128 q, __m128 otherwise) {
+        return _mm_or_ps(_mm_and_ps(kept, q), _mm_andnot_ps(kept, otherwise));
+      };
+      x_lo = _mm_min_ps(x_lo, pick(qx, inf));
+      y_lo = _mm_min_ps(y_lo, pick(qy, inf));
+      z_lo = _mm_min_ps(z_lo, pick(qz, inf));
+      x_hi = _mm_max_ps(x_hi, pick(qx, minus_inf));
+      y_hi = _mm_max_ps(y_hi, pick(qy, minus_inf));
+      z_hi = _mm_max_ps(z_hi, pick(qz, minus_inf));
     }
+    const auto least = [](__m128 v) {
+      v = _mm_min_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2)));
+      return _mm_cvtss_f32(_mm_min_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(2, 3, 0, 1))));
+    };
+    const auto most = [](__m128 v) {
+      v = _mm_max_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2)));
+      return _mm_cvtss_f32(_mm_max_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(2, 3, 0, 1))));
+    };
+    lo[0] = least(x_lo);
+    lo[1] = least(y_lo);
+    lo[2] = least(z_lo);
+    hi[0] = most(x_hi);
+    hi[1] = most(y_hi);
+    hi[2] = most(z_hi);
 #else
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = kInfinity;
+      hi[k] = -kInfinity;
+    }
     for (; j < B.end; ++j) {
       const float q[3] = {ux[j], uy[j], uz[j]};
-      near |= static_cast<std::uint64_t>(Classify(A.lo, A.hi, q, q, test_) != kReject)
-              << (j - B.begin);
+      if (Classify(A.lo, A.hi, q, q, test_) == kReject) continue;
+      near |= std::uint64_t{1} << (j - B.begin);
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = std::min(lo[k], q[k]);
+        hi[k] = std::max(hi[k], q[k]);
+      }
     }
 #endif
-    const int size = B.end - B.begin;
-    return size < 64 ? near | ~std::uint64_t{0} << size : near;
+    return near;
   }
 
   // Upper leaf B's candidates from `first` (more than HT above p) while less than Hmax above,
@@ -697,20 +732,28 @@ class alignas(64) Search {
     const float hmax = test_.max_height;
     const bool b_done = (flags_up_[b] & kFull) && (!unions_ || (flags_up_[b] & kUnified));
     const int b_first = upix[B.begin];
-    // The lower leaf is sorted by height: the points that B's heights reject (Classify's
-    // first test: nothing of B more than HT above, or all of it Hmax above or more) are
-    // its two ends, whose bounds the same float differences find.
+    // B's points that some point of A may pair with, and their box: the others are never
+    // looked at. When they are all of B, their box is B's.
+    float near_lo[3], near_hi[3];
+    const std::uint64_t near = NearLower(A, B, near_lo, near_hi);
+    if (near == 0) return;
+    const int size = Size(B);
+    const bool all_near = near == (size < 64 ? ~(~std::uint64_t{0} << size) : ~std::uint64_t{0});
+    // The lower leaf is sorted by height: the points that the near box's heights reject
+    // (Classify's first test: nothing more than HT above, or all of it Hmax above or more)
+    // are its two ends, whose bounds the same float differences find.
     int i_begin = A.begin, i_end = A.end;
-    while (i_begin < i_end && !(B.lo[2] - lz[i_begin] < hmax)) ++i_begin;
-    while (i_end > i_begin && !(B.hi[2] - lz[i_end - 1] > test_.min_height)) --i_end;
-    int first_from = B.begin;  // the lower points come by height: their first candidates too
+    while (i_begin < i_end && !(near_lo[2] - lz[i_begin] < hmax)) ++i_begin;
+    while (i_end > i_begin && !(near_hi[2] - lz[i_end - 1] > test_.min_height)) --i_end;
+    // The lower points come by height: their first candidates too, none before the first near.
+    int first_from = B.begin + __builtin_ctzll(near);
     int done_root = -1;        // the set DoneBits was last taken for
     std::uint64_t done_bits = 0;  // and its answer
-    // Each point's verdict against B's box, all at once: `keep` those not rejected.
+    // Each point's verdict against the near box, all at once: `keep` those not rejected;
+    // `accept` (compatible with all of B) only when the near box is B's.
     std::uint64_t keep = 0, accept = 0;
-    ClassifyPoints(B, i_begin, i_end, keep, accept);
-    // B's points that some point of A may pair with; the others are never looked at.
-    const std::uint64_t near = keep != 0 ? NearLower(A, B) : 0;
+    ClassifyPoints(near_lo, near_hi, i_begin, i_end, keep, accept);
+    if (!all_near) accept = 0;
     for (; keep != 0; keep &= keep - 1) {
       const int k = __builtin_ctzll(keep);
       const int i = i_begin + k;
