@@ -107,11 +107,11 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   const int threads = ThreadCount(config.threads);
   const internal::LevelPoints level(image, threads);
   const PairTest test(config);
-  // Leaves of 2 x 16 pixels on a LiDAR scan, of 4 x 8 on camera images: the fastest of the
-  // shapes tried on the benchmark frames with the leaves scanned four points at a time
-  // (BENCHMARKS.md; one ring of 16 was the fastest one point at a time).
+  // Leaves of 2 x 32 pixels on a LiDAR scan, of 8 x 8 on camera images: the fastest of the
+  // shapes tried on the benchmark frames once a leaf's points are filtered by the other
+  // leaf's box (BENCHMARKS.md; 2 x 16 and 4 x 8 before, one ring of 16 one point at a time).
   const bool lidar = std::holds_alternative<SphericalModel>(image.model());
-  const int leaf_rows = lidar ? 2 : 4, leaf_cols = lidar ? 16 : 8;
+  const int leaf_rows = lidar ? 2 : 8, leaf_cols = lidar ? 32 : 8;
   internal::PairSearchOptions options;
   options.threads = threads;
   const internal::Candidates candidates = internal::FindCandidates(level, test, threads);
