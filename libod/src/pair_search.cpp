@@ -780,7 +780,7 @@ class alignas(64) Search {
       if (unions_ && lower_[pi]) {
         if (root != done_root) {
           done_root = root;
-          done_bits = DoneBits(B, root);
+          done_bits = DoneBits(B, near, root);
         }
         active &= ~done_bits;
         if ((active >> (first - B.begin)) == 0) continue;
@@ -809,20 +809,17 @@ class alignas(64) Search {
     UpdateLeaf(up_, flags_up_, b, raised_);
   }
 
-  // Bit j - B.begin for each point j of leaf B that is raised and in the set of `root` (and
-  // every bit past the leaf): a pair of it with a lower point of that set that has a partner
-  // changes nothing. Facts only
-  // grow, so bits taken earlier stay true.
-  std::uint64_t DoneBits(const Node& B, int root) {
+  // Of the points j of leaf B whose bits (j - B.begin) are in `of`, those raised and in the
+  // set of `root`: a pair of one with a lower point of that set that has a partner changes
+  // nothing. Facts only grow, so bits taken earlier stay true.
+  std::uint64_t DoneBits(const Node& B, std::uint64_t of, int root) {
     std::uint64_t bits = 0;
-    for (int j = B.begin; j < B.end; ++j) {
-      const int pj = up_.pixel[j];
+    for (; of != 0; of &= of - 1) {
+      const int k = __builtin_ctzll(of);
+      const int pj = up_.pixel[B.begin + k];
       const bool done = raised_[pj] && (parent_[pj] == root || Find(pj) == root);
-      bits |= static_cast<std::uint64_t>(done) << (j - B.begin);
+      bits |= static_cast<std::uint64_t>(done) << k;
     }
-    // The bits past the leaf are set too: where none of its points is left, nothing is.
-    const int size = B.end - B.begin;
-    if (size < 64) bits |= ~std::uint64_t{0} << size;
     return bits;
   }
 
