@@ -522,16 +522,6 @@ class alignas(64) Search {
     }
   }
 
-  // The first point of upper leaf B (sorted by height) more than HT above pz, as the pair
-  // test rounds it: the points from there while less than Hmax above are the candidates,
-  // on which the pair test reduces to its slope condition. The scan starts at `from`, which
-  // no point before is (the first candidate of a lower point no higher than this one).
-  int FirstAbove(const Node& B, float pz, int from) const {
-    int j = from;
-    while (j < B.end && !(up_.z[j] - pz > test_.min_height)) ++j;
-    return j;
-  }
-
   // Classify(p, p, box b_lo..b_hi) of the lower points [begin, end) (at most 64): bit k of
   // `keep` is set unless point begin + k is rejected, of `accept` when it is accepted.
   void ClassifyPoints(const float* b_lo, const float* b_hi, int begin, int end, std::uint64_t& keep,
@@ -662,61 +652,57 @@ class alignas(64) Search {
     return near;
   }
 
-  // Upper leaf B's candidates from `first` (more than HT above p) while less than Hmax above,
-  // each through the pair test's slope condition; partner(j) for each of those `active` in
-  // ascending order, until it returns true. Returns the window's size (the points tested).
-  template <class Partner>
-  int ScanWindow(const Node& B, const float* p, int j, std::uint64_t active,
-                 const Partner& partner) const {
-    const float* ux = up_.x.data();
-    const float* uy = up_.y.data();
-    const float* uz = up_.z.data();
-    const float hmax = test_.max_height, tan2 = test_.tan2_theta;
-#if defined(__SSE2__)
-    // Four at a time: the window and the slope test as bit masks, with the pair test's float
-    // operations in its order.
-    const __m128 px = _mm_set1_ps(p[0]), py = _mm_set1_ps(p[1]), pz = _mm_set1_ps(p[2]);
-    const __m128 vh = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
-    // The window's hits as one mask first, then the partners in order: fewer branches for the
-    // processor to mispredict than a stop after each four.
+  // An upper leaf's points near the lower leaf, packed side by side (padded with points
+  // infinitely high, for four at a time), in the leaf's order.
+  struct Packed {
+    alignas(16) float x[PointTree::kMaxLeafPoints + 3];
+    alignas(16) float y[PointTree::kMaxLeafPoints + 3];
+    alignas(16) float z[PointTree::kMaxLeafPoints + 3];
+    std::int32_t at[PointTree::kMaxLeafPoints];  ///< the point's index in the tree
+    int count = 0;
+  };
+  void Pack(const Node& B, std::uint64_t near, Packed& q) const {
+    int c = 0;
+    for (; near != 0; near &= near - 1) {
+      const int j = B.begin + __builtin_ctzll(near);
+      q.x[c] = up_.x[j];
+      q.y[c] = up_.y[j];
+      q.z[c] = up_.z[j];
+      q.at[c++] = j;
+    }
+    q.count = c;
+    for (int k = c; k < ((c + 3) & ~3); ++k) {
+      q.x[k] = q.y[k] = 0.0f;
+      q.z[k] = std::numeric_limits<float>::infinity();
+    }
+  }
+
+  // Bit k for each packed point k that the pair test puts in p's cone (more than HT and less
+  // than Hmax above p, steeper than theta), with the pair test's float operations in its
+  // order: all of them at once, with no window to find and no stop to mispredict.
+  std::uint64_t Hits(const Packed& q, const float* p) const {
+    const float ht = test_.min_height, hmax = test_.max_height, tan2 = test_.tan2_theta;
     std::uint64_t hits = 0;
-    const int from = j;
-    for (; j < B.end; j += 4) {
-      const __m128 dz = _mm_sub_ps(_mm_loadu_ps(uz + j), pz);
-      const int window = _mm_movemask_ps(_mm_cmplt_ps(dz, vh));
-      const __m128 dx = _mm_sub_ps(_mm_loadu_ps(ux + j), px);
-      const __m128 dy = _mm_sub_ps(_mm_loadu_ps(uy + j), py);
+#if defined(__SSE2__)
+    const __m128 px = _mm_set1_ps(p[0]), py = _mm_set1_ps(p[1]), pz = _mm_set1_ps(p[2]);
+    const __m128 vht = _mm_set1_ps(ht), vh = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
+    for (int k = 0; k < q.count; k += 4) {
+      const __m128 dz = _mm_sub_ps(_mm_load_ps(q.z + k), pz);
+      const __m128 dx = _mm_sub_ps(_mm_load_ps(q.x + k), px);
+      const __m128 dy = _mm_sub_ps(_mm_load_ps(q.y + k), py);
       const __m128 reach = _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)));
-      hits |= static_cast<std::uint64_t>(_mm_movemask_ps(_mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach)) &
-                                         window)
-              << (j - B.begin);
-      // Heights ascend: a window short of four ends in these (its bits are the low ones).
-      if (window != 0xf) {
-        j += __builtin_ctz(~static_cast<unsigned>(window));
-        break;
-      }
+      const __m128 in = _mm_and_ps(_mm_and_ps(_mm_cmpgt_ps(dz, vht), _mm_cmplt_ps(dz, vh)),
+                                   _mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach));
+      hits |= static_cast<std::uint64_t>(_mm_movemask_ps(in)) << k;
     }
-    // Lanes past the leaf (the next leaf's points, or the padding after the last) dropped.
-    j = std::min(j, B.end);
-    const int size = B.end - B.begin;
-    if (size < 64) hits &= ~(~std::uint64_t{0} << size);
-    hits &= active;
-    for (; hits != 0; hits &= hits - 1) {
-      if (partner(B.begin + __builtin_ctzll(hits))) break;
-    }
-    return j - from;
 #else
-    const int from = j;
-    bool done = false;
-    for (; j < B.end && uz[j] - p[2] < hmax; ++j) {
-      const float dx = ux[j] - p[0], dy = uy[j] - p[1], dz = uz[j] - p[2];
-      if (done || !((active >> (j - B.begin)) & 1) || !(dz * dz > tan2 * (dx * dx + dy * dy))) {
-        continue;
-      }
-      done = partner(j);
+    for (int k = 0; k < q.count; ++k) {
+      const float dx = q.x[k] - p[0], dy = q.y[k] - p[1], dz = q.z[k] - p[2];
+      const bool in = dz > ht && dz < hmax && dz * dz > tan2 * (dx * dx + dy * dy);
+      hits |= static_cast<std::uint64_t>(in) << k;
     }
-    return j - from;
 #endif
+    return hits;
   }
 
   // Two leaves, point by point; a lower point whose partners are all or none of the upper
@@ -745,8 +731,6 @@ class alignas(64) Search {
     int i_begin = A.begin, i_end = A.end;
     while (i_begin < i_end && !(near_lo[2] - lz[i_begin] < hmax)) ++i_begin;
     while (i_end > i_begin && !(near_hi[2] - lz[i_end - 1] > test_.min_height)) --i_end;
-    // The lower points come by height: their first candidates too, none before the first near.
-    int first_from = B.begin + __builtin_ctzll(near);
     int done_root = -1;        // the set DoneBits was last taken for
     std::uint64_t done_bits = 0;  // and its answer
     // Each point's verdict against the near box, all at once: `keep` those not rejected;
@@ -754,6 +738,8 @@ class alignas(64) Search {
     std::uint64_t keep = 0, accept = 0;
     ClassifyPoints(near_lo, near_hi, i_begin, i_end, keep, accept);
     if (!all_near) accept = 0;
+    Packed packed;
+    if ((keep & ~accept) != 0) Pack(B, near, packed);
     for (; keep != 0; keep &= keep - 1) {
       const int k = __builtin_ctzll(keep);
       const int i = i_begin + k;
@@ -770,20 +756,19 @@ class alignas(64) Search {
         }
         continue;
       }
-      const int first = FirstAbove(B, p[2], first_from);
-      first_from = first;
-      std::uint64_t active = near;
-      if (first >= B.end || (active >> (first - B.begin)) == 0) continue;
+      std::uint64_t hits = Hits(packed, p);
+      stats_.pairs_tested += packed.count;
+      if (hits == 0) continue;
       int root = unions_ ? Find(pi) : 0;
       // A point with a partner already meets, among B's points raised in its set, none that
       // can change anything: only the others are looked at.
       if (unions_ && lower_[pi]) {
         if (root != done_root) {
           done_root = root;
-          done_bits = DoneBits(B, near, root);
+          done_bits = DoneBits(packed, root);
         }
-        active &= ~done_bits;
-        if ((active >> (first - B.begin)) == 0) continue;
+        hits &= ~done_bits;
+        if (hits == 0) continue;
       }
       bool any = false;
       // One partner (upper point j): raised, joined; true when the rest of B can change
@@ -802,21 +787,22 @@ class alignas(64) Search {
         }
         return b_done && (!unions_ || parent_[b_first] == root || root == Find(b_first));
       };
-      stats_.pairs_tested += ScanWindow(B, p, first, active, partner);
+      for (; hits != 0; hits &= hits - 1) {
+        if (partner(packed.at[__builtin_ctzll(hits)])) break;
+      }
       if (any) lower_.Add(pi, 1);
     }
     UpdateLeaf(lo_, flags_lo_, a, lower_);
     UpdateLeaf(up_, flags_up_, b, raised_);
   }
 
-  // Of the points j of leaf B whose bits (j - B.begin) are in `of`, those raised and in the
-  // set of `root`: a pair of one with a lower point of that set that has a partner changes
-  // nothing. Facts only grow, so bits taken earlier stay true.
-  std::uint64_t DoneBits(const Node& B, std::uint64_t of, int root) {
+  // Bit k for each packed point k raised and in the set of `root`: a pair of one with a lower
+  // point of that set that has a partner changes nothing. Facts only grow, so bits taken
+  // earlier stay true.
+  std::uint64_t DoneBits(const Packed& q, int root) {
     std::uint64_t bits = 0;
-    for (; of != 0; of &= of - 1) {
-      const int k = __builtin_ctzll(of);
-      const int pj = up_.pixel[B.begin + k];
+    for (int k = 0; k < q.count; ++k) {
+      const int pj = up_.pixel[q.at[k]];
       const bool done = raised_[pj] && (parent_[pj] == root || Find(pj) == root);
       bits |= static_cast<std::uint64_t>(done) << k;
     }
