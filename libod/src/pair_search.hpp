@@ -17,10 +17,12 @@
 //    box does so for every point of the lower one (all its points join one segment, at
 //    once); settled, and skipped, when it can change nothing (every lower point has a
 //    partner, every upper point is raised, both nodes are one segment already); else split,
-//    down to leaves, where each lower point meets the height-sorted upper points between
-//    HT and Hmax above it, four at a time where the compiler has SSE2; a lower point that
-//    has a partner already meets only the upper points not yet raised in its set (a pair of
-//    two such points changes nothing).
+//    down to leaves. There the upper leaf's points that the lower leaf's box rejects are
+//    dropped, the lower points are classified against the box of the others (the near
+//    points), and each lower point left is tested against all the near points at once, four
+//    at a time where the compiler has SSE2; a lower point that has a partner already takes as
+//    partners only the near points not yet raised in its set (a pair of two such points
+//    changes nothing).
 // 4. Tasks. The lower tree is cut into 256 or more tasks (its largest nodes first), each searched
 //    against the whole upper tree; the workers share one set of marks, flags and sets
 //    (relaxed atomics, a lock-free union-find that links the larger root under the smaller),
@@ -102,8 +104,9 @@ struct PairSearchResult {
   /// With unions: a representative pixel per pixel, equal within a set (a pixel in no pair
   /// is its own).
   std::vector<std::int32_t> set;
-  /// pairs_tested: tested one by one; pairs_compatible: found (one by one or in accepted
-  /// blocks; settled pairs are not looked at, so this is not the number of pairs).
+  /// pairs_tested: tested point by point with the upper point HT..Hmax above the lower;
+  /// pairs_compatible: found (one by one or in accepted blocks; settled pairs are not looked
+  /// at, so this is not the number of pairs).
   DetectionStats stats;
 };
 

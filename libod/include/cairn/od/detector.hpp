@@ -105,7 +105,7 @@ struct SegmentFeatures {
 /// pairs_compatible is less than the number of compatible pairs, which DetectRegionScan and
 /// DetectBruteForce count exactly.
 struct DetectionStats {
-  std::int64_t pairs_tested = 0;      ///< candidate pairs on which the test ran one by one
+  std::int64_t pairs_tested = 0;      ///< pairs tested point by point (Detect: HT..Hmax apart)
   std::int64_t pairs_compatible = 0;  ///< compatible pairs found (in blocks or one by one)
   std::int64_t node_pairs = 0;        ///< Detect: block pairs not rejected at once
   std::int64_t blocks_accepted = 0;   ///< Detect: block pairs compatible whole
