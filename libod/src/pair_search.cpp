@@ -653,9 +653,9 @@ class alignas(64) Search {
   }
 
   // An upper leaf's points near the lower leaf, packed side by side (padded with points
-  // infinitely high, for four at a time), in the leaf's order. The packed test needs no
-  // order; the upper leaves stay sorted by height all the same (unsorted was slower,
-  // BENCHMARKS.md).
+  // infinitely high, for four at a time), in the leaf's order: by height, which the test's
+  // count of points tested relies on (the hits do not; unsorted leaves were slower all the
+  // same, BENCHMARKS.md).
   struct Packed {
     alignas(16) float x[PointTree::kMaxLeafPoints + 3];
     alignas(16) float y[PointTree::kMaxLeafPoints + 3];
