@@ -336,6 +336,29 @@ inline Verdict Classify(const float* a_lo, const float* a_hi, const float* b_lo,
   return dz_lo * dz_lo > t.tan2_theta * (rx * rx + ry * ry) ? kAccept : kMixed;
 }
 
+#if defined(__SSE2__)
+// Classify's rejection, four pairs of boxes at once (lower box a, upper box b, each a lane's
+// lo / hi per coordinate; a point is a box with lo = hi), with its float operations in its
+// order: the lanes it does not reject.
+inline __m128 NotRejected(const __m128* a_lo, const __m128* a_hi, const __m128* b_lo,
+                          const __m128* b_hi, const PairTest& t) {
+  const __m128 ht = _mm_set1_ps(t.min_height), hmax = _mm_set1_ps(t.max_height);
+  const __m128 dz_hi = _mm_sub_ps(b_hi[2], a_lo[2]), dz_lo = _mm_sub_ps(b_lo[2], a_hi[2]);
+  const __m128 heights = _mm_and_ps(_mm_cmpgt_ps(dz_hi, ht), _mm_cmplt_ps(dz_lo, hmax));
+  const __m128 dz_best = _mm_min_ps(dz_hi, hmax);
+  // Gap: the one positive of (b low - a high, a low - b high), else 0.
+  const __m128 zero = _mm_setzero_ps();
+  const __m128 gx =
+      _mm_max_ps(_mm_max_ps(_mm_sub_ps(b_lo[0], a_hi[0]), _mm_sub_ps(a_lo[0], b_hi[0])), zero);
+  const __m128 gy =
+      _mm_max_ps(_mm_max_ps(_mm_sub_ps(b_lo[1], a_hi[1]), _mm_sub_ps(a_lo[1], b_hi[1])), zero);
+  return _mm_and_ps(heights,
+                    _mm_cmpgt_ps(_mm_mul_ps(dz_best, dz_best),
+                                 _mm_mul_ps(_mm_set1_ps(t.tan2_theta),
+                                            _mm_add_ps(_mm_mul_ps(gx, gx), _mm_mul_ps(gy, gy)))));
+}
+#endif
+
 enum NodeFlag : std::uint8_t { kFull = 1, kUnified = 2 };
 
 using Node = PointTree::Node;
@@ -533,24 +556,16 @@ class alignas(64) Search {
 #if defined(__SSE2__)
     // Four at a time, with Classify's float operations in its order.
     const __m128 ht = _mm_set1_ps(test_.min_height), hmax = _mm_set1_ps(test_.max_height);
-    const __m128 tan2 = _mm_set1_ps(test_.tan2_theta), zero = _mm_setzero_ps();
+    const __m128 tan2 = _mm_set1_ps(test_.tan2_theta);
     const __m128 sign = _mm_set1_ps(-0.0f);
-    const __m128 bx_lo = _mm_set1_ps(b_lo[0]), bx_hi = _mm_set1_ps(b_hi[0]);
-    const __m128 by_lo = _mm_set1_ps(b_lo[1]), by_hi = _mm_set1_ps(b_hi[1]);
-    const __m128 bz_lo = _mm_set1_ps(b_lo[2]), bz_hi = _mm_set1_ps(b_hi[2]);
+    const __m128 box_lo[3] = {_mm_set1_ps(b_lo[0]), _mm_set1_ps(b_lo[1]), _mm_set1_ps(b_lo[2])};
+    const __m128 box_hi[3] = {_mm_set1_ps(b_hi[0]), _mm_set1_ps(b_hi[1]), _mm_set1_ps(b_hi[2])};
+    const __m128 bx_lo = box_lo[0], bx_hi = box_hi[0], by_lo = box_lo[1], by_hi = box_hi[1];
     for (; i + 4 <= end; i += 4) {
-      const __m128 px = _mm_loadu_ps(lx + i), py = _mm_loadu_ps(ly + i);
-      const __m128 pz = _mm_loadu_ps(lz + i);
-      const __m128 dz_hi = _mm_sub_ps(bz_hi, pz), dz_lo = _mm_sub_ps(bz_lo, pz);
-      const __m128 heights = _mm_and_ps(_mm_cmpgt_ps(dz_hi, ht), _mm_cmplt_ps(dz_lo, hmax));
-      const __m128 dz_best = _mm_min_ps(dz_hi, hmax);
-      // Gap: the one positive of (box low - p, p - box high), else 0.
-      const __m128 gx = _mm_max_ps(_mm_max_ps(_mm_sub_ps(bx_lo, px), _mm_sub_ps(px, bx_hi)), zero);
-      const __m128 gy = _mm_max_ps(_mm_max_ps(_mm_sub_ps(by_lo, py), _mm_sub_ps(py, by_hi)), zero);
-      const __m128 near =
-          _mm_cmpgt_ps(_mm_mul_ps(dz_best, dz_best),
-                       _mm_mul_ps(tan2, _mm_add_ps(_mm_mul_ps(gx, gx), _mm_mul_ps(gy, gy))));
-      const __m128 kept = _mm_and_ps(heights, near);
+      const __m128 q[3] = {_mm_loadu_ps(lx + i), _mm_loadu_ps(ly + i), _mm_loadu_ps(lz + i)};
+      const __m128 px = q[0], py = q[1];
+      const __m128 dz_hi = _mm_sub_ps(box_hi[2], q[2]), dz_lo = _mm_sub_ps(box_lo[2], q[2]);
+      const __m128 kept = NotRejected(q, q, box_lo, box_hi, test_);
       const __m128 inside = _mm_and_ps(_mm_cmpgt_ps(dz_lo, ht), _mm_cmplt_ps(dz_hi, hmax));
       const __m128 rx = _mm_max_ps(_mm_andnot_ps(sign, _mm_sub_ps(bx_hi, px)),
                                    _mm_andnot_ps(sign, _mm_sub_ps(bx_lo, px)));
@@ -587,31 +602,19 @@ class alignas(64) Search {
 #if defined(__SSE2__)
     // Four at a time, with Classify's float operations in its order; the lanes past the leaf
     // are dropped. The box as four lanes' boxes, a lane not kept adding +-infinity.
-    const __m128 ht = _mm_set1_ps(test_.min_height), hmax = _mm_set1_ps(test_.max_height);
-    const __m128 tan2 = _mm_set1_ps(test_.tan2_theta), zero = _mm_setzero_ps();
-    const __m128 ax_lo = _mm_set1_ps(A.lo[0]), ax_hi = _mm_set1_ps(A.hi[0]);
-    const __m128 ay_lo = _mm_set1_ps(A.lo[1]), ay_hi = _mm_set1_ps(A.hi[1]);
-    const __m128 az_lo = _mm_set1_ps(A.lo[2]), az_hi = _mm_set1_ps(A.hi[2]);
+    const __m128 box_lo[3] = {_mm_set1_ps(A.lo[0]), _mm_set1_ps(A.lo[1]), _mm_set1_ps(A.lo[2])};
+    const __m128 box_hi[3] = {_mm_set1_ps(A.hi[0]), _mm_set1_ps(A.hi[1]), _mm_set1_ps(A.hi[2])};
     const __m128 inf = _mm_set1_ps(kInfinity), minus_inf = _mm_set1_ps(-kInfinity);
     const __m128 lane = _mm_set_ps(3.0f, 2.0f, 1.0f, 0.0f);
     __m128 x_lo = inf, y_lo = inf, z_lo = inf, x_hi = minus_inf, y_hi = minus_inf, z_hi = minus_inf;
     for (; j < B.end; j += 4) {
-      const __m128 qx = _mm_loadu_ps(ux + j), qy = _mm_loadu_ps(uy + j);
-      const __m128 qz = _mm_loadu_ps(uz + j);
-      const __m128 dz_hi = _mm_sub_ps(qz, az_lo), dz_lo = _mm_sub_ps(qz, az_hi);
-      const __m128 heights = _mm_and_ps(_mm_cmpgt_ps(dz_hi, ht), _mm_cmplt_ps(dz_lo, hmax));
-      const __m128 dz_best = _mm_min_ps(dz_hi, hmax);
-      // Gap: the one positive of (q - box high, box low - q), else 0.
-      const __m128 gx = _mm_max_ps(_mm_max_ps(_mm_sub_ps(qx, ax_hi), _mm_sub_ps(ax_lo, qx)), zero);
-      const __m128 gy = _mm_max_ps(_mm_max_ps(_mm_sub_ps(qy, ay_hi), _mm_sub_ps(ay_lo, qy)), zero);
+      const __m128 q[3] = {_mm_loadu_ps(ux + j), _mm_loadu_ps(uy + j), _mm_loadu_ps(uz + j)};
+      const __m128 qx = q[0], qy = q[1], qz = q[2];
       const __m128 in_leaf = _mm_cmplt_ps(lane, _mm_set1_ps(static_cast<float>(B.end - j)));
-      const __m128 kept = _mm_and_ps(
-          _mm_and_ps(heights, in_leaf),
-          _mm_cmpgt_ps(_mm_mul_ps(dz_best, dz_best),
-                       _mm_mul_ps(tan2, _mm_add_ps(_mm_mul_ps(gx, gx), _mm_mul_ps(gy, gy)))));
+      const __m128 kept = _mm_and_ps(NotRejected(box_lo, box_hi, q, q, test_), in_leaf);
       near |= static_cast<std::uint64_t>(_mm_movemask_ps(kept)) << (j - B.begin);
-      const auto pick = [&kept](__m128 q, __m128 otherwise) {
-        return _mm_or_ps(_mm_and_ps(kept, q), _mm_andnot_ps(kept, otherwise));
+      const auto pick = [&kept](__m128 v, __m128 otherwise) {
+        return _mm_or_ps(_mm_and_ps(kept, v), _mm_andnot_ps(kept, otherwise));
       };
       x_lo = _mm_min_ps(x_lo, pick(qx, inf));
       y_lo = _mm_min_ps(y_lo, pick(qy, inf));
