@@ -342,6 +342,63 @@ TEST(SimImu, TheGyroIntegratesToTheTrueRotationBetweenFrames) {
   EXPECT_GT(largest_turn, 20.0 * kDegToRad);  // the path turns
 }
 
+// A right-angle corner rounded by a 5 m arc: the path is 2 r - r pi / 2 shorter than the
+// polyline; in the arc the accelerometer reads v^2 / r towards the centre and the gyro v / r,
+// on the straight parts neither; the heading never jumps. Sharp, the corner is a velocity
+// jump: one sample reads (nearly) v sqrt(2) / dt.
+TEST(SimImu, ARoundedCornerTurnsOnAnArcOfTheTurnRadius) {
+  const double radius = 5.0, speed = 2.0;
+  DriveSpec spec = NoiselessSpec({{0.0, 0.0}, {20.0, 0.0}, {20.0, 20.0}});
+  spec.speed_mps = speed;
+  spec.turn_radius_m = radius;
+  const Expected<Drive> drive =
+      SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 3, 0, NoiselessImu());
+  ASSERT_TRUE(drive.ok()) << drive.error().message;
+  EXPECT_NEAR(drive->path_length_m, 40.0 - 2.0 * radius + radius * 0.5 * kPi, 1e-9);
+  // The arc runs from (15, 0) to (20, 5) around (15, 5): it starts 15 m along the path. The
+  // body's heading is the chord between its axles: more than half a wheelbase from the arc's
+  // ends, body and path turn alike.
+  const double arc_begin = 15.0, arc_end = 15.0 + radius * 0.5 * kPi;
+  const double margin = 0.5 * spec.wheelbase_m + 0.05;
+  int in_arc = 0, straight = 0;
+  for (const ImuReading& r : drive->imu) {
+    const double s = speed * r.stamp_s;
+    if (s > arc_begin + margin && s < arc_end - margin) {
+      ++in_arc;
+      EXPECT_NEAR(r.specific_force_mps2.y(), speed * speed / radius, 2e-3) << s;
+      EXPECT_NEAR(r.angular_rate_radps.z(), speed / radius, 1e-3) << s;
+    } else if (s < arc_begin - margin || s > arc_end + margin) {
+      ++straight;
+      EXPECT_NEAR(r.specific_force_mps2.head<2>().norm(), 0.0, 1e-6) << s;
+      EXPECT_NEAR(r.angular_rate_radps.norm(), 0.0, 1e-9) << s;
+    }
+    EXPECT_LT(r.specific_force_mps2.head<2>().norm(), 2.0 * speed * speed / radius) << s;
+  }
+  EXPECT_GT(in_arc, 100);
+  EXPECT_GT(straight, 1000);
+  for (std::size_t k = 1; k < drive->samples.size(); ++k) {
+    const double turn = std::abs(std::remainder(
+        drive->samples[k].attitude.yaw_rad - drive->samples[k - 1].attitude.yaw_rad, 2.0 * kPi));
+    EXPECT_LE(turn, speed / spec.frame_rate_hz / radius + 1e-9) << k;
+  }
+  // The same corner sharp: the velocity turns within one sample.
+  spec.turn_radius_m = 0.0;
+  const Expected<Drive> sharp =
+      SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 3, 0, NoiselessImu());
+  ASSERT_TRUE(sharp.ok()) << sharp.error().message;
+  EXPECT_DOUBLE_EQ(sharp->path_length_m, 40.0);
+  double largest = 0.0;
+  for (const ImuReading& r : sharp->imu) {
+    largest = std::max(largest, r.specific_force_mps2.head<2>().norm());
+  }
+  EXPECT_GT(largest, 50.0);
+
+  spec.turn_radius_m = -1.0;
+  const Expected<Drive> bad = SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 3);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("drive.turn_radius_m"), std::string::npos);
+}
+
 TEST(SimImu, ASpeedWaveGivesTheAlongTrackAcceleration) {
   DriveSpec spec = NoiselessSpec({{0.0, 0.0}, {40.0, 0.0}});
   spec.speed_mps = 2.0;

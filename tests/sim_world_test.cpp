@@ -226,6 +226,8 @@ TEST_F(WorldFile, ErrorsNameTheFileAndTheField) {
       {"lidar: {elevations: [0, 5]}\n", "", "lidar.elevations[1]: must be below the ring"},
       {"drive: {waypoints: [[0, 0], [10, 0]], speed: 0}\n", "", "drive.speed: must be"},
       {"drive: {waypoints: [[0, 0]]}\n", "", "drive.waypoints: needs at least two points"},
+      {"drive: {waypoints: [[0, 0], [10, 0]], turn_radius: -2}\n", "",
+       "drive.turn_radius: must be a finite number >= 0"},
       {"drive: {speed: 2}\n", "", "drive.waypoints: missing"},
       {"terrain: {waves: [{amplitude: 0.1, wavelength: 0}]}\n", "",
        "terrain.waves[0].wavelength: must be > 0"},

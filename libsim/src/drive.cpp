@@ -53,6 +53,7 @@ Status CheckDrivable(const DriveSpec& spec) {
     return s;
   }
   if (Status s = CheckSigma("imu_sigma_rad", spec.imu_sigma_rad); !s) return s;
+  if (Status s = CheckSigma("turn_radius_m", spec.turn_radius_m); !s) return s;
   if (!std::isfinite(spec.imu_bias_rad)) return DriveError("imu_bias_rad", "must be finite");
   if (!std::isfinite(spec.sensor_pitch_rad)) {
     return DriveError("sensor_pitch_rad", "must be finite");
@@ -93,35 +94,92 @@ double TimeAtDistance(const DriveSpec& spec, double s) {
   return hi;
 }
 
-// The waypoint polyline by arc length, extended along its first and last segments so that
-// the axles of a vehicle at either end still lie on a straight line.
+// The waypoint path by arc length: straight segments, each corner rounded by a circular arc
+// of radius turn_radius_m (smaller where a neighbouring segment is too short for it: an arc
+// takes at most half of each), so that the heading changes continuously and the lateral
+// acceleration stays v^2 / r; 0 keeps the corners sharp (a velocity jump at each). Extended
+// along its first and last segments, so that the axles of a vehicle at either end still lie
+// on a straight line.
 class Path {
  public:
-  explicit Path(const std::vector<Eigen::Vector2d>& waypoints) {
+  Path(const std::vector<Eigen::Vector2d>& waypoints, double turn_radius_m) {
+    std::vector<Eigen::Vector2d> points;
     for (const Eigen::Vector2d& p : waypoints) {
-      if (points_.empty() || (p - points_.back()).norm() > 1e-9) points_.push_back(p);
+      if (points.empty() || (p - points.back()).norm() > 1e-9) points.push_back(p);
     }
-    arc_.assign(points_.size(), 0.0);
-    for (std::size_t i = 1; i < points_.size(); ++i) {
-      arc_[i] = arc_[i - 1] + (points_[i] - points_[i - 1]).norm();
+    if (points.size() < 2) return;
+    Eigen::Vector2d at = points[0];  // where the next straight piece starts
+    for (std::size_t i = 1; i + 1 < points.size(); ++i) {
+      const Eigen::Vector2d in = points[i] - points[i - 1], out = points[i + 1] - points[i];
+      const Eigen::Vector2d a = in.normalized(), b = out.normalized();
+      const double turn = std::atan2(a.x() * b.y() - a.y() * b.x(), a.dot(b));  // left > 0
+      const double half = 0.5 * std::abs(turn);
+      // A corner too slight to round, or a reversal (no arc turns back on itself), stays.
+      if (turn_radius_m <= 0.0 || half < 1e-9 || half > 0.5 * kPi - 1e-6) {
+        Line(at, points[i]);
+        at = points[i];
+        continue;
+      }
+      const double tangent =
+          std::min({turn_radius_m * std::tan(half), 0.5 * in.norm(), 0.5 * out.norm()});
+      const double radius = tangent / std::tan(half);
+      Line(at, points[i] - tangent * a);
+      Piece arc;
+      arc.start = points[i] - tangent * a;
+      arc.heading = std::atan2(a.y(), a.x());
+      arc.curvature = (turn > 0.0 ? 1.0 : -1.0) / radius;
+      arc.length = radius * std::abs(turn);
+      Add(arc);
+      at = points[i] + tangent * b;
     }
+    Line(at, points.back());
   }
 
-  bool Drivable() const { return points_.size() >= 2; }
-  double Length() const { return arc_.back(); }
+  bool Drivable() const { return !pieces_.empty(); }
+  double Length() const { return pieces_.back().s0 + pieces_.back().length; }
 
   Eigen::Vector2d At(double s) const {
-    // Segment i holds [arc_[i], arc_[i+1]]; beyond the ends, the end segments extend.
-    const auto it = std::upper_bound(arc_.begin(), arc_.end(), s);
-    std::size_t i = it == arc_.begin() ? 0 : static_cast<std::size_t>(it - arc_.begin()) - 1;
-    i = std::min(i, points_.size() - 2);
-    const Eigen::Vector2d d = points_[i + 1] - points_[i];
-    return points_[i] + (s - arc_[i]) / d.norm() * d;
+    // The piece holding s; beyond the ends, the end pieces (straight) extend.
+    std::size_t i = 0;
+    for (std::size_t lo = 0, hi = pieces_.size(); lo < hi;) {  // last piece with s0 <= s
+      const std::size_t mid = (lo + hi) / 2;
+      if (pieces_[mid].s0 <= s) {
+        i = mid;
+        lo = mid + 1;
+      } else {
+        hi = mid;
+      }
+    }
+    const Piece& p = pieces_[i];
+    const double u = s - p.s0;
+    if (p.curvature == 0.0) return p.start + u / p.length * p.chord;
+    const double h0 = p.heading, h = h0 + p.curvature * u;
+    return p.start +
+           Eigen::Vector2d(std::sin(h) - std::sin(h0), std::cos(h0) - std::cos(h)) / p.curvature;
   }
 
  private:
-  std::vector<Eigen::Vector2d> points_;
-  std::vector<double> arc_;
+  struct Piece {
+    double s0 = 0.0;  // arc length at its start
+    Eigen::Vector2d start = Eigen::Vector2d::Zero();
+    double length = 0.0;
+    Eigen::Vector2d chord = Eigen::Vector2d::Zero();  // a line: end - start
+    double heading = 0.0, curvature = 0.0;            // an arc: at its start, left > 0
+  };
+  void Add(Piece p) {
+    p.s0 = pieces_.empty() ? 0.0 : pieces_.back().s0 + pieces_.back().length;
+    pieces_.push_back(p);
+  }
+  void Line(const Eigen::Vector2d& from, const Eigen::Vector2d& to) {
+    const double length = (to - from).norm();
+    if (length <= 1e-9) return;
+    Piece line;
+    line.start = from;
+    line.length = length;
+    line.chord = to - from;
+    Add(line);
+  }
+  std::vector<Piece> pieces_;
 };
 
 Eigen::Matrix3d Rx(double a) { return Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX()).matrix(); }
@@ -196,7 +254,7 @@ std::uint64_t MixSeed(std::uint64_t seed, std::uint64_t index) {
 
 int DriveFrameCount(const DriveSpec& spec) {
   if (!CheckDrivable(spec)) return 0;
-  const Path path(spec.waypoints);
+  const Path path(spec.waypoints, spec.turn_radius_m);
   if (!path.Drivable()) return 0;
   const double duration_s = spec.speed_wave_mps > 0.0 ? TimeAtDistance(spec, path.Length())
                                                       : path.Length() / spec.speed_mps;
@@ -208,7 +266,7 @@ Expected<Drive> SimulateDrive(const Terrain& terrain, const DriveSpec& spec, Sen
                               std::uint64_t seed, int max_frames, const ImuSpec& imu) {
   if (Status s = CheckDrivable(spec); !s) return s.error();
   if (Status s = imu.Validate(); !s) return s.error();
-  const Path path(spec.waypoints);
+  const Path path(spec.waypoints, spec.turn_radius_m);
   if (!path.Drivable()) {
     return Error{"drive.waypoints: need at least two distinct points, got " +
                  std::to_string(spec.waypoints.size())};

@@ -91,10 +91,11 @@ Status DriveSpec::Validate() const {
   const struct {
     const char* key;
     double value;
-  } sigmas[] = {{"odom_sigma_per_m", odom_sigma_per_m},
-                {"odom_yaw_sigma_per_m", odom_yaw_sigma_rad_per_m},
-                {"imu_sigma", imu_sigma_rad}};
-  for (const auto& p : sigmas) {
+  } non_negative[] = {{"odom_sigma_per_m", odom_sigma_per_m},
+                      {"odom_yaw_sigma_per_m", odom_yaw_sigma_rad_per_m},
+                      {"imu_sigma", imu_sigma_rad},
+                      {"turn_radius", turn_radius_m}};
+  for (const auto& p : non_negative) {
     if (!(Finite(p.value) && p.value >= 0.0)) {
       return WorldError(p.key, "must be a finite number >= 0");
     }

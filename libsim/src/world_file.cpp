@@ -226,7 +226,7 @@ DriveSpec ReadDrive(ErrorSink& sink, const YAML::Node& node) {
   MapReader m(
       sink, node, "drive",
       {"waypoints", "speed", "frame_rate", "wheelbase", "track", "sensor_xyz", "sensor_pitch",
-       "odom_sigma_per_m", "odom_yaw_sigma_per_m", "imu_sigma", "imu_bias"});
+       "odom_sigma_per_m", "odom_yaw_sigma_per_m", "imu_sigma", "imu_bias", "turn_radius"});
   DriveSpec d;
   const YAML::Node points = m.Node("waypoints");
   if (!m.Has("waypoints")) {
@@ -257,6 +257,7 @@ DriveSpec ReadDrive(ErrorSink& sink, const YAML::Node& node) {
   d.frame_rate_hz = m.Number("frame_rate", d.frame_rate_hz);
   d.wheelbase_m = m.Number("wheelbase", d.wheelbase_m);
   d.track_m = m.Number("track", d.track_m);
+  d.turn_radius_m = m.Number("turn_radius", d.turn_radius_m);
   d.T_body_sensor_xyz = m.Vec3("sensor_xyz", d.T_body_sensor_xyz);
   d.sensor_pitch_rad = m.Degrees("sensor_pitch", d.sensor_pitch_rad);
   d.odom_sigma_per_m = m.Number("odom_sigma_per_m", d.odom_sigma_per_m);

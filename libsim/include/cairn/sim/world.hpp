@@ -135,6 +135,10 @@ struct DriveSpec {
   std::vector<Eigen::Vector2d> waypoints;  ///< world xy, driven in order [m]
   double speed_mps = 2.0;
   double frame_rate_hz = 10.0;
+  /// Each corner between waypoints rounded by a circular arc of this radius (smaller where a
+  /// segment is too short), as a vehicle steers through it; 0 keeps the corners sharp,
+  /// which a real vehicle cannot drive (the velocity jumps there) [m].
+  double turn_radius_m = 0.0;
   double wheelbase_m = 1.5;  ///< front-rear axle distance, for pitch
   double track_m = 1.2;      ///< left-right wheel distance, for roll
   Eigen::Vector3d T_body_sensor_xyz = Eigen::Vector3d(0.5, 0.0, 1.5);  ///< sensor on body
@@ -154,7 +158,7 @@ struct DriveSpec {
   /// knows only the nominal mount. C++ only.
   Eigen::Vector3d sensor_misalignment_rad = Eigen::Vector3d::Zero();
   /// Names the first bad field: at least two waypoints, finite, not all the same; speed,
-  /// frame_rate, wheelbase, track > 0; sigmas >= 0; everything finite.
+  /// frame_rate, wheelbase, track > 0; sigmas and turn_radius >= 0; everything finite.
   Status Validate() const;
 };
 
