@@ -53,15 +53,20 @@ class GravityTilt final : public TiltStep {
   TiltMode mode() const override { return TiltMode::kGravity; }
   bool UsesGroundPoints() const override { return true; }
 
-  // The odometry pose with the correction of the last estimate applied to the body: its tilt
-  // (a rotation about world axes, the heading kept) and its height, with the mount's tilt as
-  // estimated. Turning the body, not the sensor, moves the sensor where the fused pose has
-  // it: a sensor 1.5 m above the body moves 8 cm sideways with 3 deg of tilt, which on a
-  // slope the ground height would otherwise take for a height error.
+  // The odometry pose with the correction of the last estimate applied to the body: its roll
+  // and pitch (offsets to the IMU's attitude output, as its bias is: a correction about world
+  // axes, carried through a turn, would tilt the next prior by up to twice the bias) and its
+  // height, with the mount's tilt as estimated. Turning the body, not the sensor, moves the
+  // sensor where the fused pose has it: a sensor 1.5 m above the body moves 8 cm sideways
+  // with 3 deg of tilt, which on a slope the ground height would otherwise take for a height
+  // error.
   Eigen::Isometry3d Prior(const Eigen::Isometry3d& T_world_sensor_odometry) const override {
     if (!estimator_) return T_world_sensor_odometry;
     Eigen::Isometry3d body = T_world_sensor_odometry * T_body_sensor_.inverse();
-    body.linear() = R_correction_ * body.linear();
+    const Attitude odom = AttitudeOf(body.linear());
+    const double rpy[3] = {odom.roll + correction_rad_.x(), odom.pitch + correction_rad_.y(),
+                           odom.yaw};
+    body.linear() = gravity::WorldFromBody(rpy);
     body.translation().z() += dz_m_;
     return body * T_body_sensor_estimated_;
   }
@@ -156,7 +161,8 @@ class GravityTilt final : public TiltStep {
       outcome.T_world_sensor = body * mount;
       const Eigen::Isometry3d body_odometry =
           frame.T_world_sensor_odometry * T_body_sensor_.inverse();
-      R_correction_ = body.linear() * body_odometry.linear().transpose();
+      correction_rad_ =
+          Eigen::Vector2d(estimate->roll_rad - odom.roll, estimate->pitch_rad - odom.pitch);
       dz_m_ = body.translation().z() - body_odometry.translation().z();
       T_body_sensor_estimated_ = mount;
       outcome.applied = true;
@@ -207,7 +213,7 @@ class GravityTilt final : public TiltStep {
 
   // The estimator's own state (bounded by its window) and what this step carries.
   std::string SaveState() const override {
-    json j = {{"correction", Entries(R_correction_)},
+    json j = {{"attitude_correction", Entries(correction_rad_)},
               {"dz", dz_m_},
               {"mount_estimated", Entries(T_body_sensor_estimated_.matrix())},
               {"z0", z0_m_},
@@ -238,10 +244,11 @@ class GravityTilt final : public TiltStep {
             "tilt state (gravity): written by an earlier cairn, which replayed every "
             "frame; start the run afresh"};
       }
-      if (!j.contains("mount_estimated")) {
+      if (!j.contains("mount_estimated") || !j.contains("attitude_correction")) {
         return Error{
             "tilt state (gravity): written by an earlier cairn, whose prior turned the sensor "
-            "rather than the body; start the run afresh"};
+            "rather than the body, or corrected the body's tilt about world axes; start the run "
+            "afresh"};
       }
       // Read whole before anything changes: a state that fails leaves the step as it was.
       Eigen::Isometry3d mount = Eigen::Isometry3d::Identity();
@@ -257,7 +264,9 @@ class GravityTilt final : public TiltStep {
         estimator.emplace(std::move(*made));
       }
       const int verticals_seen = j.at("verticals_seen").get<int>();
-      const Eigen::Matrix3d correction = EntriesFrom<3, 3>(j.at("correction"), "correction");
+      const Eigen::Vector2d correction =
+          EntriesFrom<2, 1>(j.at("attitude_correction"), "attitude_correction");
+      if (!correction.allFinite()) throw std::runtime_error("attitude_correction: not finite");
       Eigen::Isometry3d mount_estimated = Eigen::Isometry3d::Identity();
       mount_estimated.matrix() = EntriesFrom<4, 4>(j.at("mount_estimated"), "mount_estimated");
       const double dz = j.at("dz").get<double>(), z0 = j.at("z0").get<double>();
@@ -298,7 +307,7 @@ class GravityTilt final : public TiltStep {
       T_body_sensor_ = mount;
       estimator_ = std::move(estimator);
       verticals_seen_ = verticals_seen;
-      R_correction_ = correction;
+      correction_rad_ = correction;
       dz_m_ = dz;
       T_body_sensor_estimated_ = mount_estimated;
       z0_m_ = z0;
@@ -315,8 +324,9 @@ class GravityTilt final : public TiltStep {
   Eigen::Isometry3d T_body_sensor_ = Eigen::Isometry3d::Identity();
   double z0_m_ = 0.0;  // the body's odometry height at the first frame [m]
   int verticals_seen_ = 0;                                      // vertical cues given so far
-  // Carried to the next prior: the body's tilt and height correction, the mount as estimated.
-  Eigen::Matrix3d R_correction_ = Eigen::Matrix3d::Identity();
+  // Carried to the next prior: the body's roll and pitch and height correction, the mount as
+  // estimated.
+  Eigen::Vector2d correction_rad_ = Eigen::Vector2d::Zero();
   double dz_m_ = 0.0;
   Eigen::Isometry3d T_body_sensor_estimated_ = Eigen::Isometry3d::Identity();
   // The last rise_frames_back frames' ground, as fused, for the ground rises.

@@ -237,7 +237,7 @@ TEST(Mapper, FramesToldAheadGiveTheSameMapInEveryTiltMode) {
 }
 
 // The gravity step carries its estimate to the next frame's prior as a correction of the
-// body (its tilt and height) with the mount as estimated: the prior of the pose just fused
+// body (its roll, pitch and height) with the mount as estimated: the prior of the pose just fused
 // is the pose the estimate fused it at, the sensor's position included. (Turning the sensor
 // about itself instead left the sensor 1.5 m above the body where the odometry's tilt put
 // it: 8 cm sideways for each 3 deg of tilt, which on a slope the frame-to-map ground height
@@ -264,6 +264,31 @@ TEST(Mapper, TheGravityPriorPutsTheSensorWhereTheEstimateDid) {
     // The estimate moved the sensor sideways from where the odometry had it.
     EXPECT_GT((r->T_world_sensor.translation() - f.T_world_sensor.translation()).head<2>().norm(),
               0.01);
+
+    // The correction is the roll and pitch added to the odometry's (the IMU's attitude
+    // output, whose bias is in those angles): a pose turned by 90 deg gets the same added
+    // angles. (A rotation about world axes, carried through the turn, would put a pitch
+    // correction into the roll.)
+    ASSERT_TRUE(r->tilt.gravity.has_value());
+    const Eigen::Vector2d m = r->tilt.gravity->mount_rad;
+    Eigen::Isometry3d mount = T_body_sensor;
+    mount.linear() = Eigen::AngleAxisd(m.y(), Eigen::Vector3d::UnitY()) *
+                     Eigen::AngleAxisd(m.x(), Eigen::Vector3d::UnitX()) * T_body_sensor.linear();
+    const auto added = [&](const Eigen::Isometry3d& T_world_sensor) {
+      const Eigen::Matrix3d odometry = (T_world_sensor * T_body_sensor.inverse()).linear();
+      const Eigen::Matrix3d corrected =
+          (mapper->tilt().Prior(T_world_sensor) * mount.inverse()).linear();
+      const auto roll_pitch = [](const Eigen::Matrix3d& R) {
+        return Eigen::Vector2d(std::atan2(R(2, 1), R(2, 2)),
+                               std::atan2(-R(2, 0), std::hypot(R(0, 0), R(1, 0))));
+      };
+      return Eigen::Vector2d(roll_pitch(corrected) - roll_pitch(odometry));
+    };
+    Eigen::Isometry3d turned = f.T_world_sensor;
+    turned.linear() =
+        Eigen::AngleAxisd(0.5 * kPi, Eigen::Vector3d::UnitZ()) * f.T_world_sensor.linear();
+    EXPECT_LT((added(turned) - added(f.T_world_sensor)).norm(), 1e-9);
+    EXPECT_GT(added(f.T_world_sensor).norm(), 0.5 * kDegToRad);  // there is a correction
   }
   EXPECT_GT(applied, 8);
 }
