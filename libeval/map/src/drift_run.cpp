@@ -104,6 +104,7 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
 
   sim::DriveSpec drive_spec;
   drive_spec.waypoints = spec.waypoints;
+  drive_spec.turn_radius_m = spec.turn_radius_m;
   drive_spec.speed_mps = spec.speed_mps;
   drive_spec.frame_rate_hz = spec.rate_hz;
   drive_spec.sensor_pitch_rad = 8.0 * kDegToRad;
@@ -123,7 +124,7 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   std::map<int, double> first_seen_m;
   std::vector<PoseError> pose_errors;
   std::vector<double> cue_errors_rad;
-  int degenerate_frames = 0;
+  int degenerate_frames = 0, accel_bias_flagged_frames = 0;
   double last_height_sigma = NAN;
   std::vector<map::GravityDegeneracy> last_degeneracies;
   int refined_frames = 0;
@@ -199,6 +200,8 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
     refined_frames += record->tilt.applied ? 1 : 0;
     if (record->tilt.gravity) {
       degenerate_frames += record->tilt.gravity->degeneracies.empty() ? 0 : 1;
+      accel_bias_flagged_frames +=
+          record->tilt.gravity->Degenerate(map::GravityDegeneracy::State::kAccelBias) ? 1 : 0;
       last_degeneracies = record->tilt.gravity->degeneracies;
       last_height_sigma = std::sqrt(record->tilt.gravity->height_variance);
     }
@@ -237,6 +240,7 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   r.pose_errors = std::move(pose_errors);
   r.cue_errors_rad = std::move(cue_errors_rad);
   r.degenerate_frames = degenerate_frames;
+  r.accel_bias_flagged_frames = accel_bias_flagged_frames;
   r.final_height_sigma_m = last_height_sigma;
   r.last_degeneracies = std::move(last_degeneracies);
   Expected<MapScore> score = ScoreMap(world->scene, r.map());

@@ -30,6 +30,7 @@ struct DriftRunSpec {
   std::string world;                       ///< world file (libsim's YAML)
   od::io::DetectSettings settings;         ///< the detector and the rules
   std::vector<Eigen::Vector2d> waypoints;  ///< world xy [m]
+  double turn_radius_m = 0.0;              ///< libsim DriveSpec::turn_radius_m
   bool true_poses = false;                 ///< fuse at the true poses (no odometry, no IMU)
   double odom_sigma_per_m = 0.0;           ///< libsim DriveSpec::odom_sigma_per_m
   double odom_yaw_sigma_rad_per_m = 0.0;   ///< libsim DriveSpec::odom_yaw_sigma_rad_per_m
@@ -102,6 +103,7 @@ struct DriftRunResult {
   /// Gravity mode: frames whose estimate flagged a state as not observable, and the last
   /// frame's flags (state and reason).
   int degenerate_frames = 0;
+  int accel_bias_flagged_frames = 0;  ///< of them, those with the accelerometer bias flagged
   std::vector<map::GravityDegeneracy> last_degeneracies;
   /// Gravity mode: the estimator's own height sigma for the last frame [m] (NaN when it
   /// computed no covariance): what it says it knows of the height, against the truth's
