@@ -115,6 +115,11 @@ const std::vector<TiltWorld>& TiltWorlds() {
        "about 0.1 deg off, stays (the estimator's window slides past those frames, and "
        "nothing later sees the absolute height), and the odometry scale, which only the "
        "climbs observe, wanders by a few tenths of a percent."},
+      {"side slope (10 deg, uphill to the left) through sparse trees, 60 m",
+       "datasets/maps/worlds/side_slope.yaml",
+       {{0.0, 0.0}, {20.0, 1.0}, {40.0, -2.0}, {60.0, 0.0}},
+       0.0,
+       ""},
       {"open field (no structure), 60 m",
        "datasets/maps/worlds/open_field.yaml",
        {{0.0, 0.0}, {20.0, 1.0}, {40.0, -2.0}, {60.0, 0.0}},
