@@ -531,6 +531,7 @@ TEST(Detector, ReturnsNearerThanMinRangeAreNeitherObstaclesNorPartners) {
       EXPECT_EQ(columns.labels[i], 0) << "column baseline, pixel " << i;
     }
   }
+  ExpectSameDetection(columns, RunColumns(holes, plain), "column baseline, min_range vs holes");
 }
 
 TEST(Detector, ObjectsApartIn3dButTouchingInTheImageAreSeparateSegments) {

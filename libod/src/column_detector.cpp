@@ -448,10 +448,9 @@ Detection Blobs(const RangeImage& image, const internal::LevelPoints& level,
 // DetectColumns (fast = true) and DetectColumnsBruteForce.
 Expected<Detection> Columns(const RangeImage& image, const ColumnConfig& config, bool fast) {
   if (Status s = config.Validate(); !s) return s.error();
-  if (std::optional<RangeImage> masked = internal::WithoutNearReturns(image, config.min_range_m)) {
-    return Columns(*masked, config, fast);
-  }
-  const internal::LevelPoints level(image);
+  // Returns nearer than min_range are holes from here on: only the level points are read
+  // (and the image's ranges of segment points, which are none of them).
+  const internal::LevelPoints level(image, 1, config.min_range_m);
   const PairTest test(PairParameters(config));
   const ColumnPairs pairs = fast ? FindColumnPairs(level, test, image.width(), image.height())
                                  : FindColumnPairsBruteForce(level, test, image.width(),

@@ -21,7 +21,10 @@ namespace cairn::od::internal {
 /// Computed on up to `threads` threads (0: all).
 struct LevelPoints {
   std::vector<float> x, y, z;
-  explicit LevelPoints(const RangeImage& image, int threads = 1);
+  /// With min_range_m > 0, returns nearer than it to the sensor are NaN too, as
+  /// RangeImage::DropReturnsNearerThan would have left them (the same test), without a copy
+  /// of the image.
+  explicit LevelPoints(const RangeImage& image, int threads = 1, double min_range_m = 0.0);
 };
 
 /// Bounds of short runs of pixels along each row (tiles of kTileWidth columns): the range of

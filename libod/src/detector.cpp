@@ -100,12 +100,11 @@ PairTest::PairTest(const DetectorConfig& config)
 Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config) {
   if (config.search != SearchMode::kExact) return DetectRegionScan(image, config);
   if (Status s = config.Validate(); !s) return s.error();
-  if (std::optional<RangeImage> masked = internal::WithoutNearReturns(image, config.min_range_m)) {
-    return Detect(*masked, config);
-  }
   const int n = image.size();
   const int threads = ThreadCount(config.threads);
-  const internal::LevelPoints level(image, threads);
+  // Returns nearer than min_range are holes from here on: only the level points are read
+  // (and the image's ranges of segment points, which are none of them).
+  const internal::LevelPoints level(image, threads, config.min_range_m);
   const PairTest test(config);
   // Leaves of 2 x 32 pixels on a LiDAR scan, of 8 x 8 on camera images: the fastest of the
   // shapes tried on the benchmark frames once a leaf's points are filtered by the other

@@ -14,7 +14,7 @@
 
 namespace cairn::od::internal {
 
-LevelPoints::LevelPoints(const RangeImage& image, int threads)
+LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_m)
     : x(image.size()), y(image.size()), z(image.size()) {
   const Eigen::Matrix3f R = image.R_level_sensor().cast<float>();
   constexpr int kParts = 8;
@@ -52,6 +52,18 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads)
           lx[i] = r00 * sx[i] + r01 * sy[i] + r02 * sz[i];
           ly[i] = r10 * sx[i] + r11 * sy[i] + r12 * sz[i];
           lz[i] = r20 * sx[i] + r21 * sy[i] + r22 * sz[i];
+        }
+        if (min_range_m > 0.0) {
+          // DropReturnsNearerThan's test, in its double arithmetic (a NaN return compares
+          // false and stays NaN).
+          constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+          const double range2 = min_range_m * min_range_m;
+          for (int j = begin; j < end; ++j) {
+            const double r2 = static_cast<double>(sx[j]) * sx[j] +
+                              static_cast<double>(sy[j]) * sy[j] +
+                              static_cast<double>(sz[j]) * sz[j];
+            if (r2 < range2) lx[j] = ly[j] = lz[j] = kNaN;
+          }
         }
       },
       1);
