@@ -58,7 +58,34 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_
           // false and stays NaN).
           constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
           const double range2 = min_range_m * min_range_m;
-          for (int j = begin; j < end; ++j) {
+          int j = begin;
+#if defined(__SSE2__)
+          // Four at a time: each pair of floats widened to doubles, the two halves' "nearer"
+          // masks packed into four float lanes.
+          const __m128d vrange2 = _mm_set1_pd(range2);
+          const __m128 vnan = _mm_set1_ps(kNaN);
+          const auto near2 = [&](__m128 px, __m128 py, __m128 pz) {
+            const __m128d dx = _mm_cvtps_pd(px), dy = _mm_cvtps_pd(py), dz = _mm_cvtps_pd(pz);
+            return _mm_cmplt_pd(
+                _mm_add_pd(_mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)), _mm_mul_pd(dz, dz)),
+                vrange2);
+          };
+          for (; j + 4 <= end; j += 4) {
+            const __m128 px = _mm_loadu_ps(sx + j), py = _mm_loadu_ps(sy + j),
+                         pz = _mm_loadu_ps(sz + j);
+            const __m128d lo = near2(px, py, pz);
+            const __m128d hi =
+                near2(_mm_movehl_ps(px, px), _mm_movehl_ps(py, py), _mm_movehl_ps(pz, pz));
+            // Each double lane's mask is all ones or zeros: its low 32 bits stand for it.
+            const __m128 near =
+                _mm_shuffle_ps(_mm_castpd_ps(lo), _mm_castpd_ps(hi), _MM_SHUFFLE(2, 0, 2, 0));
+            for (float* out : {lx, ly, lz}) {
+              const __m128 v = _mm_loadu_ps(out + j);
+              _mm_storeu_ps(out + j, _mm_or_ps(_mm_and_ps(near, vnan), _mm_andnot_ps(near, v)));
+            }
+          }
+#endif
+          for (; j < end; ++j) {
             const double r2 = static_cast<double>(sx[j]) * sx[j] +
                               static_cast<double>(sy[j]) * sy[j] +
                               static_cast<double>(sz[j]) * sz[j];
