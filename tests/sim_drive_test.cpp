@@ -393,6 +393,26 @@ TEST(SimImu, ARoundedCornerTurnsOnAnArcOfTheTurnRadius) {
   }
   EXPECT_GT(largest, 50.0);
 
+  // A right turn and a left one, each beside a 3 m segment: their arcs take half of it (a
+  // tangent of 1.5 m, so a radius of 1.5 m at 90 deg), and the gyro turns the other way.
+  spec.waypoints = {{0.0, 0.0}, {20.0, 0.0}, {20.0, -3.0}, {40.0, -3.0}};
+  spec.turn_radius_m = radius;
+  const Expected<Drive> clipped =
+      SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 3, 0, NoiselessImu());
+  ASSERT_TRUE(clipped.ok()) << clipped.error().message;
+  EXPECT_NEAR(clipped->path_length_m, 43.0 - 4.0 * 1.5 + 1.5 * kPi, 1e-9);
+  // The right arc runs from 18.5 m along the path for 1.5 pi / 2 m; more than half a
+  // wheelbase inside it the body turns right at v / 1.5 with v^2 / 1.5 towards the centre.
+  int mid_arc = 0;
+  for (const ImuReading& r : clipped->imu) {
+    const double s = speed * r.stamp_s;
+    if (s < 18.5 + margin || s > 18.5 + 0.75 * kPi - margin) continue;
+    ++mid_arc;
+    EXPECT_NEAR(r.angular_rate_radps.z(), -speed / 1.5, 1e-3) << s;
+    EXPECT_NEAR(r.specific_force_mps2.y(), -speed * speed / 1.5, 5e-3) << s;
+  }
+  EXPECT_GT(mid_arc, 20);
+
   spec.turn_radius_m = -1.0;
   const Expected<Drive> bad = SimulateDrive(Terrain::Flat(), spec, SensorFrame::kLidar, 3);
   ASSERT_FALSE(bad.ok());

@@ -34,7 +34,7 @@ Status CheckPositive(const std::string& field, double value) {
   return {};
 }
 
-Status CheckSigma(const std::string& field, double value) {
+Status CheckNonNegative(const std::string& field, double value) {
   if (!std::isfinite(value) || value < 0.0) {
     return DriveError(field, "must be a finite number >= 0, got " + std::to_string(value));
   }
@@ -48,12 +48,12 @@ Status CheckDrivable(const DriveSpec& spec) {
   if (Status s = CheckPositive("frame_rate_hz", spec.frame_rate_hz); !s) return s;
   if (Status s = CheckPositive("wheelbase_m", spec.wheelbase_m); !s) return s;
   if (Status s = CheckPositive("track_m", spec.track_m); !s) return s;
-  if (Status s = CheckSigma("odom_sigma_per_m", spec.odom_sigma_per_m); !s) return s;
-  if (Status s = CheckSigma("odom_yaw_sigma_rad_per_m", spec.odom_yaw_sigma_rad_per_m); !s) {
+  if (Status s = CheckNonNegative("odom_sigma_per_m", spec.odom_sigma_per_m); !s) return s;
+  if (Status s = CheckNonNegative("odom_yaw_sigma_rad_per_m", spec.odom_yaw_sigma_rad_per_m); !s) {
     return s;
   }
-  if (Status s = CheckSigma("imu_sigma_rad", spec.imu_sigma_rad); !s) return s;
-  if (Status s = CheckSigma("turn_radius_m", spec.turn_radius_m); !s) return s;
+  if (Status s = CheckNonNegative("imu_sigma_rad", spec.imu_sigma_rad); !s) return s;
+  if (Status s = CheckNonNegative("turn_radius_m", spec.turn_radius_m); !s) return s;
   if (!std::isfinite(spec.imu_bias_rad)) return DriveError("imu_bias_rad", "must be finite");
   if (!std::isfinite(spec.sensor_pitch_rad)) {
     return DriveError("sensor_pitch_rad", "must be finite");
