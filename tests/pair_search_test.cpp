@@ -205,6 +205,46 @@ RangeImage RandomScan(std::mt19937& rng, const std::string& sensor, int width) {
   return *RangeImage::FromPoints(points, model, up, rows, cols);
 }
 
+// The level points drop returns nearer than min_range as DropReturnsNearerThan does, to the
+// bit (the same double-precision test, four at a time and in each part's tail), on images
+// whose eight parts leave 0-3 points past a multiple of four, with returns on the boundary,
+// holes and points of either sign.
+TEST(LevelPoints, DropNearReturnsAsTheImageWould) {
+  std::mt19937 rng(77);
+  for (int width = 29; width <= 36; ++width) {
+    PinholeModel model;
+    model.width = width;
+    model.height = 7;
+    model.fx = model.fy = 20.0;
+    model.cx = 0.5 * (width - 1);
+    model.cy = 3.0;
+    std::vector<float> depth(model.width * model.height);
+    for (float& d : depth) d = rng() % 7 == 0 ? 0.0f : 0.25f * (1 + rng() % 16);
+    const RangeImage image = *RangeImage::FromDepth(depth, model, {0.3, -1.0, 0.1});
+    for (const double min_range : {0.0, 1.0, 2.0, 2.25, 3.7}) {
+      RangeImage holes = image;
+      if (min_range > 0.0) holes.DropReturnsNearerThan(min_range);
+      for (const int threads : {1, 2}) {
+        const internal::LevelPoints masked(image, threads, min_range);
+        const internal::LevelPoints reference(holes, threads);
+        for (int i = 0; i < image.size(); ++i) {
+          const std::string at = "width " + std::to_string(width) + ", min_range " +
+                                 std::to_string(min_range) + ", pixel " + std::to_string(i);
+          ASSERT_EQ(std::isnan(masked.z[i]), !holes.valid(i)) << at;
+          const float got[3] = {masked.x[i], masked.y[i], masked.z[i]};
+          const float want[3] = {reference.x[i], reference.y[i], reference.z[i]};
+          for (int k = 0; k < 3; ++k) {
+            ASSERT_EQ(std::isnan(got[k]), std::isnan(want[k])) << at;
+            if (!std::isnan(got[k])) {
+              ASSERT_EQ(got[k], want[k]) << at;
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
 TEST(PairSearch, EqualsTheDefinitionOnLidarScans) {
   std::mt19937 rng(1964);
   for (int trial = 0; trial < 8; ++trial) {

@@ -144,11 +144,17 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
 /// nullopt (the image is used as it is). DetectorConfig::min_range_m.
 inline std::optional<RangeImage> WithoutNearReturns(const RangeImage& image, double min_range_m) {
   if (!(min_range_m > 0.0)) return std::nullopt;
-  bool any = false;  // look before copying: most frames (and every masked one) have none
-  for (int i = 0; i < image.size() && !any; ++i) any = image.valid(i) && image.range(i) < min_range_m;
+  // Look before copying (most frames, and every masked one, have none), with the test
+  // DropReturnsNearerThan and LevelPoints make, in their double arithmetic.
+  const double range2 = min_range_m * min_range_m;
+  bool any = false;
+  for (int i = 0; i < image.size() && !any; ++i) {
+    const double x = image.x()[i], y = image.y()[i], z = image.z()[i];
+    any = image.valid(i) && x * x + y * y + z * z < range2;
+  }
   if (!any) return std::nullopt;
   RangeImage masked = image;
-  if (masked.DropReturnsNearerThan(min_range_m) == 0) return std::nullopt;
+  masked.DropReturnsNearerThan(min_range_m);
   return masked;
 }
 
