@@ -291,6 +291,20 @@ TEST(Mapper, TheGravityPriorPutsTheSensorWhereTheEstimateDid) {
     EXPECT_GT(added(f.T_world_sensor).norm(), 0.5 * kDegToRad);  // there is a correction
   }
   EXPECT_GT(applied, 8);
+
+  // A state saved by a cairn whose prior corrected the tilt about world axes (a rotation
+  // matrix, "correction") is refused with the reason, not read as angles.
+  const std::string saved = mapper->tilt().SaveState();
+  Expected<std::unique_ptr<TiltStep>> step = MakeTiltStep(Config(TiltMode::kGravity).tilt);
+  ASSERT_TRUE(step.ok()) << step.error().message;
+  ASSERT_TRUE((*step)->RestoreState(saved).ok());
+  std::string old = saved;
+  const std::size_t key = old.find("\"attitude_correction\"");
+  ASSERT_NE(key, std::string::npos);
+  old.replace(key, std::string("\"attitude_correction\"").size(), "\"correction\"");
+  const Status refused = (*step)->RestoreState(old);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("earlier cairn"), std::string::npos) << refused.message();
 }
 
 TEST(Mapper, ResumedWithPriorTiltGivesTheSameMap) {
