@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <deque>
 #include <exception>
+#include <limits>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -111,6 +112,9 @@ struct Residual {
 
 }  // namespace
 
+// A smoother's solve may start far from the answer (the gyro chained from the first frame).
+constexpr int kSmootherIterations = 50;
+
 struct GravityEstimator::State {
   GravityEstimatorConfig config;
   Eigen::Matrix3d R_body_imu = Eigen::Matrix3d::Identity();
@@ -135,6 +139,11 @@ struct GravityEstimator::State {
   void Build(ceres::Problem& problem, std::vector<Residual>& residuals,
              bool oldest_only = false) const;
   void Marginalise();
+  // Builds the window's problem into `problem` and solves it (a sparse solver for a batch).
+  ceres::Solver::Summary Solve(ceres::Problem& problem, std::vector<Residual>& residuals,
+                               bool sparse, int max_iterations);
+  // A frame's estimate at the states as they stand: attitude, height, slow states, up vectors.
+  GravityEstimate EstimateOf(const WindowFrame& frame) const;
 };
 
 namespace {
@@ -616,7 +625,7 @@ Expected<GravityEstimator> GravityEstimator::Create(const GravityEstimatorConfig
   return GravityEstimator(std::move(state));
 }
 
-Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) {
+Status GravityEstimator::Push(const GravityFrame& frame) {
   State& st = *state_;
   const GravityEstimatorConfig& c = st.config;
   if (!std::isfinite(frame.stamp_s)) return GravityError("frame.stamp_s", "must be finite");
@@ -766,48 +775,74 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
     }
   }
   while (static_cast<int>(st.window.size()) > c.window_frames) st.Marginalise();
+  return {};
+}
 
-  // Solve.
-  ceres::Problem problem;
-  std::vector<Residual> residuals;
-  st.Build(problem, residuals);
-  if (!c.estimate_accel_bias) problem.SetParameterBlockConstant(st.ba);
-  if (!c.estimate_gyro_bias) problem.SetParameterBlockConstant(st.bg);
-  if (!c.estimate_mount) problem.SetParameterBlockConstant(st.mount);
+ceres::Solver::Summary GravityEstimator::State::Solve(ceres::Problem& problem,
+                                                      std::vector<Residual>& residuals, bool sparse,
+                                                      int max_iterations) {
+  const GravityEstimatorConfig& c = config;
+  Build(problem, residuals);
+  if (!c.estimate_accel_bias) problem.SetParameterBlockConstant(ba);
+  if (!c.estimate_gyro_bias) problem.SetParameterBlockConstant(bg);
+  if (!c.estimate_mount) problem.SetParameterBlockConstant(mount);
   if (c.estimate_odometry_scale) {
-    problem.SetParameterLowerBound(st.scale, 0, -0.5);  // the terms divide by 1 + s
-    problem.SetParameterUpperBound(st.scale, 0, 0.5);
+    problem.SetParameterLowerBound(scale, 0, -0.5);  // the terms divide by 1 + s
+    problem.SetParameterUpperBound(scale, 0, 0.5);
   } else {
-    problem.SetParameterBlockConstant(st.scale);
+    problem.SetParameterBlockConstant(scale);
   }
   ceres::Solver::Options options;
-  options.linear_solver_type = ceres::DENSE_QR;
-  options.max_num_iterations = c.max_iterations;
+  options.linear_solver_type = sparse ? ceres::SPARSE_NORMAL_CHOLESKY : ceres::DENSE_QR;
+  options.max_num_iterations = max_iterations;
   options.num_threads = 1;
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
+  return summary;
+}
 
-  WindowFrame& newest = *st.window.back();
+GravityEstimate GravityEstimator::State::EstimateOf(const WindowFrame& frame) const {
   GravityEstimate est;
-  est.stamp_s = frame.stamp_s;
-  est.roll_rad = Wrap(newest.rpy[0]);
-  est.pitch_rad = newest.rpy[1];
-  est.yaw_rad = Wrap(newest.rpy[2]);
-  est.height_m = newest.h[0];
-  est.accel_bias_mps2 = Eigen::Vector3d(st.ba[0], st.ba[1], st.ba[2]);
-  est.gyro_bias_radps = Eigen::Vector3d(st.bg[0], st.bg[1], st.bg[2]);
-  est.mount_rad = Eigen::Vector2d(st.mount[0], st.mount[1]);
-  est.attitude_bias_rad = Eigen::Vector2d(st.prior_bias[0], st.prior_bias[1]);
-  est.odometry_scale = st.scale[0];
-  const Eigen::Matrix3d R_level_body = gravity::LevelFromBody(newest.rpy);
+  est.stamp_s = frame.input.stamp_s;
+  est.roll_rad = Wrap(frame.rpy[0]);
+  est.pitch_rad = frame.rpy[1];
+  est.yaw_rad = Wrap(frame.rpy[2]);
+  est.height_m = frame.h[0];
+  est.accel_bias_mps2 = Eigen::Vector3d(ba[0], ba[1], ba[2]);
+  est.gyro_bias_radps = Eigen::Vector3d(bg[0], bg[1], bg[2]);
+  est.mount_rad = Eigen::Vector2d(mount[0], mount[1]);
+  est.attitude_bias_rad = Eigen::Vector2d(prior_bias[0], prior_bias[1]);
+  est.odometry_scale = scale[0];
+  const Eigen::Matrix3d R_level_body = gravity::LevelFromBody(frame.rpy);
   est.up_body = R_level_body.transpose() * Eigen::Vector3d::UnitZ();
-  const Eigen::Matrix3d R_mount = gravity::RotY(st.mount[1]) * gravity::RotX(st.mount[0]);
-  est.up_sensor = (R_mount * st.R_body_sensor).transpose() * est.up_body;
+  const Eigen::Matrix3d R_mount = gravity::RotY(mount[1]) * gravity::RotX(mount[0]);
+  est.up_sensor = (R_mount * R_body_sensor).transpose() * est.up_body;
+  return est;
+}
+
+namespace {
+
+void SetSolverFigures(const ceres::Solver::Summary& summary, GravityEstimate& est) {
   est.iterations = static_cast<int>(summary.iterations.size());
   est.initial_cost = summary.initial_cost;
   est.final_cost = summary.final_cost;
   est.converged = summary.IsSolutionUsable();
   est.solver_report = summary.BriefReport();
+}
+
+}  // namespace
+
+Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) {
+  if (Status s = Push(frame); !s) return s.error();
+  State& st = *state_;
+  const GravityEstimatorConfig& c = st.config;
+  ceres::Problem problem;
+  std::vector<Residual> residuals;
+  const ceres::Solver::Summary summary =
+      st.Solve(problem, residuals, /*sparse=*/false, c.max_iterations);
+  WindowFrame& newest = *st.window.back();
+  GravityEstimate est = st.EstimateOf(newest);
+  SetSolverFigures(summary, est);
 
   // Cues.
   GravityCues& cues = est.cues;
@@ -917,6 +952,52 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
     }
   }
   return est;
+}
+
+Expected<GravitySmoother> GravitySmoother::Create(const GravityEstimatorConfig& config,
+                                                  const Eigen::Matrix3d& R_body_imu,
+                                                  const Eigen::Matrix3d& R_body_sensor_nominal) {
+  GravityEstimatorConfig c = config;
+  c.window_frames = std::numeric_limits<int>::max();  // nothing leaves
+  Expected<GravityEstimator> estimator =
+      GravityEstimator::Create(c, R_body_imu, R_body_sensor_nominal);
+  if (!estimator) return estimator.error();
+  return GravitySmoother(std::move(*estimator));
+}
+
+Status GravitySmoother::Add(const GravityFrame& frame) { return estimator_.Push(frame); }
+
+int GravitySmoother::frames() const { return estimator_.frames_added(); }
+
+std::string GravitySmoother::SaveState() const { return estimator_.SaveState(); }
+
+Status GravitySmoother::RestoreState(const std::string& state) {
+  return estimator_.RestoreState(state);
+}
+
+const GravityFrame& GravitySmoother::frame(int index) const {
+  return estimator_.state_->window.at(static_cast<std::size_t>(index))->input;
+}
+
+Expected<std::vector<GravityEstimate>> GravitySmoother::Solve() {
+  GravityEstimator::State& st = *estimator_.state_;
+  if (st.window.empty()) return GravityError("smoother", "has no frames to solve");
+  // Twice: the IMU terms are pre-integrated at the gyro bias as it stands, which the first
+  // solve learns.
+  ceres::Solver::Summary summary;
+  for (int round = 0; round < 2; ++round) {
+    ceres::Problem problem;
+    std::vector<Residual> residuals;
+    summary = st.Solve(problem, residuals, /*sparse=*/true,
+                       std::max(st.config.max_iterations, kSmootherIterations));
+  }
+  std::vector<GravityEstimate> out;
+  out.reserve(st.window.size());
+  for (const auto& frame : st.window) {
+    out.push_back(st.EstimateOf(*frame));
+    SetSolverFigures(summary, out.back());
+  }
+  return out;
 }
 
 namespace {

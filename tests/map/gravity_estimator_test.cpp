@@ -43,6 +43,9 @@ struct Cues {
   double ground_sigma_m = 0.0;  // > 0: each frame's true height (from the first frame's) as
                                 // its frame-to-map ground height, with this sigma
   double odometry_scale = 0.0;  // the odometry's distances are 1 + this of the true ones
+  int trunks_from = 0;          // the frames before this one see no trunks
+  bool smooth = false;          // every frame also to a GravitySmoother, solved at the end
+  int smoother_resume_at = -1;  // after this frame: the smoother saved, restored, gone on
 };
 
 struct DriveRun {
@@ -51,6 +54,9 @@ struct DriveRun {
   std::vector<double> sensor_error_deg;  // (sensor)
   std::vector<double> prior_error_deg;   // the IMU attitude output's
   std::vector<std::size_t> state_bytes;  // with Cues::state_sizes
+  // Cues::smooth: the smoother's estimates and sensor tilt errors, every frame from `skip`.
+  std::vector<GravityEstimate> smoothed;
+  std::vector<double> smoothed_sensor_error_deg;
 };
 
 // Tilt of `est_up` against the true up in the same frame [deg].
@@ -81,6 +87,9 @@ DriveRun Estimate(const GravityEstimatorConfig& config, const Eigen::Matrix3d& R
   std::mt19937_64 rng(cues.seed);
   std::normal_distribution<double> normal(0.0, 1.0);
   std::uniform_real_distribution<double> uniform(0.0, 2.0 * kPi);
+  Expected<GravitySmoother> smoother =
+      GravitySmoother::Create(config, Eigen::Matrix3d::Identity(), R_body_sensor_nominal);
+  EXPECT_TRUE(smoother.ok()) << smoother.error().message;
   DriveRun run;
   std::size_t j = 0;
   for (std::size_t k = 0; k < stamps.size(); ++k) {
@@ -99,7 +108,7 @@ DriveRun Estimate(const GravityEstimatorConfig& config, const Eigen::Matrix3d& R
     const Eigen::Vector2d prior(a.roll_rad + cues.attitude_bias_rad + cues.attitude_sigma_rad * normal(rng),
                                 a.pitch_rad + cues.attitude_bias_rad + cues.attitude_sigma_rad * normal(rng));
     frame.attitude_prior_rad = prior;
-    if (cues.trunks) {
+    if (cues.trunks && static_cast<int>(k) >= cues.trunks_from) {
       for (int t = 0; t < 4; ++t) {
         const double lean =
             (k * 4 + t) % 10 == 3 ? 12.0 * kDegToRad : 1.0 * kDegToRad * normal(rng);
@@ -112,6 +121,19 @@ DriveRun Estimate(const GravityEstimatorConfig& config, const Eigen::Matrix3d& R
     Expected<GravityEstimate> est = estimator->AddFrame(frame);
     EXPECT_TRUE(est.ok()) << est.error().message;
     if (!est.ok()) return run;
+    if (cues.smooth) {
+      const Status added = smoother->Add(frame);
+      EXPECT_TRUE(added.ok()) << added.message();
+      if (static_cast<int>(k) == cues.smoother_resume_at) {
+        const std::string state = smoother->SaveState();
+        smoother =
+            GravitySmoother::Create(config, Eigen::Matrix3d::Identity(), R_body_sensor_nominal);
+        EXPECT_TRUE(smoother.ok());
+        const Status restored = smoother->RestoreState(state);
+        EXPECT_TRUE(restored.ok()) << restored.message();
+        EXPECT_EQ(smoother->frames(), static_cast<int>(k) + 1);
+      }
+    }
     if (cues.state_sizes) run.state_bytes.push_back(estimator->SaveState().size());
     if (cues.after_frame) cues.after_frame(*estimator, static_cast<int>(k));
     if (static_cast<int>(k) == cues.resume_at) {
@@ -134,6 +156,19 @@ DriveRun Estimate(const GravityEstimatorConfig& config, const Eigen::Matrix3d& R
       run.prior_error_deg.push_back(AngleDeg(prior_up, up_body));
     }
     run.estimates.push_back(*est);
+  }
+  if (cues.smooth) {
+    Expected<std::vector<GravityEstimate>> solved = smoother->Solve();
+    EXPECT_TRUE(solved.ok()) << solved.error().message;
+    if (!solved.ok()) return run;
+    EXPECT_EQ(solved->size(), stamps.size());
+    run.smoothed = *solved;
+    for (std::size_t k = static_cast<std::size_t>(skip); k < solved->size(); ++k) {
+      EXPECT_EQ((*solved)[k].stamp_s, stamps[k]);
+      const Eigen::Vector3d up_sensor =
+          truth[k].R_world_sensor.transpose() * Eigen::Vector3d::UnitZ();
+      run.smoothed_sensor_error_deg.push_back(AngleDeg((*solved)[k].up_sensor, up_sensor));
+    }
   }
   return run;
 }
@@ -532,6 +567,67 @@ TEST(GravityEstimator, AMountMisalignmentIsRecoveredFromTrunksAndFlaggedInAnOpen
   EXPECT_LT(blind.mount_rad.norm(), 0.5 * kDegToRad);       // no correction invented
   EXPECT_GT(Percentile(field.sensor_error_deg, 0.5), 2.0);  // the misalignment remains
   EXPECT_LT(Percentile(field.body_error_deg, 0.5), 0.2);    // the body tilt is still right
+}
+
+// The window answers a frame from the frames up to it: with a misaligned mount and the first
+// trunks 5 s into the drive, the first frames' sensor tilt is the misalignment. The smoother,
+// given the same frames, applies the mount the trunks showed to every frame (and a smoother
+// saved and restored halfway solves the same).
+TEST(GravitySmoother, AppliesTheMountLearnedFromLaterTrunksToTheFirstFrames) {
+  const sim::Terrain terrain = sim::Terrain::Slope(0.0, 6.0 * kDegToRad, 45.0 * kDegToRad);
+  sim::DriveSpec spec = SideSlopeDrive(30.0);
+  spec.sensor_misalignment_rad << 2.5 * kDegToRad, 0.0, 0.0;
+  Cues cues;
+  cues.trunks_from = 50;  // 10 Hz: the first 5 s see none
+  cues.smooth = true;
+  const DriveRun run =
+      EstimateDrive(GravityEstimatorConfig{}, terrain, spec, sim::ImuSpec{}, cues, 0);
+  ASSERT_EQ(run.smoothed.size(), run.estimates.size());
+  const std::vector<double> window_first(run.sensor_error_deg.begin(),
+                                         run.sensor_error_deg.begin() + 50);
+  const std::vector<double> smoothed_first(run.smoothed_sensor_error_deg.begin(),
+                                           run.smoothed_sensor_error_deg.begin() + 50);
+  Print("mount misaligned 2.5 deg, trunks from 5 s, window, first 5 s", window_first);
+  Print("mount misaligned 2.5 deg, trunks from 5 s, smoother, first 5 s", smoothed_first);
+  Print("mount misaligned 2.5 deg, trunks from 5 s, smoother, whole drive",
+        run.smoothed_sensor_error_deg);
+  EXPECT_GT(Percentile(window_first, 0.5), 1.0);  // the window could not know
+  EXPECT_LT(Percentile(smoothed_first, 0.5), 0.2);
+  EXPECT_LT(Percentile(run.smoothed_sensor_error_deg, 0.95), 0.5);
+  // The slow states are the drive's, the same in every frame's estimate.
+  const GravityEstimate& first = run.smoothed.front();
+  EXPECT_NEAR(first.mount_rad.norm(), 2.5 * kDegToRad, 0.3 * kDegToRad);
+  EXPECT_TRUE(first.mount_rad == run.smoothed.back().mount_rad);
+  EXPECT_TRUE(first.IsSolutionUsable()) << first.solver_report;
+
+  cues.smoother_resume_at = 120;
+  const DriveRun resumed =
+      EstimateDrive(GravityEstimatorConfig{}, terrain, spec, sim::ImuSpec{}, cues, 0);
+  ASSERT_EQ(resumed.smoothed.size(), run.smoothed.size());
+  for (std::size_t k = 0; k < run.smoothed.size(); ++k) {
+    EXPECT_NEAR(resumed.smoothed[k].roll_rad, run.smoothed[k].roll_rad, 1e-9) << "frame " << k;
+    EXPECT_NEAR(resumed.smoothed[k].pitch_rad, run.smoothed[k].pitch_rad, 1e-9) << "frame " << k;
+    EXPECT_NEAR(resumed.smoothed[k].height_m, run.smoothed[k].height_m, 1e-9) << "frame " << k;
+  }
+}
+
+TEST(GravitySmoother, RefusesToSolveNothingAndChecksItsFrames) {
+  Expected<GravitySmoother> smoother = GravitySmoother::Create(
+      GravityEstimatorConfig{}, Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity());
+  ASSERT_TRUE(smoother.ok());
+  const Expected<std::vector<GravityEstimate>> none = smoother->Solve();
+  ASSERT_FALSE(none.ok());
+  EXPECT_NE(none.error().message.find("no frames"), std::string::npos) << none.error().message;
+  GravityFrame frame;
+  frame.stamp_s = 1.0;
+  ASSERT_TRUE(smoother->Add(frame).ok());
+  frame.stamp_s = 0.5;
+  const Status late = smoother->Add(frame);
+  ASSERT_FALSE(late.ok());
+  EXPECT_NE(late.message().find("frame.stamp_s"), std::string::npos) << late.message();
+  EXPECT_EQ(smoother->frames(), 1);
+  EXPECT_FALSE(smoother->RestoreState("{}").ok());
+  EXPECT_EQ(smoother->frames(), 1);
 }
 
 // ---- derivatives ------------------------------------------------------------------------

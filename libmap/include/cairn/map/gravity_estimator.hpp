@@ -269,9 +269,48 @@ class GravityEstimator {
   Status RestoreState(const std::string& state);
 
  private:
+  friend class GravitySmoother;
   struct State;
   explicit GravityEstimator(std::unique_ptr<State> state);
+  // AddFrame's checks and bookkeeping, without the solve.
+  Status Push(const GravityFrame& frame);
   std::unique_ptr<State> state_;
+};
+
+/// Offline: every frame of a run solved together, with GravityEstimator's terms (a batch
+/// smoother). The sliding window answers each frame from the frames up to it: a frame early
+/// in a run is answered before the slow states are learned (the accelerometer bias at the
+/// first turn, the mount at the first trunks), and a map fused at that answer keeps its
+/// error. Over the whole run, what was learned anywhere applies everywhere. Nothing is
+/// marginalised, so memory and time grow with the run (sparse Cholesky).
+class GravitySmoother {
+ public:
+  /// As GravityEstimator::Create; config.window_frames is not used.
+  static Expected<GravitySmoother> Create(const GravityEstimatorConfig& config,
+                                          const Eigen::Matrix3d& R_body_imu,
+                                          const Eigen::Matrix3d& R_body_sensor_nominal);
+  /// Adds a frame with GravityEstimator::AddFrame's checks (a ground rise may name any earlier
+  /// frame); nothing is solved.
+  Status Add(const GravityFrame& frame);
+  int frames() const;
+  /// Frame `index` (0 <= index < frames()) as added, its IMU samples left out.
+  const GravityFrame& frame(int index) const;
+  /// Every frame's estimate, in the order added: attitude, height, and the slow states (the
+  /// same in each); the solver's figures; no covariance, cues or flags (the sliding window's
+  /// estimates carry those). Solved twice, the IMU terms pre-integrated again at the gyro bias
+  /// the first solve found. Fails when no frame was added.
+  Expected<std::vector<GravityEstimate>> Solve();
+
+  /// Every frame added, as text (GravityEstimator::SaveState's form), and back: a smoother
+  /// restored and given the rest of the run solves as the uninterrupted one. RestoreState
+  /// fails, leaving the smoother as it was, on text that is not a smoother's state under the
+  /// same settings.
+  std::string SaveState() const;
+  Status RestoreState(const std::string& state);
+
+ private:
+  explicit GravitySmoother(GravityEstimator estimator) : estimator_(std::move(estimator)) {}
+  GravityEstimator estimator_;
 };
 
 }  // namespace cairn::map
