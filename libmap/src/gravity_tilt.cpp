@@ -80,6 +80,12 @@ class GravityTilt final : public TiltStep {
           config_.gravity, Eigen::Matrix3d::Identity(), frame.T_body_sensor.linear());
       if (!made) return made.error();
       estimator_.emplace(std::move(*made));
+      if (config_.smooth) {
+        Expected<GravitySmoother> smoother = GravitySmoother::Create(
+            config_.gravity, Eigen::Matrix3d::Identity(), frame.T_body_sensor.linear());
+        if (!smoother) return smoother.error();
+        smoother_.emplace(std::move(*smoother));
+      }
       T_body_sensor_ = frame.T_body_sensor;
       T_body_sensor_estimated_ = frame.T_body_sensor;
       z0_m_ = T_world_body.translation().z();
@@ -143,21 +149,23 @@ class GravityTilt final : public TiltStep {
     }
     Expected<GravityEstimate> estimate = estimator_->AddFrame(g);
     if (!estimate) return estimate.error();
+    if (smoother_) {
+      // The frame-to-map ground height was measured against the map fused at the window's
+      // estimates, whose errors the smoother is there to undo: it is given with a wider sigma
+      // (TiltConfig::smooth_ground_sigma_m; 0: left out).
+      GravityFrame kept = g;
+      kept.ground_height_sigma_m = config_.smooth_ground_sigma_m;
+      if (config_.smooth_ground_sigma_m == 0.0) kept.ground_height_m.reset();
+      if (Status s = smoother_->Add(kept); !s) return s.error();
+    }
     verticals_seen_ += static_cast<int>(g.verticals.size());
 
     TiltOutcome outcome;
     outcome.estimated = true;
     outcome.T_world_sensor = frame.T_world_sensor_prior;
     if (estimate->IsSolutionUsable()) {
-      const double rpy[3] = {estimate->roll_rad, estimate->pitch_rad, odom.yaw};
-      Eigen::Isometry3d body = Eigen::Isometry3d::Identity();
-      body.linear() = gravity::WorldFromBody(rpy);
-      body.translation() = Eigen::Vector3d(T_world_body.translation().x(),
-                                           T_world_body.translation().y(),
-                                           z0_m_ + estimate->height_m);
-      Eigen::Isometry3d mount = T_body_sensor_;
-      mount.linear() = gravity::RotY(estimate->mount_rad.y()) *
-                       gravity::RotX(estimate->mount_rad.x()) * T_body_sensor_.linear();
+      const Eigen::Isometry3d mount = MountOf(*estimate);
+      const Eigen::Isometry3d body = BodyOf(*estimate, g.odometry_xy_yaw);
       outcome.T_world_sensor = body * mount;
       const Eigen::Isometry3d body_odometry =
           frame.T_world_sensor_odometry * T_body_sensor_.inverse();
@@ -185,6 +193,41 @@ class GravityTilt final : public TiltStep {
     }
     outcome.gravity = std::move(*estimate);
     return outcome;
+  }
+
+  Expected<std::vector<SmoothedFrame>> Smooth() override {
+    if (!smoother_ || smoother_->frames() == 0) return TiltStep::Smooth();
+    Expected<std::vector<GravityEstimate>> solved = smoother_->Solve();
+    if (!solved) return solved.error();
+    std::vector<SmoothedFrame> out;
+    out.reserve(solved->size());
+    for (std::size_t i = 0; i < solved->size(); ++i) {
+      GravityEstimate& e = (*solved)[i];
+      SmoothedFrame f;
+      f.stamp_s = e.stamp_s;
+      f.T_world_sensor =
+          BodyOf(e, smoother_->frame(static_cast<int>(i)).odometry_xy_yaw) * MountOf(e);
+      f.estimate = std::move(e);
+      out.push_back(std::move(f));
+    }
+    return out;
+  }
+
+  // The body an estimate puts at the odometry's x, y and heading.
+  Eigen::Isometry3d BodyOf(const GravityEstimate& e, const Eigen::Vector3d& odometry_xy_yaw) const {
+    const double rpy[3] = {e.roll_rad, e.pitch_rad, odometry_xy_yaw.z()};
+    Eigen::Isometry3d body = Eigen::Isometry3d::Identity();
+    body.linear() = gravity::WorldFromBody(rpy);
+    body.translation() =
+        Eigen::Vector3d(odometry_xy_yaw.x(), odometry_xy_yaw.y(), z0_m_ + e.height_m);
+    return body;
+  }
+  // The sensor's pose on the body with the mount's tilt as estimated.
+  Eigen::Isometry3d MountOf(const GravityEstimate& e) const {
+    Eigen::Isometry3d mount = T_body_sensor_;
+    mount.linear() =
+        gravity::RotY(e.mount_rad.y()) * gravity::RotX(e.mount_rad.x()) * T_body_sensor_.linear();
+    return mount;
   }
 
   internal::GroundRiseFitConfig RiseFitConfig() const {
@@ -234,6 +277,7 @@ class GravityTilt final : public TiltStep {
     }
     j["earlier_ground"] = earlier;
     if (estimator_) j["estimator"] = json::parse(estimator_->SaveState());
+    if (smoother_) j["smoother"] = json::parse(smoother_->SaveState());
     return j.dump();
   }
   Status RestoreState(const std::string& state) override {
@@ -262,6 +306,20 @@ class GravityTilt final : public TiltStep {
           return Error{"tilt state (gravity): " + s.message()};
         }
         estimator.emplace(std::move(*made));
+      }
+      std::optional<GravitySmoother> smoother;
+      if (config_.smooth && j.contains("smoother")) {
+        Expected<GravitySmoother> made =
+            GravitySmoother::Create(config_.gravity, Eigen::Matrix3d::Identity(), mount.linear());
+        if (!made) return made.error();
+        if (Status s = made->RestoreState(j.at("smoother").dump()); !s) {
+          return Error{"tilt state (gravity) smoother: " + s.message()};
+        }
+        smoother.emplace(std::move(*made));
+      } else if (config_.smooth && estimator) {
+        return Error{
+            "tilt state (gravity): saved without tilt.smooth, which keeps every frame for the "
+            "smoother; start the run afresh to smooth it"};
       }
       const int verticals_seen = j.at("verticals_seen").get<int>();
       const Eigen::Vector2d correction =
@@ -306,6 +364,7 @@ class GravityTilt final : public TiltStep {
       }
       T_body_sensor_ = mount;
       estimator_ = std::move(estimator);
+      smoother_ = std::move(smoother);
       verticals_seen_ = verticals_seen;
       correction_rad_ = correction;
       dz_m_ = dz;
@@ -321,6 +380,7 @@ class GravityTilt final : public TiltStep {
  private:
   TiltConfig config_;
   std::optional<GravityEstimator> estimator_;  // made at the first frame (it needs the mount)
+  std::optional<GravitySmoother> smoother_;    // and with it, with TiltConfig::smooth
   Eigen::Isometry3d T_body_sensor_ = Eigen::Isometry3d::Identity();
   double z0_m_ = 0.0;  // the body's odometry height at the first frame [m]
   int verticals_seen_ = 0;                                      // vertical cues given so far

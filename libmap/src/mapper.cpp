@@ -371,6 +371,7 @@ const Eigen::Isometry3d& Mapper::sensor_mount() const { return state_->T_body_se
 const TerrainMap& Mapper::map() const { return state_->map; }
 const MapperConfig& Mapper::config() const { return state_->config; }
 const TiltStep& Mapper::tilt() const { return *state_->tilt; }
+Expected<std::vector<SmoothedFrame>> Mapper::SmoothTilt() { return state_->tilt->Smooth(); }
 std::int64_t Mapper::frames_processed() const { return state_->processed; }
 std::int64_t Mapper::frames_fused() const { return state_->fused; }
 

@@ -88,7 +88,8 @@ Status ParseGravity(const yaml::FieldReader& reader, const YAML::Node& section, 
       {"odometry_scale_sigma", &g.odometry_scale_sigma},
       {"observable_ratio", &g.observable_ratio},
       {"ground_sigma_m", &tilt.gravity_ground_sigma_m},
-      {"rise_sigma_m", &tilt.gravity_rise_sigma_m}};
+      {"rise_sigma_m", &tilt.gravity_rise_sigma_m},
+      {"smooth_ground_sigma_m", &tilt.smooth_ground_sigma_m}};
   const std::vector<IntField> ints = {
       {"window_frames", &g.window_frames, 2, 10000},
       {"accel_half_span_frames", &g.accel_half_span_frames, 1, 10000},
@@ -112,6 +113,9 @@ Status ParseGravity(const yaml::FieldReader& reader, const YAML::Node& section, 
   }
   if (!(tilt.gravity_rise_sigma_m > 0.0 && std::isfinite(tilt.gravity_rise_sigma_m))) {
     return reader.Fail("tilt.gravity.rise_sigma_m", "must be > 0 m");
+  }
+  if (!(tilt.smooth_ground_sigma_m >= 0.0 && std::isfinite(tilt.smooth_ground_sigma_m))) {
+    return reader.Fail("tilt.gravity.smooth_ground_sigma_m", "must be >= 0 m (0: left out)");
   }
   if (tilt.gravity_rise_frames_back >= g.window_frames) {
     return reader.Fail("tilt.gravity.rise_frames_back",
@@ -152,7 +156,7 @@ Status ParseTilt(const yaml::FieldReader& reader, const YAML::Node& root, TiltCo
                                       {"min_points", &c.min_points, 0, 100000000},
                                       {"max_iterations", &c.max_iterations, 0, 100000000}};
   if (Status s = ReadFields(reader, section, "tilt", doubles, ints,
-                            {"refine", "mode", "gravity", "verticals"});
+                            {"refine", "mode", "smooth", "gravity", "verticals"});
       !s) {
     return s;
   }
@@ -169,10 +173,14 @@ Status ParseTilt(const yaml::FieldReader& reader, const YAML::Node& root, TiltCo
     }
     tilt.mode = *mode;
   }
+  if (Status s = ReadBools(reader, section, "tilt", {{"smooth", &tilt.smooth}}); !s) return s;
   if (section["refine"]) {
     bool refine = false;
     if (Status s = ReadBools(reader, section, "tilt", {{"refine", &refine}}); !s) return s;
     tilt.mode = refine ? TiltMode::kRefineToMap : TiltMode::kPrior;
+  }
+  if (tilt.smooth && tilt.mode != TiltMode::kGravity) {
+    return reader.Fail("tilt.smooth", "smooths the gravity mode's run: set tilt.mode: gravity");
   }
   if (Status s = c.Validate(); !s) return reader.Fail("tilt", s.message());
   return {};

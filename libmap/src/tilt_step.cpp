@@ -106,9 +106,20 @@ Expected<TiltMode> ParseTiltMode(const std::string& name) {
   return Error{"expected prior, refine_to_map or gravity, got '" + name + "'"};
 }
 
+Expected<std::vector<SmoothedFrame>> TiltStep::Smooth() {
+  return Error{std::string("tilt step (") + TiltModeName(mode()) +
+               "): keeps no record to smooth (tilt.mode gravity with tilt.smooth)"};
+}
+
 Status TiltConfig::Validate() const {
   if (mode != TiltMode::kPrior && mode != TiltMode::kRefineToMap && mode != TiltMode::kGravity) {
     return Error{"tilt config: 'mode': unknown"};
+  }
+  if (!(smooth_ground_sigma_m >= 0.0 && std::isfinite(smooth_ground_sigma_m))) {
+    return Error{"tilt config: 'smooth_ground_sigma_m': must be >= 0 m (0: left out)"};
+  }
+  if (smooth && mode != TiltMode::kGravity) {
+    return Error{"tilt config: 'smooth': smooths the gravity mode's run (mode gravity)"};
   }
   if (Status s = refiner.Validate(); !s) return Error{"tilt config: " + s.message()};
   if (Status s = gravity.Validate(); !s) return Error{"tilt config: " + s.message()};

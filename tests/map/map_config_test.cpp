@@ -159,6 +159,8 @@ TEST(MapConfigFile, DefaultYamlHasAMapSectionThatBothLoadersAccept) {
   EXPECT_EQ(mapper->mapper.tilt.gravity_ground_min_verticals, tilt.gravity_ground_min_verticals);
   EXPECT_EQ(mapper->mapper.tilt.gravity_rise_frames_back, tilt.gravity_rise_frames_back);
   EXPECT_DOUBLE_EQ(mapper->mapper.tilt.gravity_rise_sigma_m, tilt.gravity_rise_sigma_m);
+  EXPECT_DOUBLE_EQ(mapper->mapper.tilt.smooth_ground_sigma_m, tilt.smooth_ground_sigma_m);
+  EXPECT_EQ(mapper->mapper.tilt.smooth, tilt.smooth);
   const VerticalCueConfig& v = mapper->mapper.tilt.verticals;
   EXPECT_DOUBLE_EQ(v.min_height_m, tilt.verticals.min_height_m);
   EXPECT_EQ(v.min_points, tilt.verticals.min_points);

@@ -197,6 +197,18 @@ void ExpectResumeGivesTheSameMap(TiltMode mode, double bias_rad,
     EXPECT_NE(records.back().tilt.roll_rad, 0.0);
   }
   ExpectSameMapFiles(whole->map(), resumed->map(), std::string("resume_") + TiltModeName(mode));
+  if (config.tilt.smooth) {  // the smoother's frames came back too
+    const Expected<std::vector<SmoothedFrame>> a = whole->SmoothTilt();
+    const Expected<std::vector<SmoothedFrame>> b = resumed->SmoothTilt();
+    ASSERT_TRUE(a.ok() && b.ok());
+    ASSERT_EQ(a->size(), frames.size());
+    ASSERT_EQ(b->size(), frames.size());
+    for (std::size_t k = 0; k < frames.size(); ++k) {
+      EXPECT_EQ((*b)[k].stamp_s, frames[k].stamp_s);
+      EXPECT_LT(((*a)[k].T_world_sensor.matrix() - (*b)[k].T_world_sensor.matrix()).norm(), 1e-9)
+          << "frame " << k;
+    }
+  }
   fs::remove_all(dir);
 }
 
@@ -320,6 +332,36 @@ TEST(Mapper, ResumedWithTheTiltRefinerGivesTheSameMap) {
 // fills; GravityEstimator.ARestoredState... saves one that has marginalised frames.)
 TEST(Mapper, ResumedWithTheGravityEstimatorGivesTheSameMap) {
   ExpectResumeGivesTheSameMap(TiltMode::kGravity, 1.0 * kDegToRad);
+}
+
+// With tilt.smooth the checkpoint holds every frame the smoother was given: the resumed run's
+// smoothed poses are those of the run never interrupted. A checkpoint saved without it cannot
+// be smoothed and is refused; a step that keeps no record says so.
+TEST(Mapper, ResumedWithTheSmootherGivesTheSameSmoothedPoses) {
+  ExpectResumeGivesTheSameMap(TiltMode::kGravity, 1.0 * kDegToRad, [](MapperConfig& c) {
+    c.tilt.gravity.window_frames = 4;
+    c.tilt.smooth = true;
+  });
+  const std::vector<InputFrame> frames = Drive(1.0 * kDegToRad);
+  Expected<Mapper> plain = Mapper::Create(Config(TiltMode::kGravity));
+  ASSERT_TRUE(plain.ok());
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE(Feed(*plain, frames[k]).ok());
+  const Expected<std::vector<SmoothedFrame>> none = plain->SmoothTilt();
+  ASSERT_FALSE(none.ok());
+  EXPECT_NE(none.error().message.find("tilt.smooth"), std::string::npos) << none.error().message;
+  const fs::path dir = TempDir("resume_unsmoothed");
+  ASSERT_TRUE(plain->SaveCheckpoint(dir).ok());
+  MapperConfig smoothing = Config(TiltMode::kGravity);
+  smoothing.tilt.smooth = true;
+  const Expected<Mapper> refused = Mapper::FromCheckpoint(dir, smoothing);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("tilt.smooth"), std::string::npos)
+      << refused.error().message;
+  fs::remove_all(dir);
+  Expected<Mapper> prior = Mapper::Create(Config(TiltMode::kPrior));
+  ASSERT_TRUE(prior.ok());
+  ASSERT_TRUE(Feed(*prior, frames[0]).ok());
+  EXPECT_FALSE(prior->SmoothTilt().ok());
 }
 
 // With a 4-frame window the ground rises begin at the 5th frame: the checkpoint after it holds
@@ -485,17 +527,19 @@ TEST(MapperSettings, EverySectionOfTheFileIsReadStrictly) {
 
 TEST(MapperSettings, TheGravityEstimatorsNoisesAndTheVerticalCuesAreSetInTheFile) {
   const Expected<MapperSettings> s = ParseMapperSettings(
-      "tilt:\n  mode: gravity\n  gravity:\n    window_frames: 16\n    accel_sigma_mps2: 0.05\n"
+      "tilt:\n  mode: gravity\n  smooth: true\n  gravity:\n    window_frames: 16\n"
+      "    accel_sigma_mps2: 0.05\n"
       "    odometry_walk_sigma: 0.03\n    gyro_sigma_radps: 0.004\n"
       "    attitude_prior_sigma_rad: 0.02\n    estimate_mount: false\n    covariance: false\n"
       "    ground_sigma_m: 0.2\n    ground_min_verticals: 3\n"
-      "    rise_frames_back: 5\n    rise_sigma_m: 0.03\n"
+      "    rise_frames_back: 5\n    rise_sigma_m: 0.03\n    smooth_ground_sigma_m: 1.5\n"
       "  verticals:\n    min_height: 1.5\n    max_angle: 10\n    min_points: 60\n"
       "    walls: false\n",
       "test.yaml");
   ASSERT_TRUE(s.ok()) << s.error().message;
   const TiltConfig& t = s->mapper.tilt;
   EXPECT_EQ(t.mode, TiltMode::kGravity);
+  EXPECT_TRUE(t.smooth);
   EXPECT_EQ(t.gravity.window_frames, 16);
   EXPECT_DOUBLE_EQ(t.gravity.accel_sigma_mps2, 0.05);
   EXPECT_DOUBLE_EQ(t.gravity.odometry_walk_sigma, 0.03);
@@ -508,6 +552,7 @@ TEST(MapperSettings, TheGravityEstimatorsNoisesAndTheVerticalCuesAreSetInTheFile
   EXPECT_EQ(t.gravity_ground_min_verticals, 3);
   EXPECT_EQ(t.gravity_rise_frames_back, 5);
   EXPECT_DOUBLE_EQ(t.gravity_rise_sigma_m, 0.03);
+  EXPECT_DOUBLE_EQ(t.smooth_ground_sigma_m, 1.5);
   EXPECT_DOUBLE_EQ(t.verticals.min_height_m, 1.5);
   EXPECT_DOUBLE_EQ(t.verticals.max_angle_rad, 10.0 * kDegToRad);
   EXPECT_EQ(t.verticals.min_points, 60);
@@ -535,6 +580,14 @@ TEST(MapperSettings, TheGravityEstimatorsNoisesAndTheVerticalCuesAreSetInTheFile
   fails_naming("tilt:\n  verticals:\n    min_height: -1\n", "tilt.verticals.min_height");
   fails_naming("tilt:\n  verticals:\n    walls: 2\n", "tilt.verticals.walls");
   fails_naming("tilt:\n  verticals:\n    max_radius: 0\n", "tilt.verticals.max_radius");
+  fails_naming("tilt:\n  mode: gravity\n  smooth: often\n", "tilt.smooth");
+  fails_naming("tilt:\n  gravity:\n    smooth_ground_sigma_m: -1\n",
+               "tilt.gravity.smooth_ground_sigma_m");
+  fails_naming("tilt:\n  mode: refine_to_map\n  smooth: true\n", "tilt.smooth");
+  fails_naming("tilt:\n  smooth: true\n", "tilt.smooth");  // the mode's default is prior
+  TiltConfig prior_smoothed;
+  prior_smoothed.smooth = true;
+  EXPECT_NE(prior_smoothed.Validate().message().find("smooth"), std::string::npos);
 }
 
 }  // namespace

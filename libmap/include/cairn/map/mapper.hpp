@@ -152,6 +152,11 @@ class Mapper {
   const TerrainMap& map() const;
   const MapperConfig& config() const;
   const TiltStep& tilt() const;
+  /// Once the run is over: every fused frame posed again by the tilt step's smoother
+  /// (TiltStep::Smooth; tilt.mode gravity with tilt.smooth), in order. Fusing the frames
+  /// again at these poses (a Mapper with tilt.mode prior, given them as its odometry poses)
+  /// builds the map a smoother gives. Fails when the step keeps no record.
+  Expected<std::vector<SmoothedFrame>> SmoothTilt();
   std::int64_t frames_processed() const;  ///< Process() calls that succeeded
   std::int64_t frames_fused() const;
 
