@@ -86,6 +86,10 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
                      : spec.gravity     ? map::TiltMode::kGravity
                      : spec.refine_tilt ? map::TiltMode::kRefineToMap
                                         : map::TiltMode::kPrior;
+  if (spec.smooth && config.tilt.mode != map::TiltMode::kGravity) {
+    return Error{spec.world + ": smooth needs the gravity estimator (gravity, not true_poses)"};
+  }
+  config.tilt.smooth = spec.smooth;
   // The gravity estimator is told the odometry's random walk and, where it is wider than the
   // default prior, its scale error, as a user states them from the odometry's drift per
   // metre (tilt.gravity.odometry_walk_sigma, odometry_scale_sigma; libsim draws both with
@@ -129,108 +133,141 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   std::vector<map::GravityDegeneracy> last_degeneracies;
   int refined_frames = 0;
   double distance_m = 0.0;
-  double z_body = 0.0;       // dead reckoning
   double ground_sum2 = 0.0;  // ground_height_rms_m
   long ground_n = 0;
-  const sim::DriveSample* previous = nullptr;
-  std::size_t next_imu = 0;
-  for (const sim::DriveSample& s : drive->samples) {
-    // The raw IMU samples since the previous frame, rotated into the body frame.
-    std::vector<map::ImuSample> imu = BodyImuUpTo(*drive, s.stamp_s, &next_imu);
-    // The believed pose.
-    Eigen::Isometry3d T_world_sensor = s.T_world_sensor;
-    if (!spec.true_poses) {
-      if (previous == nullptr) {
-        z_body = s.T_world_body.translation().z();
-      } else {
-        const double d = std::hypot(s.odometry.x_m - previous->odometry.x_m,
-                                    s.odometry.y_m - previous->odometry.y_m);
-        z_body -= d * std::tan(0.5 * (s.imu.pitch_rad + previous->imu.pitch_rad));
+  // One pass over the drive through `m`: at the believed poses, or at `given` (the smoothed
+  // ones, one per frame); `final` when its map is the run's.
+  const auto pass = [&](map::Mapper& m, const std::vector<map::SmoothedFrame>* given,
+                        bool final) -> Status {
+    double z_body = 0.0;  // dead reckoning
+    ground_sum2 = 0.0;
+    ground_n = 0;
+    pose_errors.clear();
+    const sim::DriveSample* previous = nullptr;
+    std::size_t next_imu = 0;
+    for (const sim::DriveSample& s : drive->samples) {
+      // The raw IMU samples since the previous frame, rotated into the body frame.
+      std::vector<map::ImuSample> imu = BodyImuUpTo(*drive, s.stamp_s, &next_imu);
+      // The believed pose.
+      Eigen::Isometry3d T_world_sensor = s.T_world_sensor;
+      if (given != nullptr) {
+        const std::size_t k = static_cast<std::size_t>(s.index);
+        if (k >= given->size() || (*given)[k].stamp_s != s.stamp_s) {
+          return Error{spec.world + ": the smoother gave no pose for frame " +
+                       std::to_string(s.index)};
+        }
+        T_world_sensor = (*given)[k].T_world_sensor;
+      } else if (!spec.true_poses) {
+        if (previous == nullptr) {
+          z_body = s.T_world_body.translation().z();
+        } else {
+          const double d = std::hypot(s.odometry.x_m - previous->odometry.x_m,
+                                      s.odometry.y_m - previous->odometry.y_m);
+          z_body -= d * std::tan(0.5 * (s.imu.pitch_rad + previous->imu.pitch_rad));
+        }
+        Eigen::Isometry3d T_world_body = Eigen::Isometry3d::Identity();
+        T_world_body.linear() =
+            sim::RotationFromAttitude({s.imu.roll_rad, s.imu.pitch_rad, s.odometry.yaw_rad});
+        T_world_body.translation() = Eigen::Vector3d(s.odometry.x_m, s.odometry.y_m, z_body);
+        T_world_sensor = T_world_body * drive->T_body_sensor;
       }
-      Eigen::Isometry3d T_world_body = Eigen::Isometry3d::Identity();
-      T_world_body.linear() =
-          sim::RotationFromAttitude({s.imu.roll_rad, s.imu.pitch_rad, s.odometry.yaw_rad});
-      T_world_body.translation() = Eigen::Vector3d(s.odometry.x_m, s.odometry.y_m, z_body);
-      T_world_sensor = T_world_body * drive->T_body_sensor;
-    }
-    previous = &s;
-    // Render from the true pose; the Mapper levels with the believed up vector (and the
-    // correction the refiner carries).
-    sim::Camera camera;
-    camera.model = camera_spec.model;
-    camera.T_world_camera = s.T_world_sensor;
-    const std::uint64_t seed = sim::MixSeed(world->seed, static_cast<std::uint64_t>(s.index));
-    Expected<sim::DepthFrame> rendered =
-        sim::RenderRangeCamera(world->scene, camera_spec, camera, seed);
-    if (!rendered) return rendered.error();
-    const Eigen::Vector3d up = T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
-    Expected<od::RangeImage> image =
-        od::RangeImage::FromDepth(rendered->depth_m, rendered->model, up);
-    if (!image) return image.error();
-    if (spec.measure_cues) {  // the vertical cues the gravity step would see, against the truth
-      Expected<od::Detection> detection = od::Detect(*image, config.detector);
-      if (!detection) return detection.error();
-      Expected<od::Classification> classes = od::Classify(*detection, config.rules);
-      if (!classes) return classes.error();
-      const Eigen::Vector3d up_true =
-          s.T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
-      for (const map::VerticalCue& c : map::FindVerticalCues(*image, *detection, *classes,
-                                                             image->up(), config.tilt.verticals)) {
-        const double a = std::acos(std::min(1.0, std::abs(c.direction_sensor.dot(up_true))));
-        cue_errors_rad.push_back(c.wall_normal ? std::abs(0.5 * kPi - a) : a);
+      previous = &s;
+      // Render from the true pose; the Mapper levels with the believed up vector (and the
+      // correction the refiner carries).
+      sim::Camera camera;
+      camera.model = camera_spec.model;
+      camera.T_world_camera = s.T_world_sensor;
+      const std::uint64_t seed = sim::MixSeed(world->seed, static_cast<std::uint64_t>(s.index));
+      Expected<sim::DepthFrame> rendered =
+          sim::RenderRangeCamera(world->scene, camera_spec, camera, seed);
+      if (!rendered) return rendered.error();
+      const Eigen::Vector3d up = T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
+      Expected<od::RangeImage> image =
+          od::RangeImage::FromDepth(rendered->depth_m, rendered->model, up);
+      if (!image) return image.error();
+      if (spec.measure_cues &&
+          given == nullptr) {  // the vertical cues the gravity step would see, against the truth
+        Expected<od::Detection> detection = od::Detect(*image, config.detector);
+        if (!detection) return detection.error();
+        Expected<od::Classification> classes = od::Classify(*detection, config.rules);
+        if (!classes) return classes.error();
+        const Eigen::Vector3d up_true =
+            s.T_world_sensor.linear().transpose() * Eigen::Vector3d::UnitZ();
+        for (const map::VerticalCue& c : map::FindVerticalCues(
+                 *image, *detection, *classes, image->up(), config.tilt.verticals)) {
+          const double a = std::acos(std::min(1.0, std::abs(c.direction_sensor.dot(up_true))));
+          cue_errors_rad.push_back(c.wall_normal ? std::abs(0.5 * kPi - a) : a);
+        }
       }
-    }
-    // The terrain returns (sensor frame) for ground_height_rms_m.
-    std::vector<Eigen::Vector3d> terrain_returns;
-    for (int i = 0; i < image->size(); i += 4) {
-      if (image->valid(i) && rendered->object_id[i] == sim::kTerrainId &&
-          image->point(i).norm() <= config.map.max_range_m) {
-        terrain_returns.push_back(image->point(i));
+      // The terrain returns (sensor frame) for ground_height_rms_m.
+      std::vector<Eigen::Vector3d> terrain_returns;
+      for (int i = 0; i < image->size(); i += 4) {
+        if (image->valid(i) && rendered->object_id[i] == sim::kTerrainId &&
+            image->point(i).norm() <= config.map.max_range_m) {
+          terrain_returns.push_back(image->point(i));
+        }
       }
+      *truth_now = s.T_world_sensor;
+      Expected<map::MapperRecord> record =
+          m.Process(std::move(*image), T_world_sensor, s.stamp_s, imu);
+      if (!record) return record.error();
+      if (!record->used()) {
+        return Error{spec.world + ": frame " + std::to_string(s.index) + " skipped: " +
+                     map::FrameSkipName(record->skip) + " (" + record->skip_detail + ")"};
+      }
+      if (spec.on_frame && final) spec.on_frame(*record, s);
+      refined_frames += record->tilt.applied ? 1 : 0;
+      if (record->tilt.gravity) {
+        degenerate_frames += record->tilt.gravity->degeneracies.empty() ? 0 : 1;
+        accel_bias_flagged_frames +=
+            record->tilt.gravity->Degenerate(map::GravityDegeneracy::State::kAccelBias) ? 1 : 0;
+        last_degeneracies = record->tilt.gravity->degeneracies;
+        last_height_sigma = std::sqrt(record->tilt.gravity->height_variance);
+      }
+      std::map<int, int> pixels;
+      for (const std::int32_t object : rendered->object_id) {
+        if (object > 0) ++pixels[object];
+      }
+      for (const auto& [object, n] : pixels) {
+        pixels_seen[object] = std::max(pixels_seen[object], n);
+        if (n >= 30 && first_seen_m.count(object) == 0) first_seen_m[object] = s.distance_m;
+      }
+      const Eigen::Isometry3d& fused = record->T_world_sensor;
+      for (const Eigen::Vector3d& p : terrain_returns) {
+        const Eigen::Vector3d at = s.T_world_sensor * p;
+        const double e = (fused * p).z() - world->scene.terrain().Height(at.x(), at.y());
+        ground_sum2 += e * e;
+        ++ground_n;
+      }
+      PoseError e;
+      e.distance_m = s.distance_m;
+      e.position_m = (fused.translation() - s.T_world_sensor.translation()).head<2>().norm();
+      const Eigen::Vector3d fwd_true = s.T_world_body.linear().col(0);
+      const double yaw_true = std::atan2(fwd_true.y(), fwd_true.x());
+      e.yaw_rad = spec.true_poses
+                      ? 0.0
+                      : std::abs(std::remainder(s.odometry.yaw_rad - yaw_true, 2.0 * kPi));
+      e.tilt_rad = TiltBetween(fused.linear(), s.T_world_sensor.linear());
+      e.z_m = std::abs(fused.translation().z() - s.T_world_sensor.translation().z());
+      pose_errors.push_back(e);
+      distance_m = s.distance_m;
     }
-    *truth_now = s.T_world_sensor;
-    Expected<map::MapperRecord> record =
-        (*mapper).Process(std::move(*image), T_world_sensor, s.stamp_s, imu);
-    if (!record) return record.error();
-    if (!record->used()) {
-      return Error{spec.world + ": frame " + std::to_string(s.index) + " skipped: " +
-                   map::FrameSkipName(record->skip) + " (" + record->skip_detail + ")"};
-    }
-    if (spec.on_frame) spec.on_frame(*record, s);
-    refined_frames += record->tilt.applied ? 1 : 0;
-    if (record->tilt.gravity) {
-      degenerate_frames += record->tilt.gravity->degeneracies.empty() ? 0 : 1;
-      accel_bias_flagged_frames +=
-          record->tilt.gravity->Degenerate(map::GravityDegeneracy::State::kAccelBias) ? 1 : 0;
-      last_degeneracies = record->tilt.gravity->degeneracies;
-      last_height_sigma = std::sqrt(record->tilt.gravity->height_variance);
-    }
-    std::map<int, int> pixels;
-    for (const std::int32_t object : rendered->object_id) {
-      if (object > 0) ++pixels[object];
-    }
-    for (const auto& [object, n] : pixels) {
-      pixels_seen[object] = std::max(pixels_seen[object], n);
-      if (n >= 30 && first_seen_m.count(object) == 0) first_seen_m[object] = s.distance_m;
-    }
-    const Eigen::Isometry3d& fused = record->T_world_sensor;
-    for (const Eigen::Vector3d& p : terrain_returns) {
-      const Eigen::Vector3d at = s.T_world_sensor * p;
-      const double e = (fused * p).z() - world->scene.terrain().Height(at.x(), at.y());
-      ground_sum2 += e * e;
-      ++ground_n;
-    }
-    PoseError e;
-    e.distance_m = s.distance_m;
-    e.position_m = (fused.translation() - s.T_world_sensor.translation()).head<2>().norm();
-    const Eigen::Vector3d fwd_true = s.T_world_body.linear().col(0);
-    const double yaw_true = std::atan2(fwd_true.y(), fwd_true.x());
-    e.yaw_rad =
-        spec.true_poses ? 0.0 : std::abs(std::remainder(s.odometry.yaw_rad - yaw_true, 2.0 * kPi));
-    e.tilt_rad = TiltBetween(fused.linear(), s.T_world_sensor.linear());
-    e.z_m = std::abs(fused.translation().z() - s.T_world_sensor.translation().z());
-    pose_errors.push_back(e);
-    distance_m = s.distance_m;
+    return {};
+  };
+  if (Status st = pass(*mapper, nullptr, !spec.smooth); !st) return st.error();
+  if (spec.smooth) {
+    Expected<std::vector<map::SmoothedFrame>> smoothed = (*mapper).SmoothTilt();
+    if (!smoothed) return Error{spec.world + ": " + smoothed.error().message};
+    // The second pass fuses every frame at its smoothed pose, as given.
+    map::MapperConfig second = config;
+    second.tilt.mode = map::TiltMode::kPrior;
+    second.tilt.smooth = false;
+    Expected<map::Mapper> again = map::Mapper::Create(second);
+    if (!again) return again.error();
+    const int refined = refined_frames;
+    if (Status st = pass(*again, &*smoothed, true); !st) return st.error();
+    refined_frames = refined;
+    *mapper = std::move(*again);
   }
   DriftRunResult r(std::move(*mapper));
   r.frames = static_cast<int>(r.mapper.frames_fused());

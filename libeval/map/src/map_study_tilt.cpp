@@ -54,7 +54,12 @@ std::vector<TiltSource> TiltSources() {
 // "floor" is no mode of the Mapper: the true roll, pitch and height with the odometry's x, y
 // and heading (DriftRunSpec::truth_tilt_height), what every mode would reach with a perfect
 // tilt; it is run where the odometry drifts.
-const char* const kTiltModes[] = {"prior", "refine_to_map", "gravity", "floor"};
+// "smoothed" is the gravity mode's run posed again by its smoother once it is over and fused
+// again at those poses (DriftRunSpec::smooth), as an offline map is built; "smoothed_free" the
+// same without the frame-to-map ground heights (tilt.smooth_ground_sigma_m 0).
+const char* const kTiltModes[] = {"prior",    "refine_to_map", "gravity",
+                                  "smoothed", "smoothed_free", "floor"};
+constexpr int kTiltModeCount = sizeof(kTiltModes) / sizeof(kTiltModes[0]);
 
 // Mean |cost - cost at the true poses| over the cells both maps know, and the cells lethal
 // here but free (below lethal) at the true poses.
@@ -143,8 +148,8 @@ std::vector<TiltDrive> TiltDrivesInOrder() {
   const std::vector<TiltSource> sources = TiltSources();
   for (int w = 0; w < static_cast<int>(TiltWorlds().size()); ++w) {
     for (int s = 0; s < static_cast<int>(sources.size()); ++s) {
-      for (int m = 0; m < 4; ++m) {
-        const bool floor = m == 3;
+      for (int m = 0; m < kTiltModeCount; ++m) {
+        const bool floor = std::string(kTiltModes[m]) == "floor";
         if (floor && sources[s].spec.odom_sigma_per_m == 0.0) continue;
         const int seeds = std::max(sources[s].seeds, TiltWorlds()[w].seeds);
         for (int k = 1; k <= seeds; ++k) out.push_back({w, s, m, k});
@@ -199,7 +204,11 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
     spec.turn_radius_m = world.turn_radius_m;
     spec.drive_seed = static_cast<std::uint64_t>(d.seed);
     spec.refine_tilt = mode == "refine_to_map";
-    spec.gravity = mode == "gravity";
+    spec.smooth = mode == "smoothed" || mode == "smoothed_free";
+    spec.gravity = mode == "gravity" || spec.smooth;
+    if (mode == "smoothed_free") {
+      spec.configure = [](map::MapperConfig& c) { c.tilt.smooth_ground_sigma_m = 0.0; };
+    }
     spec.truth_tilt_height = mode == "floor";
     Expected<DriftRunResult> r = RunDrift(spec);
     if (!r) {
@@ -228,7 +237,7 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
          "accel_bias_flagged_frames,"
          "final_height_sigma_m,last_flags\n";
   md << "## Tilt: the odometry prior, the frame-to-map refiner and the gravity estimator\n\n"
-     << "Each frame is fused at the tilt one of three modes gives (`tilt.mode`, "
+     << "Each frame is fused at the tilt one of four modes gives (`tilt.mode`, "
      << "`cairn map --tilt`): `prior` (the odometry pose: roll and pitch from the IMU's "
      << "attitude output, height dead-reckoned from it), `refine_to_map` (Ceres against the "
      << "terrain fused so far) and `gravity` (`map::GravityEstimator` over a 12-frame window: "
@@ -236,7 +245,14 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
      << "the trunks, poles and walls the detector found, `map/gravity_cues.hpp`, and each "
      << "frame's ground against the ground the frame two before saw there, "
      << "`tilt.gravity.rise_frames_back`: a rise measured by the sensor, against the wheels' "
-     << "climb, which tells the sensor's tilt from the body's). The "
+     << "climb, which tells the sensor's tilt from the body's); `smoothed` is the gravity "
+     << "mode's drive posed again once it is over (`tilt.smooth`, `map::GravitySmoother`: "
+     << "every frame solved together, so the biases and the mount learned at the first turn "
+     << "or the first trunks apply from the first frame on; `cairn map --smooth`) and fused "
+     << "again at those poses, as an offline map is built; the smoother takes the frame-to-map "
+     << "ground heights the gravity mode measured, against a map fused at the window's "
+     << "estimates, with a wider sigma (`tilt.gravity.smooth_ground_sigma_m`, 0.9 m), and "
+     << "`smoothed_free` leaves them out (0). The "
      << "error sources are set one at a time on top of the IMU attitude noise (0.3 deg); "
      << "`tilt` is the angle between the fused and the true up vector of the sensor over "
      << "every frame of every drive (median and 95th percentile), `cost err` the mean "
@@ -283,8 +299,10 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
           accel_flagged += o.accel_flagged_frames;
           frames += o.frames;
           height_sigma += o.height_sigma_m;
-          if (std::string(mode) == "gravity") ++gravity_drives;
-          for (const map::GravityDegeneracy& f : o.last_flags) ++flags[map::StateName(f.state)];
+          if (std::string(mode) == "gravity") {
+            ++gravity_drives;
+            for (const map::GravityDegeneracy& f : o.last_flags) ++flags[map::StateName(f.state)];
+          }
           std::string last;
           for (const map::GravityDegeneracy& f : o.last_flags) {
             last += (last.empty() ? "" : " | ") + f.reason;

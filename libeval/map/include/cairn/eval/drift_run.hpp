@@ -38,6 +38,11 @@ struct DriftRunSpec {
   double imu_sigma_rad = 0.0;              ///< the IMU attitude output's noise
   bool refine_tilt = false;                ///< Ceres tilt refiner on the believed pose
   bool gravity = false;                    ///< the gravity estimator (takes over refine_tilt)
+  /// With `gravity`: once the drive is over, its frames posed again by the smoother
+  /// (Mapper::SmoothTilt) and fused again at those poses into a new map. The result's map,
+  /// ground_height_rms_m, pose errors and on_frame calls are the second pass's; its flags,
+  /// height sigma and refined_frames the first's.
+  bool smooth = false;
   /// The floor of every tilt mode: roll, pitch and height true, x, y and heading from the
   /// odometry (what is left is the odometry's horizontal drift).
   bool truth_tilt_height = false;
