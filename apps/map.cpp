@@ -14,11 +14,14 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <csignal>
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "cairn/map/checkpoint.hpp"
 #include "cairn/map/frame_imu.hpp"
@@ -55,6 +58,82 @@ struct Cleanup {
   }
 };
 
+// Roll and pitch of a world-from-body rotation (Z-Y-X; pitch > 0 nose down) [rad].
+Eigen::Vector2d RollPitchOf(const Eigen::Matrix3d& R) {
+  return {std::atan2(R(2, 1), R(2, 2)), std::atan2(-R(2, 0), std::hypot(R(0, 0), R(1, 0)))};
+}
+
+// tilt.smooth: every frame the first pass fused, posed again by the gravity step's smoother
+// (Mapper::SmoothTilt), and fused again at that pose by a Mapper of tilt mode prior, reading
+// the input a second time. Each record takes its frame's new pose, fusion figures and
+// correction (the smoothed body's roll and pitch against the odometry's, the sensor's height);
+// the tilt diagnostics (flags, cues) stay the first pass's. Fails, naming the frame, when the
+// input does not give the same frames again; on an interruption, with g_interrupted set.
+Expected<map::Mapper> SmoothedPass(const MapOptions& options, const map::MapperSettings& settings,
+                                   map::Mapper& first, RunState& state, double* solve_s,
+                                   double* pass_s) {
+  const Clock::time_point solve_start = Clock::now();
+  Expected<std::vector<map::SmoothedFrame>> poses = first.SmoothTilt();
+  if (!poses) return Error{"smoothing: " + poses.error().message};
+  *solve_s = SecondsSince(solve_start);
+  if (poses->size() != state.records.size()) {
+    return Error{"smoothing: " + std::to_string(poses->size()) + " poses for " +
+                 std::to_string(state.records.size()) + " fused frames"};
+  }
+  const Clock::time_point pass_start = Clock::now();
+  map::MapperConfig config = first.config();
+  config.tilt.mode = map::TiltMode::kPrior;
+  config.tilt.smooth = false;
+  Expected<map::Mapper> again = map::Mapper::Create(config);
+  if (!again) return again.error();
+  Expected<std::unique_ptr<sources::FrameSource>> opened =
+      OpenFrameSource(options, settings.stereo);
+  if (!opened) return opened.error();
+  sources::FrameSource& source = **opened;
+  const int n = static_cast<int>(poses->size());
+  Progress progress("cairn map, smoothed pass", n, options.progress_every, 0);
+  int k = 0;
+  for (int read = 0; k < n && read < state.frames_read; ++read) {
+    if (g_interrupted) {
+      progress.Finish();
+      return Error{"interrupted"};
+    }
+    Expected<std::optional<sources::SequenceFrame>> next = source.Next();
+    if (!next) return next.error();
+    if (!*next) break;
+    sources::SequenceFrame& frame = **next;
+    const map::SmoothedFrame& pose = (*poses)[static_cast<std::size_t>(k)];
+    if (!frame.used() || frame.stamp_s != pose.stamp_s) continue;  // not fused the first time
+    if (Status st = again->SetSensorMount(frame.T_body_sensor()); !st) {
+      return Error{frame.name + ": " + st.message()};
+    }
+    const Eigen::Isometry3d odometry = frame.T_world_sensor;
+    Expected<map::MapperRecord> r = again->Process(std::move(frame.image), pose.T_world_sensor,
+                                                   frame.stamp_s, map::ImuSamplesOf(frame));
+    if (!r) return Error{frame.name + ": " + r.error().message};
+    if (!r->used()) {
+      return Error{frame.name + ": not fused at its smoothed pose: " + map::FrameSkipName(r->skip) +
+                   " (" + r->skip_detail + ")"};
+    }
+    FrameRecord& record = state.records[static_cast<std::size_t>(k)];
+    record.T_world_sensor = r->T_world_sensor;
+    record.fused = r->fused;
+    const Eigen::Vector2d odometry_tilt = RollPitchOf(record.T_world_body.linear());
+    record.d_roll_rad = pose.estimate.roll_rad - odometry_tilt.x();
+    record.d_pitch_rad = pose.estimate.pitch_rad - odometry_tilt.y();
+    record.dz_m = r->T_world_sensor.translation().z() - odometry.translation().z();
+    ++k;
+    progress.Update(k);
+  }
+  progress.Finish();
+  if (k != n) {
+    return Error{"smoothing: the input gave " + std::to_string(k) + " of the " + std::to_string(n) +
+                 " frames the first pass fused"};
+  }
+  *pass_s = SecondsSince(pass_start);
+  return again;
+}
+
 int RunMap(const MapOptions& options) {
   const Clock::time_point run_start = Clock::now();
   // --- parse ---
@@ -69,6 +148,13 @@ int RunMap(const MapOptions& options) {
     Expected<map::TiltMode> mode = map::ParseTiltMode(options.tilt);
     if (!mode) return MapFail("--tilt: " + mode.error().message);
     config.tilt.mode = *mode;
+  }
+  if (options.smooth) {
+    if (config.tilt.mode != map::TiltMode::kGravity) {
+      return MapFail(std::string("--smooth: smooths the gravity tilt's run; the tilt mode is ") +
+                     map::TiltModeName(config.tilt.mode) + " (--tilt gravity)");
+    }
+    config.tilt.smooth = true;
   }
   if (Status s = config.map.Validate(); !s) return MapFail("--window: " + s.message());
   Expected<map::Mapper> created = map::Mapper::Create(config);
@@ -115,7 +201,8 @@ int RunMap(const MapOptions& options) {
   RunState state;
   state.input = SourceJson(source.Describe());
   state.config_text = *config_text;
-  state.options = RunOptions(options, config.tilt.mode, config.map.window_size_m);
+  state.options =
+      RunOptions(options, config.tilt.mode, config.map.window_size_m, config.tilt.smooth);
   double earlier_wall_s = 0.0;
   if (!options.resume && fs::exists(checkpoint)) {
     return MapFail(checkpoint.string() +
@@ -239,17 +326,37 @@ int RunMap(const MapOptions& options) {
                         : " (" + std::to_string(state.skipped.size()) + " skipped)"));
   }
 
+  // --- smooth: the second pass (tilt.smooth) ---
+  std::optional<map::Mapper> smoothed;
+  double smooth_solve_s = 0.0, smooth_pass_s = 0.0;
+  if (config.tilt.smooth) {
+    Expected<map::Mapper> again =
+        SmoothedPass(options, *settings, mapper, state, &smooth_solve_s, &smooth_pass_s);
+    if (!again) {
+      if (g_interrupted) {
+        // The first pass is whole: a resumed run goes straight to the second.
+        if (Status s = save_checkpoint(); !s) return MapFail("interrupted, and " + s.message());
+        std::cerr << "cairn map: interrupted in the smoothed pass; the first pass is in "
+                  << checkpoint.string() << ": run the same command with --resume to smooth it\n";
+        return 130;
+      }
+      return MapFail(again.error().message);
+    }
+    smoothed.emplace(std::move(*again));
+  }
+  const map::Mapper& fused = smoothed ? *smoothed : mapper;
+
   // --- report ---
   const Clock::time_point write_start = Clock::now();
   const fs::path& staging = cleanup.staging;
-  if (Status s = map::WriteMapFiles(mapper.map(), staging); !s) return MapFail(s.message());
+  if (Status s = map::WriteMapFiles(fused.map(), staging); !s) return MapFail(s.message());
   std::optional<TruthScore> truth;
   if (!options.truth.empty()) {
-    Expected<TruthScore> score = ScoreAgainstWorld(options.truth, mapper.map());
+    Expected<TruthScore> score = ScoreAgainstWorld(options.truth, fused.map());
     if (!score) return MapFail(score.error().message);
     truth = std::move(*score);
   }
-  if (Status s = WriteOverlay(staging / "cost.png", staging / "overlay.png", mapper.map(),
+  if (Status s = WriteOverlay(staging / "cost.png", staging / "overlay.png", fused.map(),
                               state.records, truth ? &*truth : nullptr);
       !s) {
     return MapFail(s.message());
@@ -263,6 +370,9 @@ int RunMap(const MapOptions& options) {
   RunReport report{source, mapper, state, truth, earlier_wall_s + SecondsSince(run_start),
                    write_start};
   report.poses = poses ? &*poses : nullptr;
+  report.smoothed = smoothed ? &*smoothed : nullptr;
+  report.smooth_solve_s = smooth_solve_s;
+  report.smooth_pass_s = smooth_pass_s;
   Expected<std::string> text = WriteRunFiles(report, staging, times);
   if (!text) return MapFail(text.error().message);
 
@@ -361,6 +471,12 @@ Subcommand AddMapCommand(CLI::App& parent) {
       ->excludes(refine)
       ->excludes(no_refine)
       ->type_name("MODE");
+  app->add_flag("--smooth", options->smooth,
+                "with --tilt gravity (or tilt.mode gravity): once the input is read, every frame "
+                "posed again by the smoother (the whole run solved together: the mount and biases "
+                "learned at the first trunks or turn apply from the first frame on) and the map "
+                "fused again at those poses, reading the input twice (offline map building; "
+                "tilt.smooth in --config)");
   app->add_flag("--strict", options->strict,
                 "a frame that cannot be used (missing, truncated, no valid points, a pose that "
                 "jumps) is an error, not a frame skipped and counted");

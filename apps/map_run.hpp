@@ -55,6 +55,7 @@ struct MapOptions {
   // Crash safety.
   int checkpoint_every = 20;  ///< frames between checkpoints in DIR/map.checkpoint; 0: none
   bool resume = false;        ///< continue from DIR/map.checkpoint
+  bool smooth = false;        ///< tilt.smooth: a second pass at the smoother's poses
 };
 
 /// One fused frame, as the outputs use it.
@@ -116,7 +117,8 @@ inline constexpr const char* kRecordsFileName = "map.checkpoint.records";
 
 nlohmann::json SourceJson(const sources::SourceInfo& info);
 /// The options besides the input and --config that change what is fused.
-nlohmann::json RunOptions(const MapOptions& o, map::TiltMode tilt, double window_size_m);
+nlohmann::json RunOptions(const MapOptions& o, map::TiltMode tilt, double window_size_m,
+                          bool smooth);
 /// The run's state without its records, which SaveRecords keeps: the resume state of a
 /// checkpoint; and back (records_saved and records_bytes set, records empty until LoadRecords).
 std::string ResumeStateJson(const RunState& state);
@@ -195,6 +197,11 @@ struct RunReport {
   double wall_s = 0.0;                 ///< of every run of this map [s]
   Clock::time_point write_start = {};  ///< times.write_s runs from here
   const PoseTruth* poses = nullptr;    ///< --truth-poses
+  /// --smooth: the second pass's Mapper, whose map is the run's (`mapper` is the first
+  /// pass's: its settings and tilt diagnostics), the smoother's solve and the second pass's
+  /// wall time [s].
+  const map::Mapper* smoothed = nullptr;
+  double smooth_solve_s = 0.0, smooth_pass_s = 0.0;
 };
 Expected<std::string> WriteRunFiles(const RunReport& run, const std::filesystem::path& dir,
                                     StageTimes& times);

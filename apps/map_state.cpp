@@ -239,11 +239,12 @@ json SourceJson(const sources::SourceInfo& info) {
   return j;
 }
 
-json RunOptions(const MapOptions& o, map::TiltMode tilt, double window_size_m) {
+json RunOptions(const MapOptions& o, map::TiltMode tilt, double window_size_m, bool smooth) {
   return {{"--range", o.range},
           {"--intrinsics", o.intrinsics},
           {"--tilt", map::TiltModeName(tilt)},
-          {"--window", window_size_m}};
+          {"--window", window_size_m},
+          {"--smooth", smooth}};
 }
 
 FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecord& m,
