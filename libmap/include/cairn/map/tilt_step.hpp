@@ -96,7 +96,8 @@ struct TiltConfig {
   /// climb (by 2 and 6 mm) and on the hill with a 3 % odometry (0.092 -> 0.151 m). Where the
   /// window's first frames were far off (the weaving climb with a misaligned mount), its map holds
   /// them back: 0.05-0.07 m with 0.9, 0.02-0.03 m left out
-  /// (TerrainMapDrift.SmoothingTheWholeDrive...).
+  /// (TerrainMapDrift.SmoothingTheWholeDrive...). datasets/maps/REPORT.md has both for every
+  /// drive of the map study (`smoothed`, `smoothed_free`).
   double smooth_ground_sigma_m = 0.9;
   /// Fails naming the first bad field ("tilt.max_points: ...").
   Status Validate() const;
