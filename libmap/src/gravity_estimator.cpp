@@ -150,28 +150,46 @@ namespace {
 
 using gravity::ImuSegment;
 
-// Pieces of the window's samples within [a, b], in time order (forward) or reverse; each
-// force's weight is weight(stamp), or 1.
-template <typename Weight = std::nullptr_t>
-std::vector<gravity::ImuSegment> SegmentsOf(const std::deque<std::unique_ptr<WindowFrame>>& w,
-                                            double a, double b, bool forward,
-                                            Weight weight = nullptr) {
-  std::vector<ImuSegment> out;
-  for (const auto& frame : w) {
-    for (const Sample& s : frame->samples) {
-      const double lo = std::max(s.raw.stamp_s - 0.5 * s.dt_s, a);
-      const double hi = std::min(s.raw.stamp_s + 0.5 * s.dt_s, b);
-      if (!(hi > lo)) continue;
-      ImuSegment seg;
-      seg.omega_imu = s.raw.angular_rate_radps;
-      seg.force_imu = s.raw.specific_force_mps2;
-      const double mid = std::clamp(s.raw.stamp_s, lo, hi);
-      seg.before_s = mid - lo;
-      seg.after_s = hi - mid;
-      seg.use_force = s.raw.stamp_s > a && s.raw.stamp_s <= b;
-      if constexpr (!std::is_same_v<Weight, std::nullptr_t>) seg.weight = weight(s.raw.stamp_s);
-      out.push_back(seg);
+// The window's samples in time order. A sample's piece reaches from halfway to the sample
+// before it (those starts ascend with the stamps) to as far past it, so at most max_half_dt.
+struct SampleIndex {
+  std::vector<const Sample*> samples;
+  double max_half_dt = 0.0;
+  explicit SampleIndex(const std::deque<std::unique_ptr<WindowFrame>>& w) {
+    for (const auto& frame : w) {
+      for (const Sample& s : frame->samples) {
+        samples.push_back(&s);
+        max_half_dt = std::max(max_half_dt, 0.5 * s.dt_s);
+      }
     }
+  }
+};
+
+// Pieces of the window's samples within [a, b], in time order (forward) or reverse; each
+// force's weight is weight(stamp), or 1. Only the samples whose pieces may reach [a, b] are
+// looked at (a window of a whole run holds many).
+template <typename Weight = std::nullptr_t>
+std::vector<gravity::ImuSegment> SegmentsOf(const SampleIndex& index, double a, double b,
+                                            bool forward, Weight weight = nullptr) {
+  std::vector<ImuSegment> out;
+  const double from = a - index.max_half_dt - 1e-9;  // earlier pieces end before a
+  auto it = std::lower_bound(index.samples.begin(), index.samples.end(), from,
+                             [](const Sample* s, double t) { return s->raw.stamp_s < t; });
+  for (; it != index.samples.end(); ++it) {
+    const Sample& s = **it;
+    if (s.raw.stamp_s - 0.5 * s.dt_s > b) break;  // this piece and all after start past b
+    const double lo = std::max(s.raw.stamp_s - 0.5 * s.dt_s, a);
+    const double hi = std::min(s.raw.stamp_s + 0.5 * s.dt_s, b);
+    if (!(hi > lo)) continue;
+    ImuSegment seg;
+    seg.omega_imu = s.raw.angular_rate_radps;
+    seg.force_imu = s.raw.specific_force_mps2;
+    const double mid = std::clamp(s.raw.stamp_s, lo, hi);
+    seg.before_s = mid - lo;
+    seg.after_s = hi - mid;
+    seg.use_force = s.raw.stamp_s > a && s.raw.stamp_s <= b;
+    if constexpr (!std::is_same_v<Weight, std::nullptr_t>) seg.weight = weight(s.raw.stamp_s);
+    out.push_back(seg);
   }
   if (!forward) std::reverse(out.begin(), out.end());
   return out;
@@ -203,6 +221,7 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
   problem.AddParameterBlock(mount_, 2);
   // The IMU terms are pre-integrated at the gyro bias as it stands (GyroTerm).
   const Eigen::Vector3d bg_now(bg[0], bg[1], bg[2]);
+  const SampleIndex imu_samples(window);
   const int n = static_cast<int>(window.size());
   for (int i = 0; i < n; ++i) {
     WindowFrame& f = *window[i];
@@ -279,7 +298,7 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
         WindowFrame& g = *window[i + 1];
         const double t0 = in.stamp_s, t1 = g.input.stamp_s;
         auto* gyro = new gravity::GyroTerm;
-        gyro->segments = SegmentsOf(window, t0, t1, true);
+        gyro->segments = SegmentsOf(imu_samples, t0, t1, true);
         gyro->R_body_imu = R_body_imu;
         double sum_sq = 0.0;
         for (const ImuSegment& s : gyro->segments) {
@@ -325,8 +344,9 @@ void GravityEstimator::State::Build(ceres::Problem& problem, std::vector<Residua
         return ChordFractionBefore(fa, t) - ChordFractionBefore(fb, t);
       };
       auto* acc = new gravity::AccelTerm;
-      acc->forward = SegmentsOf(window, in.stamp_s, std::max(tb, fb.chord_to_s), true, kernel);
-      acc->backward = SegmentsOf(window, std::min(ta, fa.chord_from_s), in.stamp_s, false, kernel);
+      acc->forward = SegmentsOf(imu_samples, in.stamp_s, std::max(tb, fb.chord_to_s), true, kernel);
+      acc->backward =
+          SegmentsOf(imu_samples, std::min(ta, fa.chord_from_s), in.stamp_s, false, kernel);
       acc->R_body_imu = R_body_imu;
       acc->Preintegrate(bg_now);
       acc->span_s = 0.5 * (fb.chord_from_s + fb.chord_to_s - fa.chord_from_s - fa.chord_to_s);
@@ -677,21 +697,28 @@ Status GravityEstimator::Push(const GravityFrame& frame) {
     }
   }
 
-  auto wf = std::make_unique<WindowFrame>();
-  wf->input = frame;
-  wf->input.imu.clear();  // kept as `samples`
-  wf->id = st.added;
+  // Every sample checked before anything changes: a frame that fails leaves the state as it was.
+  double last_stamp_s = st.last_sample_stamp_s;
   for (std::size_t j = 0; j < frame.imu.size(); ++j) {
     const GravityImuSample& s = frame.imu[j];
     if (!(std::isfinite(s.stamp_s) && s.specific_force_mps2.allFinite() &&
           s.angular_rate_radps.allFinite())) {
       return GravityError("frame.imu[" + std::to_string(j) + "]", "must be finite");
     }
-    if (std::isfinite(st.last_sample_stamp_s) && !(s.stamp_s > st.last_sample_stamp_s)) {
+    if (std::isfinite(last_stamp_s) && !(s.stamp_s > last_stamp_s)) {
       return GravityError("frame.imu[" + std::to_string(j) + "].stamp_s",
                           "must increase, got " + std::to_string(s.stamp_s) + " after " +
-                              std::to_string(st.last_sample_stamp_s));
+                              std::to_string(last_stamp_s));
     }
+    last_stamp_s = s.stamp_s;
+  }
+
+  auto wf = std::make_unique<WindowFrame>();
+  wf->input = frame;
+  wf->input.imu.clear();  // kept as `samples`
+  wf->id = st.added;
+  for (std::size_t j = 0; j < frame.imu.size(); ++j) {
+    const GravityImuSample& s = frame.imu[j];
     Sample sample;
     sample.raw = s;
     if (std::isfinite(st.last_sample_stamp_s)) {
@@ -965,14 +992,37 @@ Expected<GravitySmoother> GravitySmoother::Create(const GravityEstimatorConfig& 
   return GravitySmoother(std::move(*estimator));
 }
 
-Status GravitySmoother::Add(const GravityFrame& frame) { return estimator_.Push(frame); }
+Status GravitySmoother::Add(const GravityFrame& frame, const GravityEstimate* start) {
+  if (start != nullptr && !(std::isfinite(start->roll_rad) && std::isfinite(start->pitch_rad) &&
+                            std::isfinite(start->height_m))) {
+    return GravityError("start", "must be a finite roll, pitch and height");
+  }
+  if (Status s = estimator_.Push(frame); !s) return s;
+  if (start != nullptr) {
+    WindowFrame& f = *estimator_.state_->window.back();
+    f.rpy[0] = start->roll_rad;
+    f.rpy[1] = start->pitch_rad;
+    f.h[0] = start->height_m;
+  }
+  return {};
+}
 
 int GravitySmoother::frames() const { return estimator_.frames_added(); }
 
 std::string GravitySmoother::SaveState() const { return estimator_.SaveState(); }
 
 Status GravitySmoother::RestoreState(const std::string& state) {
-  return estimator_.RestoreState(state);
+  const std::string before = estimator_.SaveState();
+  if (Status s = estimator_.RestoreState(state); !s) return s;
+  const GravityEstimator::State& st = *estimator_.state_;
+  if (st.added != static_cast<int>(st.window.size())) {
+    const Status back = estimator_.RestoreState(before);
+    (void)back;  // it was this smoother's own state
+    return GravityError("smoother state",
+                        "is a sliding window's (frames left it): a smoother "
+                        "keeps every frame");
+  }
+  return {};
 }
 
 const GravityFrame& GravitySmoother::frame(int index) const {
@@ -982,6 +1032,13 @@ const GravityFrame& GravitySmoother::frame(int index) const {
 Expected<std::vector<GravityEstimate>> GravitySmoother::Solve() {
   GravityEstimator::State& st = *estimator_.state_;
   if (st.window.empty()) return GravityError("smoother", "has no frames to solve");
+  // The states as they stand, put back once solved: solving again, or saving the smoother,
+  // starts from them as this solve did.
+  std::vector<std::array<double, 4>> frames;
+  for (const auto& f : st.window) frames.push_back({f->rpy[0], f->rpy[1], f->rpy[2], f->h[0]});
+  std::array<double, 11> slow = {st.ba[0],         st.ba[1],         st.ba[2],    st.bg[0],
+                                 st.bg[1],         st.bg[2],         st.mount[0], st.mount[1],
+                                 st.prior_bias[0], st.prior_bias[1], st.scale[0]};
   // Twice: the IMU terms are pre-integrated at the gyro bias as it stands, which the first
   // solve learns.
   ceres::Solver::Summary summary;
@@ -996,6 +1053,20 @@ Expected<std::vector<GravityEstimate>> GravitySmoother::Solve() {
   for (const auto& frame : st.window) {
     out.push_back(st.EstimateOf(*frame));
     SetSolverFigures(summary, out.back());
+  }
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    WindowFrame& f = *st.window[k];
+    f.rpy[0] = frames[k][0];
+    f.rpy[1] = frames[k][1];
+    f.rpy[2] = frames[k][2];
+    f.h[0] = frames[k][3];
+  }
+  double* const slow_states[11] = {&st.ba[0],         &st.ba[1],         &st.ba[2],    &st.bg[0],
+                                   &st.bg[1],         &st.bg[2],         &st.mount[0], &st.mount[1],
+                                   &st.prior_bias[0], &st.prior_bias[1], &st.scale[0]};
+  for (int k = 0; k < 11; ++k) *slow_states[k] = slow[static_cast<std::size_t>(k)];
+  if (!summary.IsSolutionUsable()) {
+    return GravityError("smoother", "the solve failed: " + summary.BriefReport());
   }
   return out;
 }

@@ -290,21 +290,25 @@ class GravitySmoother {
                                           const Eigen::Matrix3d& R_body_imu,
                                           const Eigen::Matrix3d& R_body_sensor_nominal);
   /// Adds a frame with GravityEstimator::AddFrame's checks (a ground rise may name any earlier
-  /// frame); nothing is solved.
-  Status Add(const GravityFrame& frame);
+  /// frame); nothing is solved. `start`, when given (a sliding window's estimate of the
+  /// frame), is where the solve starts from for its roll, pitch and height; otherwise the
+  /// frame before turned by the gyro, which drifts over a long run.
+  Status Add(const GravityFrame& frame, const GravityEstimate* start = nullptr);
   int frames() const;
   /// Frame `index` (0 <= index < frames()) as added, its IMU samples left out.
   const GravityFrame& frame(int index) const;
   /// Every frame's estimate, in the order added: attitude, height, and the slow states (the
   /// same in each); the solver's figures; no covariance, cues or flags (the sliding window's
   /// estimates carry those). Solved twice, the IMU terms pre-integrated again at the gyro bias
-  /// the first solve found. Fails when no frame was added.
+  /// the first solve found, from the states as they stand, which it leaves as they were (a
+  /// second call, or a smoother saved and restored, gives the same). Fails when no frame was
+  /// added or the solve does not converge to a usable solution.
   Expected<std::vector<GravityEstimate>> Solve();
 
   /// Every frame added, as text (GravityEstimator::SaveState's form), and back: a smoother
   /// restored and given the rest of the run solves as the uninterrupted one. RestoreState
   /// fails, leaving the smoother as it was, on text that is not a smoother's state under the
-  /// same settings.
+  /// same settings, or that is a sliding window's (which let frames go).
   std::string SaveState() const;
   Status RestoreState(const std::string& state);
 
