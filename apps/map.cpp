@@ -16,7 +16,6 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 #include <algorithm>
-#include <cmath>
 #include <csignal>
 #include <filesystem>
 #include <iostream>
@@ -58,11 +57,6 @@ struct Cleanup {
   }
 };
 
-// Roll and pitch of a world-from-body rotation (Z-Y-X; pitch > 0 nose down) [rad].
-Eigen::Vector2d RollPitchOf(const Eigen::Matrix3d& R) {
-  return {std::atan2(R(2, 1), R(2, 2)), std::atan2(-R(2, 0), std::hypot(R(0, 0), R(1, 0)))};
-}
-
 // tilt.smooth: every frame the first pass fused, posed again by the gravity step's smoother
 // (Mapper::SmoothTilt), and fused again at that pose by a Mapper of tilt mode prior, reading
 // the input a second time. Each record takes its frame's new pose, fusion figures and
@@ -81,10 +75,7 @@ Expected<map::Mapper> SmoothedPass(const MapOptions& options, const map::MapperS
                  std::to_string(state.records.size()) + " fused frames"};
   }
   const Clock::time_point pass_start = Clock::now();
-  map::MapperConfig config = first.config();
-  config.tilt.mode = map::TiltMode::kPrior;
-  config.tilt.smooth = false;
-  Expected<map::Mapper> again = map::Mapper::Create(config);
+  Expected<map::Mapper> again = map::Mapper::Create(map::SmoothedPassConfig(first.config()));
   if (!again) return again.error();
   Expected<std::unique_ptr<sources::FrameSource>> opened =
       OpenFrameSource(options, settings.stereo);
@@ -104,6 +95,11 @@ Expected<map::Mapper> SmoothedPass(const MapOptions& options, const map::MapperS
     sources::SequenceFrame& frame = **next;
     const map::SmoothedFrame& pose = (*poses)[static_cast<std::size_t>(k)];
     if (!frame.used() || frame.stamp_s != pose.stamp_s) continue;  // not fused the first time
+    if (state.records[static_cast<std::size_t>(k)].stamp_s != pose.stamp_s) {
+      return Error{"smoothing: the first pass's record " + std::to_string(k) + " is of " +
+                   std::to_string(state.records[static_cast<std::size_t>(k)].stamp_s) +
+                   " s, its smoothed pose of " + std::to_string(pose.stamp_s) + " s"};
+    }
     if (Status st = again->SetSensorMount(frame.T_body_sensor()); !st) {
       return Error{frame.name + ": " + st.message()};
     }
@@ -118,9 +114,8 @@ Expected<map::Mapper> SmoothedPass(const MapOptions& options, const map::MapperS
     FrameRecord& record = state.records[static_cast<std::size_t>(k)];
     record.T_world_sensor = r->T_world_sensor;
     record.fused = r->fused;
-    const Eigen::Vector2d odometry_tilt = RollPitchOf(record.T_world_body.linear());
-    record.d_roll_rad = pose.estimate.roll_rad - odometry_tilt.x();
-    record.d_pitch_rad = pose.estimate.pitch_rad - odometry_tilt.y();
+    record.d_roll_rad = pose.roll_rad;
+    record.d_pitch_rad = pose.pitch_rad;
     record.dz_m = r->T_world_sensor.translation().z() - odometry.translation().z();
     ++k;
     progress.Update(k);

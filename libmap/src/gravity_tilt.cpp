@@ -153,10 +153,12 @@ class GravityTilt final : public TiltStep {
       // The frame-to-map ground height was measured against the map fused at the window's
       // estimates, whose errors the smoother is there to undo: it is given with a wider sigma
       // (TiltConfig::smooth_ground_sigma_m; 0: left out).
+      // Its solve starts from the window's estimate.
       GravityFrame kept = g;
       kept.ground_height_sigma_m = config_.smooth_ground_sigma_m;
       if (config_.smooth_ground_sigma_m == 0.0) kept.ground_height_m.reset();
-      if (Status s = smoother_->Add(kept); !s) return s.error();
+      const GravityEstimate* start = estimate->IsSolutionUsable() ? &*estimate : nullptr;
+      if (Status s = smoother_->Add(kept, start); !s) return s.error();
     }
     verticals_seen_ += static_cast<int>(g.verticals.size());
 
@@ -205,8 +207,15 @@ class GravityTilt final : public TiltStep {
       GravityEstimate& e = (*solved)[i];
       SmoothedFrame f;
       f.stamp_s = e.stamp_s;
-      f.T_world_sensor =
-          BodyOf(e, smoother_->frame(static_cast<int>(i)).odometry_xy_yaw) * MountOf(e);
+      const GravityFrame& in = smoother_->frame(static_cast<int>(i));
+      f.T_world_sensor = BodyOf(e, in.odometry_xy_yaw) * MountOf(e);
+      // As Estimate() has them: the fused pose's body through the nominal mount against the
+      // odometry's attitude (the IMU's, the frame's prior).
+      const Attitude fused =
+          AttitudeOf(f.T_world_sensor.linear() * T_body_sensor_.linear().transpose());
+      const Eigen::Vector2d odometry = in.attitude_prior_rad.value_or(Eigen::Vector2d::Zero());
+      f.roll_rad = fused.roll - odometry.x();
+      f.pitch_rad = fused.pitch - odometry.y();
       f.estimate = std::move(e);
       out.push_back(std::move(f));
     }

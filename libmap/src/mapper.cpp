@@ -4,6 +4,7 @@
 #include <cmath>
 #include <exception>
 #include <future>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
@@ -372,6 +373,15 @@ const TerrainMap& Mapper::map() const { return state_->map; }
 const MapperConfig& Mapper::config() const { return state_->config; }
 const TiltStep& Mapper::tilt() const { return *state_->tilt; }
 Expected<std::vector<SmoothedFrame>> Mapper::SmoothTilt() { return state_->tilt->Smooth(); }
+
+MapperConfig SmoothedPassConfig(const MapperConfig& first) {
+  MapperConfig c = first;
+  c.tilt.mode = TiltMode::kPrior;
+  c.tilt.smooth = false;
+  c.frames.max_speed_mps = std::numeric_limits<double>::max();
+  c.frames.max_turn_rate_radps = std::numeric_limits<double>::max();
+  return c;
+}
 std::int64_t Mapper::frames_processed() const { return state_->processed; }
 std::int64_t Mapper::frames_fused() const { return state_->fused; }
 

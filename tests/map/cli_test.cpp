@@ -593,7 +593,6 @@ TEST_F(MapCli, TheGravityEstimatorObservesTheIMUBias) {
 TEST_F(MapCli, SmoothingTheDemoDriveBringsItsPosesCloserToTheTruth) {
   const fs::path seq = fs::path(CAIRN_SOURCE_DIR) / "datasets" / "sequences" / "hill_drive";
   json truth[2];
-  std::string poses[2];
   for (int m = 0; m < 2; ++m) {
     const fs::path out = dir() / (m == 0 ? "out_window" : "out_smoothed");
     const CommandRun run = Cairn("map --rawlog '" + (seq / "sequence.rawlog").string() +
@@ -606,7 +605,6 @@ TEST_F(MapCli, SmoothingTheDemoDriveBringsItsPosesCloserToTheTruth) {
     EXPECT_EQ(summary.at("tilt").at("mode"), "gravity");
     EXPECT_EQ(summary.at("tilt").at("smoothed").get<bool>(), m == 1);
     truth[m] = summary.at("truth_poses");
-    poses[m] = ReadFile(out / "poses.tum");
     EXPECT_TRUE(fs::exists(out / "map.bt"));
     if (m == 1) {
       EXPECT_NE(run.out.find("smoothed: every frame posed again"), std::string::npos) << run.out;
@@ -623,7 +621,6 @@ TEST_F(MapCli, SmoothingTheDemoDriveBringsItsPosesCloserToTheTruth) {
       truth[1].at("tilt_error_median_deg").get<double>(),
       truth[1].at("tilt_error_p95_deg").get<double>(),
       truth[1].at("height_error_rms_m").get<double>());
-  EXPECT_NE(poses[0], poses[1]);
   EXPECT_LT(truth[1].at("tilt_error_p95_deg").get<double>(),
             0.5 * truth[0].at("tilt_error_p95_deg").get<double>());
   EXPECT_LT(truth[1].at("tilt_error_median_deg").get<double>(),

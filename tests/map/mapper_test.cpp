@@ -175,6 +175,16 @@ void ExpectResumeGivesTheSameMap(TiltMode mode, double bias_rad,
   Expected<Mapper> first = Mapper::Create(config);
   ASSERT_TRUE(first.ok());
   for (int k = 0; k < 5; ++k) ASSERT_TRUE(Feed(*first, frames[k]).ok());
+  if (config.tilt.smooth) {
+    // Smoothing changes nothing that is carried: twice the same, and saved after it the same.
+    const Expected<std::vector<SmoothedFrame>> once = first->SmoothTilt();
+    const Expected<std::vector<SmoothedFrame>> twice = first->SmoothTilt();
+    ASSERT_TRUE(once.ok() && twice.ok());
+    ASSERT_EQ(once->size(), 5u);
+    for (std::size_t k = 0; k < once->size(); ++k) {
+      EXPECT_TRUE((*once)[k].T_world_sensor.matrix() == (*twice)[k].T_world_sensor.matrix());
+    }
+  }
   ASSERT_TRUE(first->SaveCheckpoint(dir, "the caller's state").ok());
   std::string app_data;
   Expected<Mapper> resumed = Mapper::FromCheckpoint(dir, config, &app_data);
@@ -362,6 +372,56 @@ TEST(Mapper, ResumedWithTheSmootherGivesTheSameSmoothedPoses) {
   ASSERT_TRUE(prior.ok());
   ASSERT_TRUE(Feed(*prior, frames[0]).ok());
   EXPECT_FALSE(prior->SmoothTilt().ok());
+}
+
+// The odometry jumps 40 m at frame 6 and stays there: the first pass skips frame 6 and fuses
+// the rest. Fused again at the smoothed poses, frame 7 follows frame 5: the second pass's
+// settings (SmoothedPassConfig) take the frames the first pass vetted as they come, where a
+// Mapper of the first pass's would skip it as a jump.
+TEST(Mapper, TheSmoothedPassFusesEveryFrameTheFirstPassFused) {
+  std::vector<InputFrame> frames = Drive(1.0 * kDegToRad);
+  for (std::size_t k = 6; k < frames.size(); ++k)
+    frames[k].T_world_sensor.translation().x() += 40.0;
+  MapperConfig config = Config(TiltMode::kGravity);
+  config.tilt.smooth = true;
+  Expected<Mapper> first = Mapper::Create(config);
+  ASSERT_TRUE(first.ok());
+  std::vector<double> fused_stamps;
+  for (const InputFrame& f : frames) {
+    const Expected<MapperRecord> r = Feed(*first, f);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    if (r->used()) fused_stamps.push_back(f.stamp_s);
+  }
+  ASSERT_EQ(fused_stamps.size(), frames.size() - 1);  // frame 6 skipped
+  const Expected<std::vector<SmoothedFrame>> poses = first->SmoothTilt();
+  ASSERT_TRUE(poses.ok()) << poses.error().message;
+  ASSERT_EQ(poses->size(), fused_stamps.size());
+  for (int plain = 0; plain < 2; ++plain) {
+    MapperConfig second = SmoothedPassConfig(config);
+    EXPECT_EQ(second.tilt.mode, TiltMode::kPrior);
+    EXPECT_FALSE(second.tilt.smooth);
+    if (plain == 1) second.frames = config.frames;
+    Expected<Mapper> again = Mapper::Create(second);
+    ASSERT_TRUE(again.ok()) << again.error().message;
+    int used = 0;
+    std::size_t k = 0;
+    for (const InputFrame& f : frames) {
+      if (k >= poses->size() || (*poses)[k].stamp_s != f.stamp_s) continue;
+      const Expected<MapperRecord> r =
+          again->Process(f.image, (*poses)[k].T_world_sensor, f.stamp_s);
+      ASSERT_TRUE(r.ok()) << r.error().message;
+      used += r->used() ? 1 : 0;
+      if (r->used()) {
+        EXPECT_TRUE(r->T_world_sensor.matrix() == (*poses)[k].T_world_sensor.matrix());
+      }
+      ++k;
+    }
+    if (plain == 0) {
+      EXPECT_EQ(used, static_cast<int>(poses->size()));
+    } else {
+      EXPECT_EQ(used, static_cast<int>(poses->size()) - 1);  // frame 7, a jump from frame 5
+    }
+  }
 }
 
 // With a 4-frame window the ground rises begin at the 5th frame: the checkpoint after it holds

@@ -259,10 +259,7 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
     Expected<std::vector<map::SmoothedFrame>> smoothed = (*mapper).SmoothTilt();
     if (!smoothed) return Error{spec.world + ": " + smoothed.error().message};
     // The second pass fuses every frame at its smoothed pose, as given.
-    map::MapperConfig second = config;
-    second.tilt.mode = map::TiltMode::kPrior;
-    second.tilt.smooth = false;
-    Expected<map::Mapper> again = map::Mapper::Create(second);
+    Expected<map::Mapper> again = map::Mapper::Create(map::SmoothedPassConfig(config));
     if (!again) return again.error();
     const int refined = refined_frames;
     if (Status st = pass(*again, &*smoothed, true); !st) return st.error();

@@ -94,6 +94,12 @@ struct MapperRecord {
   bool used() const { return skip == FrameSkip::kNone; }
 };
 
+/// The settings of the Mapper that fuses a run again at its smoothed poses
+/// (Mapper::SmoothTilt): `first`'s, with tilt mode prior (the poses as given), no smoothing
+/// and no jump check (the first pass vetted the frames: one it skipped for a jump would
+/// otherwise be a jump from the frame before it again).
+MapperConfig SmoothedPassConfig(const MapperConfig& first);
+
 class Mapper {
  public:
   /// With the tilt step of config.tilt. Fails when the config does not validate.
@@ -154,8 +160,8 @@ class Mapper {
   const TiltStep& tilt() const;
   /// Once the run is over: every fused frame posed again by the tilt step's smoother
   /// (TiltStep::Smooth; tilt.mode gravity with tilt.smooth), in order. Fusing the frames
-  /// again at these poses (a Mapper with tilt.mode prior, given them as its odometry poses)
-  /// builds the map a smoother gives. Fails when the step keeps no record.
+  /// again at these poses (a Mapper of SmoothedPassConfig(), given them as its odometry
+  /// poses) builds the map a smoother gives. Fails when the step keeps no record.
   Expected<std::vector<SmoothedFrame>> SmoothTilt();
   std::int64_t frames_processed() const;  ///< Process() calls that succeeded
   std::int64_t frames_fused() const;

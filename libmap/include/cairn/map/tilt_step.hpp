@@ -83,21 +83,23 @@ struct TiltConfig {
   /// kGravity: sigma of a ground rise [m].
   double gravity_rise_sigma_m = 0.05;
   /// kGravity: keep every frame's evidence, so that the run can be smoothed once it is over
-  /// (TiltStep::Smooth; offline map building). Its state then grows with the run.
+  /// (TiltStep::Smooth; offline map building). Its state, and every checkpoint, then grows
+  /// with the run: every frame's IMU samples, cues and ground rises.
   bool smooth = false;
   /// With `smooth`: the sigma of the frame-to-map ground height given to the smoother [m]
-  /// (tilt.gravity.smooth_ground_sigma_m; 0: left out). It was measured against the map fused at
-  /// the window's estimates, and pulls the smoother back to them; without it the smoother has only
-  /// the pitch over the distance driven and the ground rises for the height, which a straight drive
-  /// or a drifting odometry scale leaves loose. Over 13 drives like the map study's (each world,
-  /// each error source once), the smoothed map's ground RMS was at a mean of 0.049 m with
-  /// gravity_ground_sigma_m's 0.3, 0.047 with 0.9, 0.052 with 3 and 0.060 without it (0.064 for the
-  /// window alone); with 0.9 it was lower than the window's on 9 of the 13, higher on the straight
-  /// climb (by 2 and 6 mm) and on the hill with a 3 % odometry (0.092 -> 0.151 m). Where the
-  /// window's first frames were far off (the weaving climb with a misaligned mount), its map holds
-  /// them back: 0.05-0.07 m with 0.9, 0.02-0.03 m left out
-  /// (TerrainMapDrift.SmoothingTheWholeDrive...). datasets/maps/REPORT.md has both for every
-  /// drive of the map study (`smoothed`, `smoothed_free`).
+  /// (tilt.gravity.smooth_ground_sigma_m; 0: left out). It was measured against the map fused
+  /// at the window's estimates, and pulls the smoother back to them; without it the smoother
+  /// has only the pitch over the distance driven and the ground rises for the height, which
+  /// a straight drive or a drifting odometry scale leaves loose. On 13 drives of the map
+  /// study's worlds, one seed each (the uphill drive with five error sources, the others with
+  /// two), the smoothed map's ground RMS was at a mean of 0.049 m with
+  /// gravity_ground_sigma_m's 0.3, 0.047 with 0.9, 0.052 with 3 and 0.060 without it (0.064
+  /// for the window alone); with 0.9 it was lower than the window's on 9 of the 13, higher on
+  /// the straight climb (by 2 and 6 mm) and on the hill with a 3 % odometry (0.092 -> 0.151
+  /// m on that drive). Where the window's first frames were far off (the weaving climb with a
+  /// misaligned mount), its map holds them back: 0.042-0.059 m with 0.9, 0.018-0.033 m left
+  /// out (three drives; TerrainMapDrift.SmoothingTheWholeDrive...). datasets/maps/REPORT.md
+  /// has both for every drive of the map study (`smoothed`, `smoothed_free`).
   double smooth_ground_sigma_m = 0.9;
   /// Fails naming the first bad field ("tilt.max_points: ...").
   Status Validate() const;
@@ -138,6 +140,9 @@ struct TiltOutcome {
 struct SmoothedFrame {
   double stamp_s = 0.0;
   Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();  ///< to fuse at
+  /// Roll and pitch of the fused pose relative to the odometry pose's, as
+  /// TiltOutcome::roll_rad and pitch_rad [rad].
+  double roll_rad = 0.0, pitch_rad = 0.0;
   GravityEstimate estimate;  ///< kGravity: the smoother's (no covariance, cues or flags)
 };
 
