@@ -112,8 +112,9 @@ struct Residual {
 
 }  // namespace
 
-// A smoother's solve may start far from the answer (the gyro chained from the first frame).
-constexpr int kSmootherIterations = 50;
+// A smoother's solve may start far from the answer (the gyro chained from the first frame),
+// and fails when it does not converge within max(max_iterations, this).
+constexpr int kSmootherIterations = 100;
 
 struct GravityEstimator::State {
   GravityEstimatorConfig config;
@@ -686,9 +687,9 @@ Status GravityEstimator::Push(const GravityFrame& frame) {
     // The window keeps its last window_frames - 1 frames beside this one.
     const std::size_t kept = static_cast<std::size_t>(c.window_frames - 1);
     const std::size_t first = st.window.size() > kept ? st.window.size() - kept : 0;
-    bool found = false;
-    for (std::size_t w = first; w < st.window.size() && !found; ++w) {
-      found = st.window[w]->input.stamp_s == r.earlier_stamp_s;
+    bool found = false;  // looked for from the newest back: it is usually a frame or two
+    for (std::size_t w = st.window.size(); w > first && !found; --w) {
+      found = st.window[w - 1]->input.stamp_s == r.earlier_stamp_s;
     }
     if (!found) {
       return GravityError(
@@ -1012,16 +1013,18 @@ int GravitySmoother::frames() const { return estimator_.frames_added(); }
 std::string GravitySmoother::SaveState() const { return estimator_.SaveState(); }
 
 Status GravitySmoother::RestoreState(const std::string& state) {
-  const std::string before = estimator_.SaveState();
-  if (Status s = estimator_.RestoreState(state); !s) return s;
-  const GravityEstimator::State& st = *estimator_.state_;
+  const GravityEstimator::State& own = *estimator_.state_;
+  Expected<GravityEstimator> restored =
+      GravityEstimator::Create(own.config, own.R_body_imu, own.R_body_sensor);
+  if (!restored) return restored.error();
+  if (Status s = restored->RestoreState(state); !s) return s;
+  const GravityEstimator::State& st = *restored->state_;
   if (st.added != static_cast<int>(st.window.size())) {
-    const Status back = estimator_.RestoreState(before);
-    (void)back;  // it was this smoother's own state
     return GravityError("smoother state",
                         "is a sliding window's (frames left it): a smoother "
                         "keeps every frame");
   }
+  estimator_ = std::move(*restored);
   return {};
 }
 
@@ -1065,8 +1068,8 @@ Expected<std::vector<GravityEstimate>> GravitySmoother::Solve() {
                                    &st.bg[1],         &st.bg[2],         &st.mount[0], &st.mount[1],
                                    &st.prior_bias[0], &st.prior_bias[1], &st.scale[0]};
   for (int k = 0; k < 11; ++k) *slow_states[k] = slow[static_cast<std::size_t>(k)];
-  if (!summary.IsSolutionUsable()) {
-    return GravityError("smoother", "the solve failed: " + summary.BriefReport());
+  if (summary.termination_type != ceres::CONVERGENCE) {
+    return GravityError("smoother", "the solve did not converge: " + summary.BriefReport());
   }
   return out;
 }
@@ -1306,6 +1309,19 @@ Status GravityEstimator::RestoreState(const std::string& text) {
       if (k > 0 && !(f.input.stamp_s > st.window[k - 1]->input.stamp_s)) {
         return GravityError("state",
                             "window frame " + std::to_string(k) + ": stamps must increase");
+      }
+    }
+    // The IMU samples in time order with their intervals, as Push keeps them (SegmentsOf
+    // looks them up by stamp).
+    double last_sample = -std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < st.window.size(); ++k) {
+      for (const Sample& sample : st.window[k]->samples) {
+        if (!(sample.raw.stamp_s > last_sample && sample.dt_s >= 0.0)) {
+          return GravityError("state", "window frame " + std::to_string(k) +
+                                           ": IMU sample stamps must increase, their "
+                                           "intervals be >= 0");
+        }
+        last_sample = sample.raw.stamp_s;
       }
     }
     ArrayFrom(j.at("ba"), st.ba, 3, "ba");

@@ -643,6 +643,7 @@ TEST(GravitySmoother, SolvingChangesNothingCarriedAndStartsWhereItIsTold) {
     ASSERT_TRUE(started->Add(frame, &*est).ok());
   }
   const std::string before = plain->SaveState();
+  EXPECT_NE(started->SaveState(), before);  // its frames start elsewhere
   const Expected<std::vector<GravityEstimate>> a = plain->Solve();
   ASSERT_TRUE(a.ok()) << a.error().message;
   EXPECT_EQ(plain->SaveState(), before);
@@ -666,8 +667,14 @@ TEST(GravitySmoother, SolvingChangesNothingCarriedAndStartsWhereItIsTold) {
   later.stamp_s = drive->samples.back().stamp_s + 1.0;
   EXPECT_FALSE(plain->Add(later, &bad).ok());
   EXPECT_EQ(plain->SaveState(), before);
-  // A sliding window's state, whose first frames left it, is no smoother's.
+  // A sliding window's state, whose first frames left it, is no smoother's: its settings
+  // differ, and so does one with the smoother's settings whose first frame is gone.
   EXPECT_FALSE(plain->RestoreState(window->SaveState()).ok());
+  nlohmann::json cut = nlohmann::json::parse(before);
+  cut.at("window").erase(cut.at("window").begin());
+  const Status refused = plain->RestoreState(cut.dump());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("sliding window"), std::string::npos) << refused.message();
   EXPECT_EQ(plain->SaveState(), before);
 }
 

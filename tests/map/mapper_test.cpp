@@ -374,14 +374,16 @@ TEST(Mapper, ResumedWithTheSmootherGivesTheSameSmoothedPoses) {
   EXPECT_FALSE(prior->SmoothTilt().ok());
 }
 
-// The odometry jumps 40 m at frame 6 and stays there: the first pass skips frame 6 and fuses
-// the rest. Fused again at the smoothed poses, frame 7 follows frame 5: the second pass's
-// settings (SmoothedPassConfig) take the frames the first pass vetted as they come, where a
-// Mapper of the first pass's would skip it as a jump.
+// The odometry jumps 80 m at frame 6 and stays there: the first pass skips frame 6 and fuses
+// the rest. Fused again at the smoothed poses, frame 7 follows frame 5, 80 m in 1 s: the second
+// pass's settings (SmoothedPassConfig) take the frames the first pass vetted as they come,
+// where a Mapper of the first pass's (50 m/s at most) would skip it as a jump. Each smoothed
+// frame's roll and pitch correction is its fused body's against the odometry's, as the
+// window's records have it (TiltOutcome).
 TEST(Mapper, TheSmoothedPassFusesEveryFrameTheFirstPassFused) {
   std::vector<InputFrame> frames = Drive(1.0 * kDegToRad);
   for (std::size_t k = 6; k < frames.size(); ++k)
-    frames[k].T_world_sensor.translation().x() += 40.0;
+    frames[k].T_world_sensor.translation().x() += 80.0;
   MapperConfig config = Config(TiltMode::kGravity);
   config.tilt.smooth = true;
   Expected<Mapper> first = Mapper::Create(config);
@@ -396,6 +398,16 @@ TEST(Mapper, TheSmoothedPassFusesEveryFrameTheFirstPassFused) {
   const Expected<std::vector<SmoothedFrame>> poses = first->SmoothTilt();
   ASSERT_TRUE(poses.ok()) << poses.error().message;
   ASSERT_EQ(poses->size(), fused_stamps.size());
+  std::size_t next = 0;
+  for (const InputFrame& f : frames) {
+    if (next >= poses->size() || (*poses)[next].stamp_s != f.stamp_s) continue;
+    // No mount set: the body is the sensor's frame.
+    const sim::Attitude fused = sim::AttitudeFromRotation((*poses)[next].T_world_sensor.linear());
+    const sim::Attitude odometry = sim::AttitudeFromRotation(f.T_world_sensor.linear());
+    EXPECT_NEAR((*poses)[next].roll_rad, fused.roll_rad - odometry.roll_rad, 1e-9);
+    EXPECT_NEAR((*poses)[next].pitch_rad, fused.pitch_rad - odometry.pitch_rad, 1e-9);
+    ++next;
+  }
   for (int plain = 0; plain < 2; ++plain) {
     MapperConfig second = SmoothedPassConfig(config);
     EXPECT_EQ(second.tilt.mode, TiltMode::kPrior);

@@ -100,7 +100,7 @@ const std::vector<TiltWorld>& TiltWorlds() {
        "attitude under gravity hardly changes), so it is flagged on most frames, and a bias "
        "beyond what the priors allow tilts the climb and drifts the height (the accelerometer "
        "bias row). The weaving drive below shows it observed. Smoothing the drive does not "
-       "observe it either (0.135 m `smoothed`, 0.099 m `smoothed_free`); in the other rows here "
+       "observe it either (0.135 m `smoothed`, 0.100 m `smoothed_free`); in the other rows here "
        "the smoother's ground is within 5 mm of the window's or closer, and its tilt's 95th "
        "percentile 0.04-0.27 deg instead of 0.20-0.40."},
       {"hill (hill_drive), 36 m",

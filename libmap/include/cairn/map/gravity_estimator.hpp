@@ -302,7 +302,8 @@ class GravitySmoother {
   /// estimates carry those). Solved twice, the IMU terms pre-integrated again at the gyro bias
   /// the first solve found, from the states as they stand, which it leaves as they were (a
   /// second call, or a smoother saved and restored, gives the same). Fails when no frame was
-  /// added or the solve does not converge to a usable solution.
+  /// added or the solve does not converge (Ceres' CONVERGENCE) within max(max_iterations,
+  /// 100) iterations.
   Expected<std::vector<GravityEstimate>> Solve();
 
   /// Every frame added, as text (GravityEstimator::SaveState's form), and back: a smoother

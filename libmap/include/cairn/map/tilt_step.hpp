@@ -90,16 +90,14 @@ struct TiltConfig {
   /// (tilt.gravity.smooth_ground_sigma_m; 0: left out). It was measured against the map fused
   /// at the window's estimates, and pulls the smoother back to them; without it the smoother
   /// has only the pitch over the distance driven and the ground rises for the height, which
-  /// a straight drive or a drifting odometry scale leaves loose. On 13 drives of the map
-  /// study's worlds, one seed each (the uphill drive with five error sources, the others with
-  /// two), the smoothed map's ground RMS was at a mean of 0.049 m with
-  /// gravity_ground_sigma_m's 0.3, 0.047 with 0.9, 0.052 with 3 and 0.060 without it (0.064
-  /// for the window alone); with 0.9 it was lower than the window's on 9 of the 13, higher on
-  /// the straight climb (by 2 and 6 mm) and on the hill with a 3 % odometry (0.092 -> 0.151
-  /// m on that drive). Where the window's first frames were far off (the weaving climb with a
-  /// misaligned mount), its map holds them back: 0.042-0.059 m with 0.9, 0.018-0.033 m left
-  /// out (three drives; TerrainMapDrift.SmoothingTheWholeDrive...). datasets/maps/REPORT.md
-  /// has both for every drive of the map study (`smoothed`, `smoothed_free`).
+  /// a straight drive or a drifting odometry scale leaves loose. In datasets/maps/REPORT.md
+  /// (`smoothed`, with 0.9, against `smoothed_free`), the straight climb's ground RMS is
+  /// 0.004-0.038 m with it and 0.033-0.051 m without (0.011-0.036 m in the window; attitude,
+  /// gyro and mount errors), and with 3 % odometry 0.054 against 0.135 m (0.071); where the
+  /// window's first frames were far off, the weaving climb with a misaligned mount, its map
+  /// holds them back: 0.042-0.059 m with it, 0.018-0.033 m without (three drives). 0.9 was
+  /// chosen over 0.3 and 3 on 13 drives of the same worlds (the mean ground RMS 0.047 m,
+  /// against 0.049 and 0.052, and 0.060 without it).
   double smooth_ground_sigma_m = 0.9;
   /// Fails naming the first bad field ("tilt.max_points: ...").
   Status Validate() const;
