@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -15,6 +16,7 @@
 #include "cairn/eval/map_score.hpp"
 #include "cairn/eval/pose_score.hpp"
 #include "cairn/map/mapper.hpp"
+#include "cairn/map/mapper_config_file.hpp"
 #include "cairn/map/terrain_map.hpp"
 #include "cairn/od/expected.hpp"
 #include "cairn/od/stereo.hpp"
@@ -149,6 +151,18 @@ class LookaheadFeed {
   map::Mapper& mapper_;
   std::optional<Expected<std::optional<sources::SequenceFrame>>> ahead_;  // read, not given
 };
+
+/// tilt.smooth (--smooth): every frame the first pass fused, posed again by the gravity step's
+/// smoother (Mapper::SmoothTilt), and fused again at that pose by a Mapper of
+/// map::SmoothedPassConfig, reading the input a second time. Each record takes its frame's
+/// new pose, fusion figures and correction (SmoothedFrame's roll and pitch, the sensor's
+/// height against the odometry's); the tilt diagnostics (flags, cues) stay the first pass's.
+/// `solve_s` and `pass_s` receive the smoother's and the second pass's wall time. Fails,
+/// naming the frame, when the input does not give the same frames again, and with
+/// "interrupted" once `interrupted()` is true (checked before each frame).
+Expected<map::Mapper> SmoothedPass(const MapOptions& options, const map::MapperSettings& settings,
+                                   map::Mapper& first, RunState& state, double* solve_s,
+                                   double* pass_s, const std::function<bool()>& interrupted);
 
 /// The frames of the input `o` names (--rawlog, --kitti or --frames), stereo pairs matched
 /// with `stereo`, each read while the one before is mapped (sources::ReadAhead).

@@ -96,8 +96,8 @@ struct TiltConfig {
   /// gyro and mount errors), and with 3 % odometry 0.054 against 0.135 m (0.071); where the
   /// window's first frames were far off, the weaving climb with a misaligned mount, its map
   /// holds them back: 0.042-0.059 m with it, 0.018-0.033 m without (three drives). 0.9 was
-  /// chosen over 0.3 and 3 on 13 drives of the same worlds (the mean ground RMS 0.047 m,
-  /// against 0.049 and 0.052, and 0.060 without it).
+  /// chosen over 0.3 and 3 on 13 drives of the same worlds (a scratch sweep, not kept: the
+  /// mean ground RMS 0.047 m, against 0.049 and 0.052, and 0.060 without it).
   double smooth_ground_sigma_m = 0.9;
   /// Fails naming the first bad field ("tilt.max_points: ...").
   Status Validate() const;
