@@ -249,11 +249,10 @@ int RunMap(const MapOptions& options) {
   }
 
   // --- smooth: the second pass (tilt.smooth) ---
-  std::optional<map::Mapper> smoothed;
-  double smooth_solve_s = 0.0, smooth_pass_s = 0.0;
+  std::optional<SmoothedRun> smoothed;
   if (config.tilt.smooth) {
-    Expected<map::Mapper> again = SmoothedPass(options, *settings, mapper, state, &smooth_solve_s,
-                                               &smooth_pass_s, [] { return g_interrupted != 0; });
+    Expected<SmoothedRun> again =
+        SmoothedPass(options, *settings, mapper, state, [] { return g_interrupted != 0; });
     if (!again) {
       if (g_interrupted) {
         // The first pass is whole: a resumed run goes straight to the second.
@@ -266,7 +265,7 @@ int RunMap(const MapOptions& options) {
     }
     smoothed.emplace(std::move(*again));
   }
-  const map::Mapper& fused = smoothed ? *smoothed : mapper;
+  const map::Mapper& fused = smoothed ? smoothed->mapper : mapper;
 
   // --- report ---
   const Clock::time_point write_start = Clock::now();
@@ -293,8 +292,6 @@ int RunMap(const MapOptions& options) {
                    write_start};
   report.poses = poses ? &*poses : nullptr;
   report.smoothed = smoothed ? &*smoothed : nullptr;
-  report.smooth_solve_s = smooth_solve_s;
-  report.smooth_pass_s = smooth_pass_s;
   Expected<std::string> text = WriteRunFiles(report, staging, times);
   if (!text) return MapFail(text.error().message);
 

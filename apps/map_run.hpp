@@ -157,12 +157,15 @@ class LookaheadFeed {
 /// map::SmoothedPassConfig, reading the input a second time. Each record takes its frame's
 /// new pose, fusion figures and correction (SmoothedFrame's roll and pitch, the sensor's
 /// height against the odometry's); the tilt diagnostics (flags, cues) stay the first pass's.
-/// `solve_s` and `pass_s` receive the smoother's and the second pass's wall time. Fails,
-/// naming the frame, when the input does not give the same frames again, and with
+/// Fails, naming the frame, when the input does not give the same frames again, and with
 /// "interrupted" once `interrupted()` is true (checked before each frame).
-Expected<map::Mapper> SmoothedPass(const MapOptions& options, const map::MapperSettings& settings,
-                                   map::Mapper& first, RunState& state, double* solve_s,
-                                   double* pass_s, const std::function<bool()>& interrupted);
+struct SmoothedRun {
+  map::Mapper mapper;                  ///< the second pass's: its map is the run's
+  double solve_s = 0.0, pass_s = 0.0;  ///< the smoother's and the second pass's wall time
+};
+Expected<SmoothedRun> SmoothedPass(const MapOptions& options, const map::MapperSettings& settings,
+                                   map::Mapper& first, RunState& state,
+                                   const std::function<bool()>& interrupted);
 
 /// The frames of the input `o` names (--rawlog, --kitti or --frames), stereo pairs matched
 /// with `stereo`, each read while the one before is mapped (sources::ReadAhead).
@@ -211,11 +214,9 @@ struct RunReport {
   double wall_s = 0.0;                 ///< of every run of this map [s]
   Clock::time_point write_start = {};  ///< times.write_s runs from here
   const PoseTruth* poses = nullptr;    ///< --truth-poses
-  /// --smooth: the second pass's Mapper, whose map is the run's (`mapper` is the first
-  /// pass's: its settings and tilt diagnostics), the smoother's solve and the second pass's
-  /// wall time [s].
-  const map::Mapper* smoothed = nullptr;
-  double smooth_solve_s = 0.0, smooth_pass_s = 0.0;
+  /// --smooth: the second pass, whose map is the run's (`mapper` is the first pass's: its
+  /// settings and tilt diagnostics).
+  const SmoothedRun* smoothed = nullptr;
 };
 Expected<std::string> WriteRunFiles(const RunReport& run, const std::filesystem::path& dir,
                                     StageTimes& times);

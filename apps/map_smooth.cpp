@@ -10,13 +10,13 @@
 
 namespace cairn::apps {
 
-Expected<map::Mapper> SmoothedPass(const MapOptions& options, const map::MapperSettings& settings,
-                                   map::Mapper& first, RunState& state, double* solve_s,
-                                   double* pass_s, const std::function<bool()>& interrupted) {
+Expected<SmoothedRun> SmoothedPass(const MapOptions& options, const map::MapperSettings& settings,
+                                   map::Mapper& first, RunState& state,
+                                   const std::function<bool()>& interrupted) {
   const Clock::time_point solve_start = Clock::now();
   Expected<std::vector<map::SmoothedFrame>> poses = first.SmoothTilt();
   if (!poses) return Error{"smoothing: " + poses.error().message};
-  *solve_s = SecondsSince(solve_start);
+  const double solve_s = SecondsSince(solve_start);
   if (poses->size() != state.records.size()) {
     return Error{"smoothing: " + std::to_string(poses->size()) + " poses for " +
                  std::to_string(state.records.size()) + " fused frames"};
@@ -72,8 +72,7 @@ Expected<map::Mapper> SmoothedPass(const MapOptions& options, const map::MapperS
     return Error{"smoothing: the input gave " + std::to_string(k) + " of the " + std::to_string(n) +
                  " frames the first pass fused"};
   }
-  *pass_s = SecondsSince(pass_start);
-  return again;
+  return SmoothedRun{std::move(*again), solve_s, SecondsSince(pass_start)};
 }
 
 }  // namespace cairn::apps

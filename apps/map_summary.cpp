@@ -121,7 +121,8 @@ std::vector<StageStat> PerFrameStages(const std::vector<FrameRecord>& records) {
 
 Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, StageTimes& times) {
   const std::vector<FrameRecord>& records = run.state.records;
-  const map::TerrainMap& terrain = (run.smoothed != nullptr ? *run.smoothed : run.mapper).map();
+  const map::TerrainMap& terrain =
+      (run.smoothed != nullptr ? run.smoothed->mapper : run.mapper).map();
   const map::MapperConfig& config = run.mapper.config();
   const bool refine = config.tilt.mode != map::TiltMode::kPrior;
   // Per-frame poses (TUM, as fused) and figures (CSV).
@@ -224,8 +225,8 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
   }
   summary["tilt"]["smoothed"] = run.smoothed != nullptr;
   if (run.smoothed != nullptr) {
-    summary["tilt"]["smooth_solve_s"] = run.smooth_solve_s;
-    summary["tilt"]["smooth_pass_s"] = run.smooth_pass_s;
+    summary["tilt"]["smooth_solve_s"] = run.smoothed->solve_s;
+    summary["tilt"]["smooth_pass_s"] = run.smoothed->pass_s;
   }
   // Frames not fused, by reason, and each with what was found.
   std::map<std::string, int> by_reason;
@@ -299,8 +300,8 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
     }
     if (run.smoothed != nullptr) {
       text << "\n  smoothed: every frame posed again by the smoother (solved in "
-           << util::Fixed(run.smooth_solve_s, 2) << " s) and fused again at it ("
-           << util::Fixed(run.smooth_pass_s, 2)
+           << util::Fixed(run.smoothed->solve_s, 2) << " s) and fused again at it ("
+           << util::Fixed(run.smoothed->pass_s, 2)
            << " s, a second pass over the input); the poses and the correction above are its";
     }
     if (config.tilt.mode == map::TiltMode::kRefineToMap) {
