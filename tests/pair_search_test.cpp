@@ -88,8 +88,9 @@ std::vector<std::int32_t> FloodFillBlobs(const std::vector<bool>& mask, int widt
 }
 
 // The column baseline's pass over each column against its definition (every pair of each
-// column): the same result, every compatible pair counted, fewer tested one by one; and its
-// blobs against a flood fill of its obstacle mask.
+// column): the same result, no more pairs found (it stops at a point's first partner where a
+// column is dense), some found where there are any; and its blobs against a flood fill of its
+// obstacle mask.
 void ExpectSameColumns(const RangeImage& image, const DetectorConfig& detector, int min_blob,
                        const std::string& what) {
   ColumnConfig config = ColumnConfig::From(detector);
@@ -97,8 +98,11 @@ void ExpectSameColumns(const RangeImage& image, const DetectorConfig& detector, 
   const Detection fast = *DetectColumns(image, config);
   const Detection brute = *DetectColumnsBruteForce(image, config);
   ExpectSame(fast, brute, what + " (columns)");
-  EXPECT_EQ(fast.stats.pairs_compatible, brute.stats.pairs_compatible) << what << " (columns)";
-  EXPECT_LE(fast.stats.pairs_tested, brute.stats.pairs_tested) << what << " (columns)";
+  EXPECT_LE(fast.stats.pairs_compatible, brute.stats.pairs_compatible) << what << " (columns)";
+  EXPECT_EQ(fast.stats.pairs_compatible > 0, brute.stats.pairs_compatible > 0)
+      << what << " (columns)";
+  // A pair is tested at most once from each end.
+  EXPECT_LE(fast.stats.pairs_tested, 2 * brute.stats.pairs_tested) << what << " (columns)";
   ColumnConfig all = config;
   all.min_blob_pixels = 0;
   const Detection unfiltered = *DetectColumns(image, all);

@@ -53,7 +53,7 @@ Status ColumnConfig::Validate() const {
 namespace {
 
 // Per pixel: in a compatible pair within its column (either point), the upper point of one;
-// pairs_compatible counts every such pair, pairs_tested those tested one by one.
+// pairs_compatible counts the pairs found, pairs_tested those tested one by one.
 struct ColumnPairs {
   std::vector<std::uint8_t> obstacle, raised;
   DetectionStats stats;
@@ -120,9 +120,13 @@ __m128 LaneMask(int bits) {
 // column's mean horizontal direction u, each bin sorted by height, and p meets the points
 // of its own and the two neighbouring bins from the first more than HT above it (as the
 // pair test rounds the difference, which grows with the upper height) to the last less than
-// Hmax above (four at a time where the compiler has SSE2; where the three bins hold at most
-// kDirectPoints, all of them, the window a mask). The points of a bin stop at the first with
-// no point of those bins more than HT above it. The columns are gathered kBlockColumns at a
+// Hmax above. Where the three bins hold at most kDirectPoints (a LiDAR column), p meets all
+// of them four at a time (SSE2), the window a mask, and every pair is found. Where they hold
+// more (a dense image's column, whose faces hold hundreds of points each within Hmax of
+// another), a point needs only one partner each way: p's window is searched up to its
+// first hit, and then each point not yet marked as an upper point searches the window below
+// it, nearest first, up to its first hit. The points of a bin stop at the first with no
+// point of those bins more than HT above it. The columns are gathered kBlockColumns at a
 // time, row by row, bottom row first, into reused buffers, and their marks stored row by
 // row once the block is done.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
@@ -137,6 +141,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
   struct Bin {
     std::int32_t bin;
     int begin, end;  // its points in the column
+    bool searched;   // its lower points searched up to their first hit only
   };
   std::vector<Bin> bins;
   // A block of columns: per column its valid points, bottom row first (their keys set when
@@ -168,15 +173,19 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       }
     }
   };
+  // The column's points side by side (x, y, z) in sorted order, with room for reading four
+  // from any point and from three before the first; and per point whether it is the upper
+  // point of a pair found (all ones) or the lower one.
+  constexpr int kPad = 4;
+  const std::size_t stride = static_cast<std::size_t>(height) + 2 * kPad;
+  std::vector<float> xyz(3 * stride, 0.0f);
+  float* const cx = xyz.data() + kPad;
+  float* const cy = cx + stride;
+  float* const cz = cy + stride;
+  std::vector<std::int32_t> hits(2 * stride, 0);
+  std::int32_t* const upper_hit = hits.data() + kPad;
+  std::int32_t* const lower_hit = upper_hit + stride;
 #if defined(__SSE2__)
-  // The SIMD path's copies of the column, with room for reading four from the last point.
-  std::vector<float> xyz(3 * (static_cast<std::size_t>(height) + 4), 0.0f);
-  float* const cx = xyz.data();
-  float* const cy = cx + height + 4;
-  float* const cz = cy + height + 4;
-  std::vector<std::int32_t> hits(2 * (static_cast<std::size_t>(height) + 4), 0);
-  std::int32_t* const upper_hit = hits.data();
-  std::int32_t* const lower_hit = upper_hit + height + 4;
   const __m128 kLaneMasks[16] = {LaneMask(0),  LaneMask(1),  LaneMask(2),  LaneMask(3),
                                  LaneMask(4),  LaneMask(5),  LaneMask(6),  LaneMask(7),
                                  LaneMask(8),  LaneMask(9),  LaneMask(10), LaneMask(11),
@@ -208,6 +217,15 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     }
     direction(mx, my);
   }
+  // The pair test of the point k with the point j (k the lower point when `k_lower`), for
+  // the scalar paths: whether they are HT..Hmax apart (`window`) and compatible.
+  [[maybe_unused]] const auto pair_at = [&](int k, int j, bool k_lower, bool& window) {
+    const int lo = k_lower ? k : j, up = k_lower ? j : k;
+    const float dz = cz[up] - cz[lo];
+    window = dz > ht && dz < hmax;
+    const float dx = cx[up] - cx[lo], dy = cy[up] - cy[lo];
+    return window && dz * dz > tan2 * (dx * dx + dy * dy);
+  };
   for (int c = 0; c < width; ++c) {
     const int b = c % kBlockColumns;
     if (b == 0) {
@@ -233,42 +251,43 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     bins.clear();
     for (int k = 0; k < m; ++k) {
       const auto bin = static_cast<std::int32_t>((column[k].key >> 32) ^ 0x80000000u);
-      if (bins.empty() || bins.back().bin != bin) bins.push_back({bin, k, k});
+      if (bins.empty() || bins.back().bin != bin) bins.push_back({bin, k, k, false});
       bins.back().end = k + 1;
-    }
-#if defined(__SSE2__)
-    // The column's points side by side (x, y, z), padded so that four are read from any,
-    // and per point whether it is the upper point of a pair found (all ones) or the lower.
-    for (int k = 0; k < m; ++k) {
       cx[k] = column[k].x;
       cy[k] = column[k].y;
       cz[k] = column[k].z;
       upper_hit[k] = 0;
       lower_hit[k] = 0;
     }
-#endif
-    for (int g = 0; g < static_cast<int>(bins.size()); ++g) {
-      // The bins within one of g's: consecutive in the column (sorted by bin), [r0, r1).
-      const int nb = static_cast<int>(bins.size());
-      [[maybe_unused]] const int r0 =
-          g > 0 && bins[g - 1].bin == bins[g].bin - 1 ? bins[g - 1].begin : bins[g].begin;
-      [[maybe_unused]] const int r1 =
-          g + 1 < nb && bins[g + 1].bin == bins[g].bin + 1 ? bins[g + 1].end : bins[g].end;
+    const int nb = static_cast<int>(bins.size());
+    // The bins within one of g's: consecutive in the column (sorted by bin), [near_begin,
+    // near_end) of `bins`.
+    const auto near_begin = [&](int g) {
+      return g > 0 && bins[g - 1].bin == bins[g].bin - 1 ? g - 1 : g;
+    };
+    const auto near_end = [&](int g) {
+      return g + 1 < nb && bins[g + 1].bin == bins[g].bin + 1 ? g + 2 : g + 1;
+    };
+    // Each point as the lower one: whether some point of the near bins is compatible with it.
+    // Where they hold at most kDirectPoints, every one of them is tested (all four at a time,
+    // SSE2), and every hit marked; else each bin's window is searched up to the first hit,
+    // and the bin is `searched`: the upper points there are settled below.
+    bool any_searched = false;
+    for (int g = 0; g < nb; ++g) {
+      const int h0 = near_begin(g), h1 = near_end(g);
       float top = -std::numeric_limits<float>::infinity();
-      for (int h = std::max(0, g - 1); h <= g + 1 && h < nb; ++h) {
-        if (bins[h].bin < bins[g].bin - 1 || bins[h].bin > bins[g].bin + 1) continue;
-        top = std::max(top, column[bins[h].end - 1].z);
-      }
+      for (int h = h0; h < h1; ++h) top = std::max(top, cz[bins[h].end - 1]);
 #if defined(__SSE2__)
+      const int r0 = bins[h0].begin, r1 = bins[h1 - 1].end;
       if (r1 - r0 <= kDirectPoints) {
         // Few points near: each lower point meets all of them four at a time, the window
         // HT..Hmax and the slope as bit masks (the pair test's float operations in its
         // order), without a branch on either.
         const __m128 vht = _mm_set1_ps(ht), vhmax = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
         for (int k = bins[g].begin; k < bins[g].end; ++k) {
-          const float pz_scalar = column[k].z;
+          const float pz_scalar = cz[k];
           if (!(top - pz_scalar > ht)) break;  // nothing more than HT above this point or the next
-          const __m128 px = _mm_set1_ps(column[k].x), py = _mm_set1_ps(column[k].y);
+          const __m128 px = _mm_set1_ps(cx[k]), py = _mm_set1_ps(cy[k]);
           const __m128 pz = _mm_set1_ps(pz_scalar);
           int any = 0;
           for (int j = r0; j < r1; j += 4) {
@@ -293,30 +312,28 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
         continue;
       }
 #endif
-      // Many points near (a dense image's column): each bin's points from the first more
-      // than HT above the current lower point (which only moves up, as the lower points of g
-      // do) to the last less than Hmax above.
-      const ColumnPoint* first[3];
-      const ColumnPoint* end[3];
-      int near = 0;
-      for (int h = std::max(0, g - 1); h <= g + 1 && h < nb; ++h) {
-        if (bins[h].bin < bins[g].bin - 1 || bins[h].bin > bins[g].bin + 1) continue;
-        first[near] = column + bins[h].begin;
-        end[near++] = column + bins[h].end;
-      }
+      // Many points near (a dense image's column): each bin's window, from the first point
+      // more than HT above the current lower point (which only moves up, as the lower points
+      // of g do) to the last less than Hmax above, up to the first hit.
+      bins[g].searched = any_searched = true;
+      int first[3];
+      for (int h = h0; h < h1; ++h) first[h - h0] = bins[h].begin;
       for (int k = bins[g].begin; k < bins[g].end; ++k) {
-        const float px = column[k].x, py = column[k].y, pz = column[k].z;
+        const float pz = cz[k];
         if (!(top - pz > ht)) break;  // nothing more than HT above this point or the next
 #if defined(__SSE2__)
-        // Each bin's window four points at a time (heights ascend: past the first point
-        // Hmax or more above, none is less), its hits marked as above.
-        const __m128 vpx = _mm_set1_ps(px), vpy = _mm_set1_ps(py), vpz = _mm_set1_ps(pz);
+        const __m128 vpx = _mm_set1_ps(cx[k]), vpy = _mm_set1_ps(cy[k]), vpz = _mm_set1_ps(pz);
         const __m128 vhmax = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
-        int any_bits = 0;
-        for (int h = 0; h < near; ++h) {
-          while (first[h] < end[h] && !(first[h]->z - pz > ht)) ++first[h];
-          const int j_end = static_cast<int>(end[h] - column);
-          for (int j = static_cast<int>(first[h] - column); j < j_end; j += 4) {
+#endif
+        bool found = false;
+        for (int h = h0; h < h1 && !found; ++h) {
+          int& j0 = first[h - h0];
+          const int j_end = bins[h].end;
+          while (j0 < j_end && !(cz[j0] - pz > ht)) ++j0;
+#if defined(__SSE2__)
+          // Four at a time (heights ascend: past the first point Hmax or more above, none is
+          // less); the hits of the four marked.
+          for (int j = j0; j < j_end; j += 4) {
             const int valid = j_end - j >= 4 ? 0xf : (1 << (j_end - j)) - 1;
             const __m128 dz = _mm_sub_ps(_mm_loadu_ps(cz + j), vpz);
             const __m128 dx = _mm_sub_ps(_mm_loadu_ps(cx + j), vpx);
@@ -329,40 +346,101 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
             const int in_window = _mm_movemask_ps(window);
             const int bits = _mm_movemask_ps(hit);
             pairs_tested += kBitCount[in_window];
-            pairs_compatible += kBitCount[bits];
-            any_bits |= bits;
-            __m128i* marks = reinterpret_cast<__m128i*>(upper_hit + j);
-            _mm_storeu_si128(marks, _mm_or_si128(_mm_loadu_si128(marks), _mm_castps_si128(hit)));
+            if (bits != 0) {
+              pairs_compatible += kBitCount[bits];
+              __m128i* marks = reinterpret_cast<__m128i*>(upper_hit + j);
+              _mm_storeu_si128(marks, _mm_or_si128(_mm_loadu_si128(marks), _mm_castps_si128(hit)));
+              found = true;
+              break;
+            }
             if (in_window != 0xf) break;
           }
-        }
-        lower_hit[k] |= any_bits;
 #else
-        // Every tested partner's marks are stored, as they were or raised by the test: no
-        // branch on its outcome, which the processor cannot foresee.
-        std::uint8_t any = 0;
-        for (int h = 0; h < near; ++h) {
-          while (first[h] < end[h] && !(first[h]->z - pz > ht)) ++first[h];
-          const ColumnPoint* q = first[h];
-          for (; q < end[h] && q->z - pz < hmax; ++q) {
-            const float dx = q->x - px, dy = q->y - py, dz = q->z - pz;
-            const std::uint8_t compatible = dz * dz > tan2 * (dx * dx + dy * dy);
-            pairs_compatible += compatible;
-            any |= compatible;
-            column_marks[q->row] |= static_cast<std::uint8_t>(compatible * 3);
+          for (int j = j0; j < j_end; ++j) {
+            bool window;
+            const bool compatible = pair_at(k, j, true, window);
+            if (!window) break;
+            ++pairs_tested;
+            if (compatible) {
+              ++pairs_compatible;
+              upper_hit[j] = -1;
+              found = true;
+              break;
+            }
           }
-          pairs_tested += q - first[h];
-        }
-        column_marks[column[k].row] |= any;
 #endif
+        }
+        if (found) lower_hit[k] = -1;
       }
     }
+    // Each point not yet marked as an upper point, where a bin near it was searched: whether
+    // some point of its near bins is compatible with it as the lower point, nearest in
+    // height first (the window from the last point more than HT below it down to the first
+    // less than Hmax below), up to the first hit.
+    for (int g = 0; g < nb && any_searched; ++g) {
+      const int h0 = near_begin(g), h1 = near_end(g);
+      bool settled = true;
+      float bottom = std::numeric_limits<float>::infinity();
+      for (int h = h0; h < h1; ++h) {
+        settled = settled && !bins[h].searched;
+        bottom = std::min(bottom, cz[bins[h].begin]);
+      }
+      if (settled) continue;
+      int lo[3], hi[3];
+      for (int h = h0; h < h1; ++h) lo[h - h0] = hi[h - h0] = bins[h].begin;
+      for (int k = bins[g].begin; k < bins[g].end; ++k) {
+        if (upper_hit[k] != 0) continue;
+        const float qz = cz[k];
+        if (!(qz - bottom > ht))
+          continue;  // nothing more than HT below it (nor below those before)
 #if defined(__SSE2__)
+        const __m128 vqx = _mm_set1_ps(cx[k]), vqy = _mm_set1_ps(cy[k]), vqz = _mm_set1_ps(qz);
+        const __m128 vt = _mm_set1_ps(tan2);
+#endif
+        bool found = false;
+        for (int h = h0; h < h1 && !found; ++h) {
+          int &j_lo = lo[h - h0], &j_hi = hi[h - h0];
+          const int j_end = bins[h].end;
+          while (j_lo < j_end && !(qz - cz[j_lo] < hmax)) ++j_lo;
+          j_hi = std::max(j_hi, j_lo);
+          while (j_hi < j_end && qz - cz[j_hi] > ht) ++j_hi;
+#if defined(__SSE2__)
+          for (int j = j_hi - 4; j > j_lo - 4; j -= 4) {
+            // Lanes below j_lo are out of the window (past it, in the padding or another bin).
+            const int valid = j >= j_lo ? 0xf : 0xf & (0xf << (j_lo - j));
+            const __m128 dz = _mm_sub_ps(vqz, _mm_loadu_ps(cz + j));
+            const __m128 dx = _mm_sub_ps(vqx, _mm_loadu_ps(cx + j));
+            const __m128 dy = _mm_sub_ps(vqy, _mm_loadu_ps(cy + j));
+            const __m128 steep =
+                _mm_cmpgt_ps(_mm_mul_ps(dz, dz),
+                             _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
+            const int bits = _mm_movemask_ps(_mm_and_ps(steep, kLaneMasks[valid]));
+            pairs_tested += kBitCount[valid];
+            if (bits != 0) {
+              pairs_compatible += kBitCount[bits];
+              found = true;
+              break;
+            }
+          }
+#else
+          for (int j = j_hi - 1; j >= j_lo; --j) {
+            bool window;
+            ++pairs_tested;
+            if (pair_at(k, j, false, window)) {
+              ++pairs_compatible;
+              found = true;
+              break;
+            }
+          }
+#endif
+        }
+        if (found) upper_hit[k] = -1;
+      }
+    }
     for (int k = 0; k < m; ++k) {
       const int up = upper_hit[k] != 0;
       column_marks[column[k].row] = static_cast<std::uint8_t>(3 * up | (lower_hit[k] != 0));
     }
-#endif
   }
   if (width > 0) store_block((width - 1) / kBlockColumns * kBlockColumns);
   out.stats.pairs_compatible = pairs_compatible;

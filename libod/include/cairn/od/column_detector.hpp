@@ -29,12 +29,15 @@ struct ColumnConfig {
 /// stats follow the cone detector's definitions (detector.hpp). Cost: one pass over each
 /// column, its points sorted into bins (linear when the column is gathered nearly in order,
 /// as LiDAR columns are), plus one test per candidate pair within HT..Hmax in the bins
-/// next to it, and blob colouring by runs.
+/// next to it (where those bins are dense, as a camera's, only up to each point's first
+/// partner above and below: stats.pairs_compatible then counts the pairs found, fewer than
+/// there are), and blob colouring by runs.
 Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& config);
 
 /// The same result by the definition: every pair of points of each column tested, O(H^2)
 /// per column. The reference the tests and benchmarks hold DetectColumns to (equal labels,
-/// feet, features and pairs_compatible; pairs_tested differs).
+/// feet and features; its stats count every pair of a column tested and every compatible
+/// pair).
 Expected<Detection> DetectColumnsBruteForce(const RangeImage& image, const ColumnConfig& config);
 
 }  // namespace cairn::od
