@@ -244,7 +244,7 @@ TEST(TerrainMapDrift, TurnsMakeAnAccelerometerBiasObservableThatAStraightDriveFl
 }
 
 // The weaving climb with the camera's mount 2.5 deg off: the window answers the first frames
-// before trunks are in view and the mount is learned, and the map keeps what it fused there
+// before the trunks in view have taught it the mount, and the map keeps what it fused there
 // (the tilt's 95th percentile and the height climbed meanwhile). Smoothed once the drive is
 // over (DriftRunSpec::smooth, tilt.smooth) and fused again, every frame has the mount the
 // whole drive showed: the map study's `smoothed` rows. The frame-to-map ground heights, measured

@@ -100,9 +100,9 @@ const std::vector<TiltWorld>& TiltWorlds() {
        "attitude under gravity hardly changes), so it is flagged on most frames, and a bias "
        "beyond what the priors allow tilts the climb and drifts the height (the accelerometer "
        "bias row). The weaving drive below shows it observed. Smoothing the drive does not "
-       "observe it either (0.135 m `smoothed`, 0.100 m `smoothed_free`); in the other rows here "
-       "the smoother's ground is within 5 mm of the window's or closer, and its tilt's 95th "
-       "percentile 0.04-0.27 deg instead of 0.20-0.40."},
+       "observe it either (0.120 m `smoothed`, 0.084 m `smoothed_free`); in the other rows here "
+       "the smoother's ground is the window's or closer to the truth, and its tilt's 95th "
+       "percentile 0.04-0.25 deg instead of 0.20-0.38."},
       {"hill (hill_drive), 36 m",
        "datasets/sequences/hill_drive/world.yaml",
        {{0.0, 0.0}, {12.0, 1.0}, {24.0, -1.0}, {36.0, 1.0}},
@@ -119,7 +119,8 @@ const std::vector<TiltWorld>& TiltWorlds() {
        "velocity jump no accelerometer reads). Each turn changes the body's attitude under "
        "gravity, which the gyro follows, so the accelerometer's bias is told from a tilt once "
        "the first turn is behind it (`accel flagged` against the straight drive's). The tilt's "
-       "95th percentile is the first frames', before trunks are in view. The height is worse "
+       "95th percentile is the first ten frames' or so, while the trunks in view teach the "
+       "mount and the turns the biases. The height is worse "
        "than on the straight drive where no bias is added: the climb integrated over the first "
        "20 m, while the biases are still unobserved, at a body pitch about 0.1 deg off, stays "
        "(the estimator's window slides past those frames, and nothing later sees the absolute "
@@ -128,10 +129,10 @@ const std::vector<TiltWorld>& TiltWorlds() {
        "height error varies much from one drive to the next. The `smoothed` rows are what "
        "that costs an offline map: solved as a whole, the first frames have the biases and "
        "the mount learned later. Without odometry errors the tilt's 95th percentile falls to "
-       "0.05-0.08 deg and the ground to 0.014-0.048 m; the frame-to-map heights, measured "
+       "0.05-0.09 deg and the ground to 0.012-0.057 m; the frame-to-map heights, measured "
        "against the window's map, hold it back, and `smoothed_free`, without them, is at "
-       "0.015-0.027 m. With 1 % odometry the ground is 0.021 m (0.014 free), with 3 % 0.059 m "
-       "(0.064).",
+       "0.020-0.033 m. With 1 % odometry the ground is 0.019 m (0.013 free), with 3 % 0.057 m "
+       "(0.067).",
        3},
       {"side slope (10 deg, uphill to the left) through sparse trees, 60 m",
        "datasets/maps/worlds/side_slope.yaml",

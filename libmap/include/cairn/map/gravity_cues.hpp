@@ -8,6 +8,10 @@
 //     max_radius_m; its cue is the first axis, pointing up;
 //   - a wall is a tall plane: height as above, sqrt(l2) >= min_wall_width_m and sqrt(l2 / l3)
 //     >= min_flatness; its cue is the third axis (its normal), which should be horizontal.
+// A segment is measured above its foot (where it meets the ground) and below the lowest of its
+// points in the image's top row, when that row cuts it; a trunk the image's left or right edge
+// cuts is no cue (edges of a pitched or rolled camera's image are not vertical or level in the
+// world: what they leave of a trunk leans).
 // Either is kept only within max_angle_rad of what the prior says (the axis from the prior's
 // up, the normal from horizontal): a gross check, since the estimator weighs the cues with a
 // robust loss and a leaning tree is expected. Slopes, mounds and rocks fail the shape or

@@ -92,10 +92,10 @@ struct TiltConfig {
   /// has only the pitch over the distance driven and the ground rises for the height, which
   /// a straight drive or a drifting odometry scale leaves loose. In datasets/maps/REPORT.md
   /// (`smoothed`, with 0.9, against `smoothed_free`), the straight climb's ground RMS is
-  /// 0.004-0.038 m with it and 0.033-0.051 m without (0.011-0.036 m in the window; attitude,
-  /// gyro and mount errors), and with 3 % odometry 0.054 against 0.135 m (0.071); where the
+  /// 0.004-0.021 m with it and 0.020-0.034 m without (0.009-0.033 m in the window; attitude,
+  /// gyro and mount errors), and with 3 % odometry 0.041 against 0.157 m (0.056); where the
   /// window's first frames were far off, the weaving climb with a misaligned mount, its map
-  /// holds them back: 0.042-0.059 m with it, 0.018-0.033 m without (three drives). 0.9 was
+  /// holds them back: 0.049-0.069 m with it, 0.023-0.039 m without (three drives). 0.9 was
   /// chosen over 0.3 and 3 on 13 drives of the same worlds (a scratch sweep, not kept: the
   /// mean ground RMS 0.047 m, against 0.049 and 0.052, and 0.060 without it).
   double smooth_ground_sigma_m = 0.9;
