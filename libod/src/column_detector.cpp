@@ -120,11 +120,11 @@ __m128 LaneMask(int bits) {
 // column's mean horizontal direction u, each bin sorted by height, and p meets the points
 // of its own and the two neighbouring bins from the first more than HT above it (as the
 // pair test rounds the difference, which grows with the upper height) to the last less than
-// Hmax above. Where the three bins hold at most kDirectPoints (a LiDAR column), p meets all
-// of them four at a time (SSE2), the window a mask, and every pair is found. Where they hold
-// more (a dense image's column, whose faces hold hundreds of points each within Hmax of
-// another), a point needs only one partner each way: p's window is searched up to its
-// first hit, and then each point not yet marked as an upper point searches the window below
+// Hmax above. Where the three bins hold at most kDirectPoints (a LiDAR column, mostly), p
+// meets all of them four at a time (SSE2), the window a mask, and every pair is found. Where
+// they hold more (or without SSE2) (a dense image's column, whose faces hold hundreds of points
+// each within Hmax of another), a point needs only one partner each way: p's window is searched up
+// to its first hit, and then each point not yet marked as an upper point searches the window below
 // it, nearest first, up to its first hit. The points of a bin stop at the first with no
 // point of those bins more than HT above it. The columns are gathered kBlockColumns at a
 // time, row by row, bottom row first, into reused buffers, and their marks stored row by
@@ -269,9 +269,10 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       return g + 1 < nb && bins[g + 1].bin == bins[g].bin + 1 ? g + 2 : g + 1;
     };
     // Each point as the lower one: whether some point of the near bins is compatible with it.
-    // Where they hold at most kDirectPoints, every one of them is tested (all four at a time,
-    // SSE2), and every hit marked; else each bin's window is searched up to the first hit,
-    // and the bin is `searched`: the upper points there are settled below.
+    // With SSE2, where they hold at most kDirectPoints, every one of them is tested, four at a
+    // time, and every hit marked; else (and always without SSE2) each bin's window is searched
+    // up to the first hit, and the bin is `searched`: the upper points it leaves unmarked are
+    // settled below.
     bool any_searched = false;
     for (int g = 0; g < nb; ++g) {
       const int h0 = near_begin(g), h1 = near_end(g);
@@ -374,15 +375,17 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       }
     }
     // Each point not yet marked as an upper point, where a bin near it was searched: whether
-    // some point of its near bins is compatible with it as the lower point, nearest in
-    // height first (the window from the last point more than HT below it down to the first
-    // less than Hmax below), up to the first hit.
+    // some point of the searched bins near it is compatible with it as the lower point,
+    // nearest in height first (the window from the last point more than HT below it down to
+    // the first less than Hmax below), up to the first hit. (A bin tested whole has marked
+    // every upper point of its lower points already.)
     for (int g = 0; g < nb && any_searched; ++g) {
       const int h0 = near_begin(g), h1 = near_end(g);
       bool settled = true;
       float bottom = std::numeric_limits<float>::infinity();
       for (int h = h0; h < h1; ++h) {
-        settled = settled && !bins[h].searched;
+        if (!bins[h].searched) continue;
+        settled = false;
         bottom = std::min(bottom, cz[bins[h].begin]);
       }
       if (settled) continue;
@@ -399,6 +402,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
 #endif
         bool found = false;
         for (int h = h0; h < h1 && !found; ++h) {
+          if (!bins[h].searched) continue;
           int &j_lo = lo[h - h0], &j_hi = hi[h - h0];
           const int j_end = bins[h].end;
           while (j_lo < j_end && !(qz - cz[j_lo] < hmax)) ++j_lo;

@@ -29,9 +29,10 @@ struct ColumnConfig {
 /// stats follow the cone detector's definitions (detector.hpp). Cost: one pass over each
 /// column, its points sorted into bins (linear when the column is gathered nearly in order,
 /// as LiDAR columns are), plus one test per candidate pair within HT..Hmax in the bins
-/// next to it (where those bins are dense, as a camera's, only up to each point's first
-/// partner above and below: stats.pairs_compatible then counts the pairs found, fewer than
-/// there are), and blob colouring by runs.
+/// next to it (where those bins are dense, as a camera's, and on every column where the
+/// compiler has no SSE2, only up to each point's first partner above and below:
+/// stats.pairs_compatible then counts the pairs found, at most as many as there are, and
+/// stats.pairs_tested may count a pair from each end), and blob colouring by runs.
 Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& config);
 
 /// The same result by the definition: every pair of points of each column tested, O(H^2)

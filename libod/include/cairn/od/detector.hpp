@@ -102,9 +102,9 @@ struct SegmentFeatures {
 
 /// Counters that show how much work a detection did.
 /// Work counters, not results: Detect (and DetectColumns on dense columns) skips the pairs
-/// that can change nothing, so its pairs_compatible is less than the number of compatible
+/// that can change nothing, so its pairs_compatible is at most the number of compatible
 /// pairs, which DetectRegionScan and DetectBruteForce (and DetectColumnsBruteForce) count
-/// exactly.
+/// exactly; DetectColumns' pairs_tested may count a pair once from each end.
 struct DetectionStats {
   std::int64_t pairs_tested = 0;      ///< pairs tested point by point (Detect: HT..Hmax apart)
   std::int64_t pairs_compatible = 0;  ///< compatible pairs found (in blocks or one by one)
