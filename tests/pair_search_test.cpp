@@ -186,6 +186,38 @@ TEST(PairSearch, EqualsTheDefinitionOnThresholdsExactly) {
   }
 }
 
+// The same lattice in tall, narrow images: each column holds up to 200 points over a few
+// metres, so its neighbourhoods are dense and the column baseline searches them only up to
+// each point's first partner each way (it then finds fewer pairs than there are); its marks
+// still equal the definition's where rounding decides.
+TEST(PairSearch, TheColumnBaselineOnDenseColumnsEqualsTheDefinitionOnThresholdsExactly) {
+  std::mt19937 rng(2424);
+  int searched = 0;
+  for (int trial = 0; trial < 8; ++trial) {
+    PinholeModel model;
+    model.width = 6;
+    model.height = 200;
+    model.fx = model.fy = 20.0 + trial;
+    model.cx = 2.5;
+    model.cy = 99.5;
+    std::vector<float> depth(model.width * model.height);
+    for (float& d : depth) d = rng() % 10 == 0 ? 0.0f : 0.1f * (5 + rng() % 30);
+    const RangeImage image = *RangeImage::FromDepth(depth, model, {0.0, -1.0, 0.0});
+    DetectorConfig config;
+    config.min_height_m = trial % 2 ? 0.3 : 0.1;
+    config.max_height_m = trial % 3 ? 1.0 : 0.5;
+    config.min_slope_rad = trial % 4 ? kPi / 4 : std::atan(2.0);
+    const std::string what = "dense lattice trial " + std::to_string(trial);
+    ExpectSameColumns(image, config, 0, what);
+    ColumnConfig columns = ColumnConfig::From(config);
+    const Detection fast = *DetectColumns(image, columns);
+    const Detection brute = *DetectColumnsBruteForce(image, columns);
+    EXPECT_GT(brute.stats.pairs_compatible, 0) << what;
+    searched += fast.stats.pairs_compatible < brute.stats.pairs_compatible;
+  }
+  EXPECT_EQ(searched, 8);  // every trial went through the search up to first partners
+}
+
 // Random LiDAR scans: points along each ring at random ranges, some above the ground, the
 // sensor tilted.
 RangeImage RandomScan(std::mt19937& rng, const std::string& sensor, int width) {
