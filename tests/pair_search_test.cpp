@@ -159,25 +159,38 @@ TEST(PairSearch, EqualsTheDefinitionAndTheRegionScanOnRandomViews) {
   EXPECT_GE(with_obstacles, 12);
 }
 
-// Depths on a 0.1 m lattice seen by a level camera with fx = fy = 1 at pixel-centred rays of
-// integer slope: coordinates are multiples of 0.1 m, so many pairs sit exactly on HT = 0.3,
-// Hmax = 1.0 and the 45-degree slope, where rounding decides.
+// Depths on a 0.1 m lattice seen by a level camera with integer fx = fy and pixel-centred rays:
+// coordinates are multiples of 0.1 m, so many pairs sit exactly on HT, Hmax and the slope,
+// where rounding decides. A tenth of the pixels have no return.
+RangeImage LatticeImage(std::mt19937& rng, int width, int height, double f) {
+  PinholeModel model;
+  model.width = width;
+  model.height = height;
+  model.fx = model.fy = f;
+  model.cx = 0.5 * (width - 1);
+  model.cy = 0.5 * (height - 1);
+  std::vector<float> depth(model.width * model.height);
+  for (float& d : depth) d = rng() % 10 == 0 ? 0.0f : 0.1f * (5 + rng() % 30);
+  return *RangeImage::FromDepth(depth, model, {0.0, -1.0, 0.0});
+}
+
+// Thresholds on the lattice's steps, by trial: HT 0.1 or 0.3, Hmax 0.5 or 1.0, 45 deg or
+// atan 2.
+DetectorConfig LatticeConfig(int trial) {
+  DetectorConfig config;
+  config.min_height_m = trial % 2 ? 0.3 : 0.1;
+  config.max_height_m = trial % 3 ? 1.0 : 0.5;
+  config.min_slope_rad = trial % 4 ? kPi / 4 : std::atan(2.0);
+  return config;
+}
+
+// The lattice in 40 x 30 images: the cone detector and the column baseline against the
+// definition.
 TEST(PairSearch, EqualsTheDefinitionOnThresholdsExactly) {
   std::mt19937 rng(4242);
   for (int trial = 0; trial < 12; ++trial) {
-    PinholeModel model;
-    model.width = 40;
-    model.height = 30;
-    model.fx = model.fy = 10.0 + trial;
-    model.cx = 19.5;
-    model.cy = 14.5;
-    std::vector<float> depth(model.width * model.height);
-    for (float& d : depth) d = rng() % 10 == 0 ? 0.0f : 0.1f * (5 + rng() % 30);
-    const RangeImage image = *RangeImage::FromDepth(depth, model, {0.0, -1.0, 0.0});
-    DetectorConfig config;
-    config.min_height_m = trial % 2 ? 0.3 : 0.1;
-    config.max_height_m = trial % 3 ? 1.0 : 0.5;
-    config.min_slope_rad = trial % 4 ? kPi / 4 : std::atan(2.0);
+    const RangeImage image = LatticeImage(rng, 40, 30, 10.0 + trial);
+    DetectorConfig config = LatticeConfig(trial);
     config.threads = 1 + trial % 2;
     const Detection brute = *DetectBruteForce(image, config);
     ExpectSame(*Detect(image, config), brute, "lattice trial " + std::to_string(trial));
@@ -194,22 +207,11 @@ TEST(PairSearch, TheColumnBaselineOnDenseColumnsEqualsTheDefinitionOnThresholdsE
   std::mt19937 rng(2424);
   int searched = 0;
   for (int trial = 0; trial < 8; ++trial) {
-    PinholeModel model;
-    model.width = 6;
-    model.height = 200;
-    model.fx = model.fy = 20.0 + trial;
-    model.cx = 2.5;
-    model.cy = 99.5;
-    std::vector<float> depth(model.width * model.height);
-    for (float& d : depth) d = rng() % 10 == 0 ? 0.0f : 0.1f * (5 + rng() % 30);
-    const RangeImage image = *RangeImage::FromDepth(depth, model, {0.0, -1.0, 0.0});
-    DetectorConfig config;
-    config.min_height_m = trial % 2 ? 0.3 : 0.1;
-    config.max_height_m = trial % 3 ? 1.0 : 0.5;
-    config.min_slope_rad = trial % 4 ? kPi / 4 : std::atan(2.0);
+    const RangeImage image = LatticeImage(rng, 6, 200, 20.0 + trial);
+    const DetectorConfig config = LatticeConfig(trial);
     const std::string what = "dense lattice trial " + std::to_string(trial);
     ExpectSameColumns(image, config, 0, what);
-    ColumnConfig columns = ColumnConfig::From(config);
+    const ColumnConfig columns = ColumnConfig::From(config);
     const Detection fast = *DetectColumns(image, columns);
     const Detection brute = *DetectColumnsBruteForce(image, columns);
     EXPECT_GT(brute.stats.pairs_compatible, 0) << what;
