@@ -100,9 +100,9 @@ const std::vector<TiltWorld>& TiltWorlds() {
        "attitude under gravity hardly changes), so it is flagged on most frames, and a bias "
        "beyond what the priors allow tilts the climb and drifts the height (the accelerometer "
        "bias row). The weaving drive below shows it observed. Smoothing the drive does not "
-       "observe it either (0.120 m `smoothed`, 0.084 m `smoothed_free`); in the other rows here "
+       "observe it either (0.112 m `smoothed`, 0.084 m `smoothed_free`); in the other rows here "
        "the smoother's ground is the window's or closer to the truth, and its tilt's 95th "
-       "percentile 0.04-0.25 deg instead of 0.20-0.38."},
+       "percentile 0.04-0.22 deg instead of 0.20-0.36."},
       {"hill (hill_drive), 36 m",
        "datasets/sequences/hill_drive/world.yaml",
        {{0.0, 0.0}, {12.0, 1.0}, {24.0, -1.0}, {36.0, 1.0}},
@@ -129,9 +129,9 @@ const std::vector<TiltWorld>& TiltWorlds() {
        "height error varies much from one drive to the next. The `smoothed` rows are what "
        "that costs an offline map: solved as a whole, the first frames have the biases and "
        "the mount learned later. Without odometry errors the tilt's 95th percentile falls to "
-       "0.05-0.09 deg and the ground to 0.012-0.057 m; the frame-to-map heights, measured "
+       "0.05-0.08 deg and the ground to 0.014-0.041 m; the frame-to-map heights, measured "
        "against the window's map, hold it back, and `smoothed_free`, without them, is at "
-       "0.020-0.033 m. With 1 % odometry the ground is 0.019 m (0.013 free), with 3 % 0.057 m "
+       "0.020-0.033 m. With 1 % odometry the ground is 0.017 m (0.013 free), with 3 % 0.061 m "
        "(0.067).",
        3},
       {"side slope (10 deg, uphill to the left) through sparse trees, 60 m",
