@@ -7,6 +7,7 @@
 #include <chrono>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -78,6 +79,9 @@ struct FrameRecord {
   /// names, "; "-separated, "" for none) and the vertical cues the frame brought.
   std::string not_observable;
   int verticals = 0;
+  /// tilt.mode gravity: the sensor's tilt sigma as the estimator states it, the square root
+  /// of the trace of GravityEstimate::up_sensor_covariance [rad]; NaN when not computed.
+  double tilt_sigma_rad = std::numeric_limits<double>::quiet_NaN();
   double read_s = 0.0, detect_s = 0.0, refine_s = 0.0, fuse_s = 0.0;
   double rss_mb = 0.0;   ///< the process's resident memory once the frame was fused [MiB]
   double heap_mb = 0.0;  ///< of which malloc'd and not freed (ProcessMemory::heap_mb) [MiB]

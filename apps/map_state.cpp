@@ -92,6 +92,7 @@ json RecordJson(const FrameRecord& r) {
   j["fused"] = fused;
   j["not_observable"] = r.not_observable;
   j["verticals"] = r.verticals;
+  if (std::isfinite(r.tilt_sigma_rad)) j["tilt_sigma_rad"] = r.tilt_sigma_rad;
   j["T_world_body"] = IsometryJson(r.T_world_body);
   j["T_world_sensor"] = IsometryJson(r.T_world_sensor);
   return j;
@@ -109,6 +110,7 @@ FrameRecord RecordFromJson(const json& rj) {
 #undef CAIRN_GET
   r.not_observable = rj.at("not_observable").get<std::string>();
   r.verticals = rj.at("verticals").get<int>();
+  if (rj.contains("tilt_sigma_rad")) r.tilt_sigma_rad = rj.at("tilt_sigma_rad").get<double>();
   r.T_world_body = IsometryFromJson(rj.at("T_world_body"));
   r.T_world_sensor = IsometryFromJson(rj.at("T_world_sensor"));
   return r;
@@ -274,6 +276,7 @@ FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecor
             (r.not_observable.empty() ? "" : "; ") + std::string(map::StateName(d.state));
       }
       r.verticals = m.tilt.gravity->cues.frame_verticals;
+      r.tilt_sigma_rad = std::sqrt(m.tilt.gravity->up_sensor_covariance.trace());
     }
   }
   r.read_s = read_s;

@@ -131,7 +131,8 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
   std::ostringstream csv;
   csv << "frame,stamp_s,valid_points,segments,kept,obstacle_points,obstacles_created,"
          "lethal_cells,tilt_refined,d_roll_deg,d_pitch_deg,dz_m,rms_before_m,rms_after_m,"
-         "read_ms,detect_ms,refine_ms,fuse_ms,rss_mb,heap_mb,verticals,not_observable\n";
+         "read_ms,detect_ms,refine_ms,fuse_ms,rss_mb,heap_mb,tilt_sigma_deg,verticals,"
+         "not_observable\n";
   double distance_m = 0.0;
   for (std::size_t k = 0; k < records.size(); ++k) {
     const FrameRecord& r = records[k];
@@ -148,8 +149,10 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
         << util::Fixed(r.rms_before_m, 4) << "," << util::Fixed(r.rms_after_m, 4) << ","
         << util::Fixed(r.read_s * 1e3, 1) << "," << util::Fixed(r.detect_s * 1e3, 1) << ","
         << util::Fixed(r.refine_s * 1e3, 1) << "," << util::Fixed(r.fuse_s * 1e3, 1) << ","
-        << util::Fixed(r.rss_mb, 1) << "," << util::Fixed(r.heap_mb, 1) << "," << r.verticals << ","
-        << r.not_observable << "\n";
+        << util::Fixed(r.rss_mb, 1) << "," << util::Fixed(r.heap_mb, 1) << ","
+        << (std::isfinite(r.tilt_sigma_rad) ? util::Fixed(r.tilt_sigma_rad / kDegToRad, 3)
+                                            : std::string())
+        << "," << r.verticals << "," << r.not_observable << "\n";
   }
   if (Status s = util::WriteFileAtomic(dir / "poses.tum", tum); !s) return s.error();
   if (Status s = util::WriteFileAtomic(dir / "frames.csv", csv.str()); !s) return s.error();

@@ -917,7 +917,10 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
                                                                    {newest.h, newest.h}};
     if (c.estimate_accel_bias) blocks.emplace_back(st.ba, st.ba);
     if (c.estimate_gyro_bias) blocks.emplace_back(st.bg, st.bg);
-    if (c.estimate_mount) blocks.emplace_back(st.mount, st.mount);
+    if (c.estimate_mount) {
+      blocks.emplace_back(st.mount, st.mount);
+      blocks.emplace_back(newest.rpy, st.mount);
+    }
     if (covariance.Compute(blocks, &problem)) {
       Eigen::Matrix<double, 3, 3, Eigen::RowMajor> m3;
       covariance.GetCovarianceBlock(newest.rpy, newest.rpy, m3.data());
@@ -931,11 +934,38 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
         covariance.GetCovarianceBlock(st.bg, st.bg, m3.data());
         est.gyro_bias_covariance = m3;
       }
+      // The sensor's up: (roll, pitch, yaw, mount roll, mount pitch) -> up_sensor, to first
+      // order (central differences).
+      Eigen::Matrix<double, 5, 5> S = Eigen::Matrix<double, 5, 5>::Zero();
+      S.topLeftCorner<3, 3>() = est.attitude_covariance;
       if (c.estimate_mount) {
         Eigen::Matrix<double, 2, 2, Eigen::RowMajor> m2;
         covariance.GetCovarianceBlock(st.mount, st.mount, m2.data());
         est.mount_covariance = m2;
+        Eigen::Matrix<double, 3, 2, Eigen::RowMajor> cross;
+        covariance.GetCovarianceBlock(newest.rpy, st.mount, cross.data());
+        S.bottomRightCorner<2, 2>() = m2;
+        S.topRightCorner<3, 2>() = cross;
+        S.bottomLeftCorner<2, 3>() = cross.transpose();
       }
+      const auto up_of = [&](const Eigen::Matrix<double, 5, 1>& x) {
+        const double rpy[3] = {x[0], x[1], x[2]};
+        const Eigen::Vector3d up_body =
+            gravity::LevelFromBody(rpy).transpose() * Eigen::Vector3d::UnitZ();
+        const Eigen::Matrix3d R_mount = gravity::RotY(x[4]) * gravity::RotX(x[3]);
+        return Eigen::Vector3d((R_mount * st.R_body_sensor).transpose() * up_body);
+      };
+      Eigen::Matrix<double, 5, 1> x0;
+      x0 << newest.rpy[0], newest.rpy[1], newest.rpy[2], st.mount[0], st.mount[1];
+      Eigen::Matrix<double, 3, 5> J;
+      constexpr double kStep = 1e-6;
+      for (int j = 0; j < 5; ++j) {
+        Eigen::Matrix<double, 5, 1> plus = x0, minus = x0;
+        plus[j] += kStep;
+        minus[j] -= kStep;
+        J.col(j) = (up_of(plus) - up_of(minus)) / (2.0 * kStep);
+      }
+      est.up_sensor_covariance = J * S * J.transpose();
       char why[256];
       const double limit = c.observable_ratio;
       if (c.estimate_accel_bias) {

@@ -1,5 +1,6 @@
 #include "cairn/eval/drift_run.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -59,6 +60,23 @@ double TiltBetween(const Eigen::Matrix3d& R_a, const Eigen::Matrix3d& R_b) {
   const Eigen::Vector3d up_a = R_a.transpose() * Eigen::Vector3d::UnitZ();
   const Eigen::Vector3d up_b = R_b.transpose() * Eigen::Vector3d::UnitZ();
   return std::atan2(up_a.cross(up_b).norm(), up_a.dot(up_b));
+}
+
+// d^T P^+ d, d the up vector of R_fused less that of R_true (their sensor frames), P^+ the
+// pseudo-inverse of P (rank 2: across the up vector).
+double UpNees(const Eigen::Matrix3d& R_fused, const Eigen::Matrix3d& R_true,
+              const Eigen::Matrix3d& P) {
+  const Eigen::Vector3d d = R_fused.transpose() * Eigen::Vector3d::UnitZ() -
+                            R_true.transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(P);
+  if (eig.info() != Eigen::Success) return NAN;
+  const double floor = 1e-9 * eig.eigenvalues().maxCoeff();
+  double nees = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    const double l = eig.eigenvalues()(i);
+    if (l > floor) nees += std::pow(eig.eigenvectors().col(i).dot(d), 2) / l;
+  }
+  return nees;
 }
 
 std::vector<map::ImuSample> BodyImuUpTo(const sim::Drive& drive, double up_to_s,
@@ -248,6 +266,12 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
                       ? 0.0
                       : std::abs(std::remainder(s.odometry.yaw_rad - yaw_true, 2.0 * kPi));
       e.tilt_rad = TiltBetween(fused.linear(), s.T_world_sensor.linear());
+      if (record->tilt.gravity && record->tilt.applied &&
+          record->tilt.gravity->up_sensor_covariance.allFinite()) {
+        e.tilt_nees = UpNees(fused.linear(), s.T_world_sensor.linear(),
+                             record->tilt.gravity->up_sensor_covariance);
+        e.tilt_sigma_rad = std::sqrt(record->tilt.gravity->up_sensor_covariance.trace());
+      }
       e.z_m = std::abs(fused.translation().z() - s.T_world_sensor.translation().z());
       pose_errors.push_back(e);
       distance_m = s.distance_m;

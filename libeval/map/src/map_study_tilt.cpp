@@ -176,7 +176,14 @@ struct TiltOutcome {
   int lethal_more = 0, degenerate_frames = 0, accel_flagged_frames = 0, frames = 0;
   std::vector<map::GravityDegeneracy> last_flags;
   double height_sigma_m = NAN;  // gravity: the estimator's own, at the end
+  // Gravity: frames with the estimator's tilt covariance, and of them those whose tilt error
+  // lies in its 95 % region (PoseError::tilt_nees <= kChiSquare2Dof95).
+  int tilt_stated = 0, tilt_covered = 0;
+  std::vector<double> tilt_sigma_deg;  // the estimator's, per frame (PoseError::tilt_sigma_rad)
 };
+
+// The 95 % quantile of the chi-square distribution with two degrees of freedom: -2 ln 0.05.
+constexpr double kChiSquare2Dof95 = 5.991;
 
 }  // namespace
 
@@ -226,7 +233,14 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
                    r.error().message};
     }
     TiltOutcome& o = outcomes[k];
-    for (const PoseError& e : r->pose_errors) o.tilt_deg.push_back(e.tilt_rad / kDegToRad);
+    for (const PoseError& e : r->pose_errors) {
+      o.tilt_deg.push_back(e.tilt_rad / kDegToRad);
+      if (std::isfinite(e.tilt_nees)) {
+        ++o.tilt_stated;
+        o.tilt_covered += e.tilt_nees <= kChiSquare2Dof95 ? 1 : 0;
+        o.tilt_sigma_deg.push_back(e.tilt_sigma_rad / kDegToRad);
+      }
+    }
     std::tie(o.cost_error, o.lethal_more) = CostError(*r, *truths[d.world]);
     o.elevation_rms_m = r->score.elevation_rms_m;
     o.ground_rms_m = r->ground_height_rms_m;
@@ -245,7 +259,7 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
   csv << "world,drive,error_source,mode,seed,frames,tilt_median_deg,tilt_p95_deg,elevation_rms_m,"
          "ground_height_rms_m,cost_error,false_lethal_vs_truth,degenerate_frames,"
          "accel_bias_flagged_frames,"
-         "final_height_sigma_m,last_flags\n";
+         "final_height_sigma_m,tilt_stated_frames,tilt_covered_frames,last_flags\n";
   md << "## Tilt: the odometry prior, the frame-to-map refiner and the gravity estimator\n\n"
      << "Each frame is fused at the tilt one of three modes gives (`tilt.mode`, "
      << "`cairn map --tilt`): `prior` (the odometry pose: roll and pitch from the IMU's "
@@ -262,7 +276,7 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
      << "or the first trunks apply from the first frame on; `cairn map --smooth`) and fused "
      << "again at those poses, as an offline map is built; the smoother takes the frame-to-map "
      << "ground heights the gravity mode measured, against a map fused at the window's "
-     << "estimates, with a wider sigma (`tilt.gravity.smooth_ground_sigma_m`, 0.9 m), and "
+     << "estimates, with a sigma of their own (`tilt.gravity.smooth_ground_sigma_m`, 0.9 m), and "
      << "`smoothed_free` leaves them out (0). The "
      << "error sources are set one at a time on top of the IMU attitude noise (0.3 deg); "
      << "`tilt` is the angle between the fused and the true up vector of the sensor over "
@@ -272,7 +286,13 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
      << "poses, `flagged` the frames where the estimator said a state was not observable "
      << "(`accel flagged`: the accelerometer bias among them), "
      << "`height sigma` the estimator's own height sigma for the drive's last frame (what it "
-     << "says it knows, to read against the ground RMS; mean over the drives).\n\n"
+     << "says it knows, to read against the ground RMS; mean over the drives), `stated tilt` "
+     << "the median over the frames of the tilt error the estimator expects (the RMS its "
+     << "covariance gives, to read against the tilt median), `tilt in 95 %` "
+     << "the frames whose tilt error lies in the 95 % region of the estimator's own covariance "
+     << "of the sensor's up vector (`GravityEstimate::up_sensor_covariance`, from the frame's "
+     << "attitude, the mount and their cross terms; 95 % of them where that covariance is "
+     << "right, fewer where the estimator is overconfident).\n\n"
      << "Two elevation errors: `elevation RMS` compares the grid with the true terrain at the "
      << "same x, y, so it also holds the odometry's horizontal drift, which no tilt corrects "
      << "(x, y and heading come from the odometry in every mode); `ground RMS` is the height "
@@ -286,8 +306,10 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
     md << "### " << world.label << "\n\n"
        << "| error source | mode | drives | tilt median [deg] | tilt 95th [deg] | elevation RMS "
           "[m] "
-          "| ground RMS [m] | cost err | lethal+ | flagged | accel flagged | height sigma [m] |\n"
-       << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
+          "| ground RMS [m] | cost err | lethal+ | flagged | accel flagged | height sigma [m] "
+          "| stated tilt [deg] | tilt in 95 % |\n"
+       << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- "
+          "|\n";
     // The states flagged at a gravity drive's end: by name, in how many drives.
     std::map<std::string, int> flags;
     int gravity_drives = 0;
@@ -298,6 +320,8 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
         double rms = 0.0, ground = 0.0, cost = 0.0;
         int lethal_more = 0, flagged = 0, accel_flagged = 0, frames = 0;
         double height_sigma = 0.0;
+        int tilt_stated = 0, tilt_covered = 0;
+        std::vector<double> tilt_sigma_deg;
         const int n = std::max(source.seeds, world.seeds);
         for (int k = 0; k < n; ++k) {
           const TiltOutcome& o = outcomes[next++];
@@ -310,6 +334,10 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
           accel_flagged += o.accel_flagged_frames;
           frames += o.frames;
           height_sigma += o.height_sigma_m;
+          tilt_stated += o.tilt_stated;
+          tilt_covered += o.tilt_covered;
+          tilt_sigma_deg.insert(tilt_sigma_deg.end(), o.tilt_sigma_deg.begin(),
+                                o.tilt_sigma_deg.end());
           if (std::string(mode) == "gravity") {
             ++gravity_drives;
             for (const map::GravityDegeneracy& f : o.last_flags) ++flags[map::StateName(f.state)];
@@ -323,11 +351,11 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
               << Fixed(Quantile(o.tilt_deg, 0.95), 3) << "," << Fixed(o.elevation_rms_m, 4) << ","
               << Fixed(o.ground_rms_m, 4) << "," << Fixed(o.cost_error, 2) << "," << o.lethal_more;
           if (std::string(mode).rfind("smoothed", 0) == 0) {
-            csv << ",,,,\"\"\n";  // the flags and sigma are the window's: its own row has them
+            csv << ",,,,,,\"\"\n";  // the flags and sigma are the window's: its own row has them
           } else {
             csv << "," << o.degenerate_frames << "," << o.accel_flagged_frames << ","
                 << (std::isfinite(o.height_sigma_m) ? Fixed(o.height_sigma_m, 4) : std::string())
-                << ",\"" << last << "\"\n";
+                << "," << o.tilt_stated << "," << o.tilt_covered << ",\"" << last << "\"\n";
           }
         }
         md << "| " << source.label << " | " << mode << " | " << n << " | "
@@ -345,6 +373,11 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
            << (std::string(mode) == "gravity" && std::isfinite(height_sigma)
                    ? Fixed(height_sigma / n, 3)
                    : std::string("-"))
+           << " | "
+           << (tilt_sigma_deg.empty() ? std::string("-") : Fixed(Quantile(tilt_sigma_deg, 0.5), 2))
+           << " | "
+           << (tilt_stated > 0 ? std::to_string(tilt_covered) + "/" + std::to_string(tilt_stated)
+                               : std::string("-"))
            << " |\n";
       }
     }

@@ -225,6 +225,10 @@ struct GravityEstimate {
   Eigen::Matrix2d mount_covariance = Eigen::Matrix2d::Constant(NAN);
   Eigen::Vector3d up_body = Eigen::Vector3d::UnitZ();    ///< gravity's up in the body frame
   Eigen::Vector3d up_sensor = Eigen::Vector3d::UnitZ();  ///< and in the sensor frame
+  /// Covariance of up_sensor [rad^2] (first order, rank 2: across it), from the newest frame's
+  /// roll and pitch and the mount's tilt and their cross terms: the sensor's tilt as the
+  /// estimator knows it. Its trace is the expected squared tilt error. NaN when not computed.
+  Eigen::Matrix3d up_sensor_covariance = Eigen::Matrix3d::Constant(NAN);
   GravityCues cues;
   std::vector<GravityDegeneracy> degeneracies;  ///< empty: every state observed
   // Solver.

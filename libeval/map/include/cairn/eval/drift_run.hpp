@@ -78,6 +78,11 @@ struct PoseError {
   double position_m = 0.0;  ///< horizontal error of the believed sensor position [m]
   double yaw_rad = 0.0;     ///< |heading error|
   double tilt_rad = 0.0;    ///< angle between the believed and true up vectors
+  /// Gravity mode: d^T P^+ d, d the fused up vector less the true one (sensor frame) and P the
+  /// estimator's covariance of it (GravityEstimate::up_sensor_covariance): chi-square with two
+  /// degrees of freedom where the estimator's covariance is right. NaN without one.
+  double tilt_nees = NAN;
+  double tilt_sigma_rad = NAN;  ///< and sqrt(trace P): the tilt error it expects (RMS) [rad]
   double z_m = 0.0;         ///< |height error| of the sensor [m]
 };
 
