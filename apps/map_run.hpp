@@ -80,7 +80,8 @@ struct FrameRecord {
   std::string not_observable;
   int verticals = 0;
   /// tilt.mode gravity: the sensor's tilt sigma as the estimator states it, the square root
-  /// of the trace of GravityEstimate::up_sensor_covariance [rad]; NaN when not computed.
+  /// of the trace of GravityEstimate::up_sensor_covariance [rad]; NaN when not computed, when
+  /// the frame was fused at the prior, and after smoothing.
   double tilt_sigma_rad = std::numeric_limits<double>::quiet_NaN();
   double read_s = 0.0, detect_s = 0.0, refine_s = 0.0, fuse_s = 0.0;
   double rss_mb = 0.0;   ///< the process's resident memory once the frame was fused [MiB]

@@ -1,5 +1,6 @@
 // cairn map --smooth: the second pass over the input, at the smoother's poses (map_run.hpp).
 #include <Eigen/Geometry>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -64,6 +65,8 @@ Expected<SmoothedRun> SmoothedPass(const MapOptions& options, const map::MapperS
     record.d_roll_rad = pose.roll_rad;
     record.d_pitch_rad = pose.pitch_rad;
     record.dz_m = r->T_world_sensor.translation().z() - odometry.translation().z();
+    // The window's tilt sigma does not describe the smoothed pose (the smoother states none).
+    record.tilt_sigma_rad = std::numeric_limits<double>::quiet_NaN();
     ++k;
     progress.Update(k);
   }

@@ -276,7 +276,10 @@ FrameRecord RecordOf(const sources::SequenceFrame& frame, const map::MapperRecor
             (r.not_observable.empty() ? "" : "; ") + std::string(map::StateName(d.state));
       }
       r.verticals = m.tilt.gravity->cues.frame_verticals;
-      r.tilt_sigma_rad = std::sqrt(m.tilt.gravity->up_sensor_covariance.trace());
+      // The pose fused is the estimate's only when it was applied.
+      if (m.tilt.applied) {
+        r.tilt_sigma_rad = std::sqrt(m.tilt.gravity->up_sensor_covariance.trace());
+      }
     }
   }
   r.read_s = read_s;

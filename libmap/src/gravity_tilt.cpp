@@ -151,8 +151,8 @@ class GravityTilt final : public TiltStep {
     if (!estimate) return estimate.error();
     if (smoother_) {
       // The frame-to-map ground height was measured against the map fused at the window's
-      // estimates, whose errors the smoother is there to undo: it is given with a wider sigma
-      // (TiltConfig::smooth_ground_sigma_m; 0: left out).
+      // estimates, whose errors the smoother is there to undo: it is given with a sigma of its
+      // own (TiltConfig::smooth_ground_sigma_m; 0: left out).
       // Its solve starts from the window's estimate.
       GravityFrame kept = g;
       kept.ground_height_sigma_m = config_.smooth_ground_sigma_m;

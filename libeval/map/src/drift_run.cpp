@@ -68,8 +68,9 @@ double UpNees(const Eigen::Matrix3d& R_fused, const Eigen::Matrix3d& R_true,
               const Eigen::Matrix3d& P) {
   const Eigen::Vector3d d = R_fused.transpose() * Eigen::Vector3d::UnitZ() -
                             R_true.transpose() * Eigen::Vector3d::UnitZ();
+  if (!P.allFinite()) return NAN;
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(P);
-  if (eig.info() != Eigen::Success) return NAN;
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues().maxCoeff() > 0.0)) return NAN;
   const double floor = 1e-9 * eig.eigenvalues().maxCoeff();
   double nees = 0.0;
   for (int i = 0; i < 3; ++i) {
