@@ -222,6 +222,14 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
       summary["tilt"]["vertical_cues"] = verticals;
       summary["tilt"]["frames_not_observable"] = flagged;
       summary["tilt"]["not_observable_at_end"] = records.back().not_observable;
+      // The tilt error the estimator expects (RMS), over the frames fused at its estimate.
+      std::vector<double> sigma_deg;
+      for (const FrameRecord& r : records) {
+        if (std::isfinite(r.tilt_sigma_rad)) sigma_deg.push_back(r.tilt_sigma_rad / kDegToRad);
+      }
+      if (!sigma_deg.empty()) {
+        summary["tilt"]["tilt_sigma_median_deg"] = util::Quantile(sigma_deg, 0.5);
+      }
     }
   } else {
     summary["tilt"] = {{"refine", false}, {"mode", map::TiltModeName(config.tilt.mode)}};
@@ -300,6 +308,11 @@ Expected<std::string> WriteRunFiles(const RunReport& run, const fs::path& dir, S
                             : "not observable at the end: " + last)
            << " (" << summary["tilt"]["frames_not_observable"].get<int>() << "/" << n
            << " frames flagged)";
+      if (summary["tilt"].contains("tilt_sigma_median_deg")) {
+        text << "; stated tilt sigma "
+             << util::Fixed(summary["tilt"]["tilt_sigma_median_deg"].get<double>(), 2)
+             << " deg (median)";
+      }
     }
     if (run.smoothed != nullptr) {
       text << "\n  smoothed: every frame posed again by the smoother (solved in "

@@ -574,6 +574,11 @@ TEST_F(MapCli, TheGravityEstimatorObservesTheIMUBias) {
       EXPECT_EQ(rows, frames);
       EXPECT_EQ(flagged, t.at("frames_not_observable").get<int>());
       EXPECT_EQ(last, t.at("not_observable_at_end").get<std::string>());
+      // The tilt error the estimator expects, stated: finite, and not below the error there is.
+      ASSERT_TRUE(t.contains("tilt_sigma_median_deg")) << t.dump();
+      EXPECT_GT(t.at("tilt_sigma_median_deg").get<double>(),
+                summary.at("truth_poses").at("tilt_error_median_deg").get<double>());
+      EXPECT_NE(run.out.find("stated tilt sigma"), std::string::npos) << run.out;
       EXPECT_NE(run.out.find(last.empty() ? "every state observed at the end"
                                           : "not observable at the end: " + last),
                 std::string::npos)
