@@ -61,6 +61,10 @@ struct MapOptions {
   bool smooth = false;        ///< tilt.smooth: a second pass at the smoother's poses
 };
 
+/// `cairn map` with these options (map.cpp): the process's exit status (0, 1 on bad input,
+/// 130 when interrupted), the messages on stdout and stderr.
+int RunMap(const MapOptions& options);
+
 /// One fused frame, as the outputs use it.
 struct FrameRecord {
   int index = 0;
