@@ -829,6 +829,20 @@ ceres::Solver::Summary GravityEstimator::State::Solve(ceres::Problem& problem,
   return summary;
 }
 
+namespace {
+
+// Gravity's up in the sensor frame, for a body at roll and pitch rpy[0..1] and a mount tilted
+// by (mount[0], mount[1]) from R_body_sensor.
+Eigen::Vector3d UpInSensor(const double* rpy, const double* mount,
+                           const Eigen::Matrix3d& R_body_sensor) {
+  const Eigen::Vector3d up_body =
+      gravity::LevelFromBody(rpy).transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Matrix3d R_mount = gravity::RotY(mount[1]) * gravity::RotX(mount[0]);
+  return (R_mount * R_body_sensor).transpose() * up_body;
+}
+
+}  // namespace
+
 GravityEstimate GravityEstimator::State::EstimateOf(const WindowFrame& frame) const {
   GravityEstimate est;
   est.stamp_s = frame.input.stamp_s;
@@ -843,8 +857,7 @@ GravityEstimate GravityEstimator::State::EstimateOf(const WindowFrame& frame) co
   est.odometry_scale = scale[0];
   const Eigen::Matrix3d R_level_body = gravity::LevelFromBody(frame.rpy);
   est.up_body = R_level_body.transpose() * Eigen::Vector3d::UnitZ();
-  const Eigen::Matrix3d R_mount = gravity::RotY(mount[1]) * gravity::RotX(mount[0]);
-  est.up_sensor = (R_mount * R_body_sensor).transpose() * est.up_body;
+  est.up_sensor = UpInSensor(frame.rpy, mount, R_body_sensor);
   return est;
 }
 
@@ -949,11 +962,7 @@ Expected<GravityEstimate> GravityEstimator::AddFrame(const GravityFrame& frame) 
         S.bottomLeftCorner<2, 3>() = cross.transpose();
       }
       const auto up_of = [&](const Eigen::Matrix<double, 5, 1>& x) {
-        const double rpy[3] = {x[0], x[1], x[2]};
-        const Eigen::Vector3d up_body =
-            gravity::LevelFromBody(rpy).transpose() * Eigen::Vector3d::UnitZ();
-        const Eigen::Matrix3d R_mount = gravity::RotY(x[4]) * gravity::RotX(x[3]);
-        return Eigen::Vector3d((R_mount * st.R_body_sensor).transpose() * up_body);
+        return UpInSensor(x.data(), x.data() + 3, st.R_body_sensor);
       };
       Eigen::Matrix<double, 5, 1> x0;
       x0 << newest.rpy[0], newest.rpy[1], newest.rpy[2], st.mount[0], st.mount[1];

@@ -176,10 +176,11 @@ struct TiltOutcome {
   int lethal_more = 0, degenerate_frames = 0, accel_flagged_frames = 0, frames = 0;
   std::vector<map::GravityDegeneracy> last_flags;
   double height_sigma_m = NAN;  // gravity: the estimator's own, at the end
-  // Gravity: frames with the estimator's tilt covariance, and of them those whose tilt error
-  // lies in its 95 % region (PoseError::tilt_nees <= kChiSquare2Dof95).
-  int tilt_stated = 0, tilt_covered = 0;
-  std::vector<double> tilt_sigma_deg;  // the estimator's, per frame (PoseError::tilt_sigma_rad)
+  // Gravity: the estimator's tilt sigma per frame that has its covariance
+  // (PoseError::tilt_sigma_rad), and how many of those frames have their tilt error in its 95 %
+  // region (PoseError::tilt_nees <= kChiSquare2Dof95).
+  std::vector<double> tilt_sigma_deg;
+  int tilt_covered = 0;
 };
 
 // The 95 % quantile of the chi-square distribution with two degrees of freedom: -2 ln 0.05.
@@ -236,7 +237,6 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
     for (const PoseError& e : r->pose_errors) {
       o.tilt_deg.push_back(e.tilt_rad / kDegToRad);
       if (std::isfinite(e.tilt_nees)) {
-        ++o.tilt_stated;
         o.tilt_covered += e.tilt_nees <= kChiSquare2Dof95 ? 1 : 0;
         o.tilt_sigma_deg.push_back(e.tilt_sigma_rad / kDegToRad);
       }
@@ -320,7 +320,7 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
         double rms = 0.0, ground = 0.0, cost = 0.0;
         int lethal_more = 0, flagged = 0, accel_flagged = 0, frames = 0;
         double height_sigma = 0.0;
-        int tilt_stated = 0, tilt_covered = 0;
+        int tilt_covered = 0;
         std::vector<double> tilt_sigma_deg;
         const int n = std::max(source.seeds, world.seeds);
         for (int k = 0; k < n; ++k) {
@@ -334,7 +334,6 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
           accel_flagged += o.accel_flagged_frames;
           frames += o.frames;
           height_sigma += o.height_sigma_m;
-          tilt_stated += o.tilt_stated;
           tilt_covered += o.tilt_covered;
           tilt_sigma_deg.insert(tilt_sigma_deg.end(), o.tilt_sigma_deg.begin(),
                                 o.tilt_sigma_deg.end());
@@ -355,7 +354,8 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
           } else {
             csv << "," << o.degenerate_frames << "," << o.accel_flagged_frames << ","
                 << (std::isfinite(o.height_sigma_m) ? Fixed(o.height_sigma_m, 4) : std::string())
-                << "," << o.tilt_stated << "," << o.tilt_covered << ",\"" << last << "\"\n";
+                << "," << o.tilt_sigma_deg.size() << "," << o.tilt_covered << ",\"" << last
+                << "\"\n";
           }
         }
         md << "| " << source.label << " | " << mode << " | " << n << " | "
@@ -376,8 +376,9 @@ Status TiltStudy(const MapStudyOptions& options, Drives& drives, std::ostringstr
            << " | "
            << (tilt_sigma_deg.empty() ? std::string("-") : Fixed(Quantile(tilt_sigma_deg, 0.5), 2))
            << " | "
-           << (tilt_stated > 0 ? std::to_string(tilt_covered) + "/" + std::to_string(tilt_stated)
-                               : std::string("-"))
+           << (!tilt_sigma_deg.empty()
+                   ? std::to_string(tilt_covered) + "/" + std::to_string(tilt_sigma_deg.size())
+                   : std::string("-"))
            << " |\n";
       }
     }
