@@ -1,5 +1,5 @@
 // TerrainMap from the poses a robot believes (libsim's drifting odometry and biased IMU): the
-// claims datasets/maps/REPORT.md makes, on small drives (160 x 120 range camera, 2 Hz).
+// claims datasets/maps/REPORT.md makes, on small drives (the worlds' 320 x 240 range camera, 2 Hz).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -170,10 +170,11 @@ TEST(TerrainMapDrift, TheGravityEstimatorFindsAConstantImuBiasOnASlope) {
 }
 
 // The issue's goal, on the 60 m uphill drive with a 2 deg IMU bias and 1% odometry: the
-// terrain each frame fuses is within 5 cm RMS of the true terrain under it (2.0 cm here),
+// terrain each frame fuses is within 5 cm RMS of the true terrain under it (2.7 cm here),
 // and the grid's elevation against the truth at the same x, y is near what the odometry's
 // horizontal drift leaves with a perfect tilt (the floor: true roll, pitch and height,
-// odometry x, y and heading): 1.8 cm above it here. (Before the gravity step's prior turned
+// odometry x, y and heading): 2.5 cm above it here (1.8 cm with the camera scaled to 160 x 120,
+// before 2026-12-05). (Before the gravity step's prior turned
 // the body rather than the sensor and the newest frame had a provisional velocity, it came
 // 2.7 cm above the floor; 1.0 cm before the odometry's random walk was stated, which weakens
 // the accelerometer terms as much as that noise says: in datasets/maps/REPORT.md the tilt's
@@ -211,7 +212,7 @@ TEST(TerrainMapDrift, OnA60mDriveWithOnePercentOdometryTheGravityEstimatorReache
 // told from a tilt and is flagged on most frames, and the height it tilts drifts; weaving
 // +-40 deg with corners of 6 m radius, the turns change the body's attitude under gravity and
 // the bias is learned: flagged on under a third of the frames, and the fused ground stays
-// within the 5 cm goal (2.8 cm on this drive; 4.0 cm over the report's three).
+// within the 5 cm goal (3.8 cm on this drive).
 TEST(TerrainMapDrift, TurnsMakeAnAccelerometerBiasObservableThatAStraightDriveFlags) {
   DriftRunSpec spec = Spec("uphill_tilted");
   spec.imu_bias_rad = 2.0 * kDegToRad;
@@ -243,13 +244,17 @@ TEST(TerrainMapDrift, TurnsMakeAnAccelerometerBiasObservableThatAStraightDriveFl
   EXPECT_LT(MedianTiltDeg(weave, 0.95), 0.5);
 }
 
-// The weaving climb with the camera's mount 2.5 deg off: the window answers the first frames
-// before the trunks in view have taught it the mount, and the map keeps what it fused there
-// (the tilt's 95th percentile and the height climbed meanwhile). Smoothed once the drive is
-// over (DriftRunSpec::smooth, tilt.smooth) and fused again, every frame has the mount the
-// whole drive showed: the map study's `smoothed` rows. The frame-to-map ground heights, measured
-// against the window's map, hold the height back towards it (tilt.smooth_ground_sigma_m);
-// left out, the height is right too.
+// The weaving climb with the camera's mount 2.5 deg off. With the worlds' own 320 x 240 camera
+// the trunks in view teach the mount within a few frames, and the window meets issue 11's goals
+// (0.06 / 0.16 deg and 3.8 cm on this drive). With the camera scaled to 160 x 120 (the map
+// study's until 2026-12-05) a trunk's axis is fitted from a quarter of the pixels and leans
+// about three times as far (0.55 deg from the vertical, median over the drive's cues, against
+// 0.17): the window answers the first ten frames before the trunks have taught it the mount, and
+// the map keeps what it fused there (the tilt's 95th percentile and the height climbed
+// meanwhile). Smoothed once the drive is over (DriftRunSpec::smooth, tilt.smooth)
+// and fused again, every frame has the mount the whole drive showed: the map study's `smoothed`
+// rows. The frame-to-map ground heights, measured against the window's map, hold the height back
+// towards it (tilt.smooth_ground_sigma_m); left out, the height is right too.
 TEST(TerrainMapDrift, SmoothingTheWholeDriveMendsTheFramesBeforeTheMountWasLearned) {
   DriftRunSpec spec = Spec("uphill_tilted");
   spec.imu_bias_rad = 2.0 * kDegToRad;
@@ -258,8 +263,34 @@ TEST(TerrainMapDrift, SmoothingTheWholeDriveMendsTheFramesBeforeTheMountWasLearn
   spec.gravity = true;
   spec.waypoints = {{0.0, 0.0}, {12.0, 5.0}, {24.0, -5.0}, {36.0, 5.0}, {48.0, -5.0}, {58.0, 0.0}};
   spec.turn_radius_m = 6.0;
+  spec.measure_cues = true;
+  const Expected<DriftRunResult> sharp_run = MapRun(spec, "uphill weaving, mount, gravity, 320 px");
+  ASSERT_TRUE(sharp_run.ok()) << sharp_run.error().message;
+  std::printf(
+      "[ figures  ] weaving, mount 2.5 deg, 320 x 240: tilt %.2f / %.2f deg, ground RMS "
+      "%.3f m in the window\n",
+      MedianTiltDeg(*sharp_run), MedianTiltDeg(*sharp_run, 0.95), sharp_run->ground_height_rms_m);
+  EXPECT_LT(MedianTiltDeg(*sharp_run), 0.2);
+  EXPECT_LT(MedianTiltDeg(*sharp_run, 0.95), 0.5);
+  EXPECT_LT(sharp_run->ground_height_rms_m, 0.05);
+  spec.camera_width = 160;
   const Expected<DriftRunResult> window_run = MapRun(spec, "uphill weaving, mount, gravity");
   ASSERT_TRUE(window_run.ok()) << window_run.error().message;
+  spec.measure_cues = false;
+  // The trunks' axes from the vertical (median) at either resolution.
+  const auto median_cue_deg = [](std::vector<double> cues) -> double {
+    if (cues.empty()) return NAN;
+    std::nth_element(cues.begin(), cues.begin() + cues.size() / 2, cues.end());
+    return cues[cues.size() / 2] / kDegToRad;
+  };
+  const double sharp_cue_deg = median_cue_deg(sharp_run->cue_errors_rad);
+  const double coarse_cue_deg = median_cue_deg(window_run->cue_errors_rad);
+  std::printf(
+      "[ figures  ] the cues lean %.2f deg from the vertical (median of %zu) at 320 x 240, "
+      "%.2f deg (of %zu) at 160 x 120\n",
+      sharp_cue_deg, sharp_run->cue_errors_rad.size(), coarse_cue_deg,
+      window_run->cue_errors_rad.size());
+  EXPECT_LT(sharp_cue_deg, 0.5 * coarse_cue_deg);
   spec.smooth = true;
   const Expected<DriftRunResult> smoothed_run = MapRun(spec, "uphill weaving, mount, smoothed");
   ASSERT_TRUE(smoothed_run.ok()) << smoothed_run.error().message;
@@ -271,7 +302,8 @@ TEST(TerrainMapDrift, SmoothingTheWholeDriveMendsTheFramesBeforeTheMountWasLearn
   const DriftRunResult& smoothed = *smoothed_run;
   const DriftRunResult& free = *free_run;
   std::printf(
-      "[ figures  ] weaving, mount 2.5 deg: tilt %.2f / %.2f deg and ground RMS %.3f m in the "
+      "[ figures  ] weaving, mount 2.5 deg, 160 x 120: tilt %.2f / %.2f deg and ground RMS %.3f m "
+      "in the "
       "window; smoothed %.2f / %.2f deg and %.3f m, without the map's heights %.2f / %.2f deg "
       "and %.3f m\n",
       MedianTiltDeg(window), MedianTiltDeg(window, 0.95), window.ground_height_rms_m,

@@ -196,7 +196,9 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
       sim::Camera camera;
       camera.model = camera_spec.model;
       camera.T_world_camera = s.T_world_sensor;
-      const std::uint64_t seed = sim::MixSeed(world->seed, static_cast<std::uint64_t>(s.index));
+      // The sensor's noise differs from drive to drive (drive_seed) as the drift does.
+      const std::uint64_t seed = sim::MixSeed(sim::MixSeed(world->seed, spec.drive_seed),
+                                              static_cast<std::uint64_t>(s.index));
       Expected<sim::DepthFrame> rendered =
           sim::RenderRangeCamera(world->scene, camera_spec, camera, seed);
       if (!rendered) return rendered.error();

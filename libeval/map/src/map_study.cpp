@@ -212,7 +212,7 @@ void Introduction(const MapStudyOptions& options, std::ostringstream& md) {
      << "## Set-up\n\n"
      << "- Worlds from `datasets/worlds`: `poles_and_rocks` (16 m straight), `sideways_mounds` "
      << "(20 m along y = 40, between mounds 5-8), `uphill_tilted` (30 m up a 12 deg slope, "
-     << "3 deg side lean). A 160 x 120 range camera (the world's camera, scaled), pitched 8 "
+     << "3 deg side lean). A 320 x 240 range camera (the worlds' own), pitched 8 "
      << "deg down on the body, 1.5 m up; 2 m/s, 2 frames/s; detector and rules of "
      << "`config/default.yaml`; `MapConfig` defaults (0.1 m cells).\n"
      << "- The sensor renders from the true pose. The map is fused at the pose the robot "

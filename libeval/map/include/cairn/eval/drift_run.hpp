@@ -51,10 +51,10 @@ struct DriftRunSpec {
   sim::ImuSpec imu;
   Eigen::Vector3d sensor_misalignment_rad = Eigen::Vector3d::Zero();  ///< roll, pitch, yaw
   bool measure_cues = false;     ///< score the vertical cues (gravity_cues.hpp) of every frame
-  std::uint64_t drive_seed = 1;  ///< draws the drift of the drive
+  std::uint64_t drive_seed = 1;  ///< draws the drift of the drive and the sensor's noise
   double rate_hz = 2.0;
   double speed_mps = 2.0;
-  int camera_width = 160;  ///< the world's camera scaled to this width (160 x 120)
+  int camera_width = 320;  ///< the world's camera scaled to this width (its own: 320 x 240)
   /// Changes the Mapper's settings before it is made (studies); may be empty.
   std::function<void(map::MapperConfig&)> configure;
   /// Called with every frame's record and its true sample (diagnostics); may be empty.
