@@ -142,6 +142,11 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   if (!drive) return drive.error();
   if (Status st = (*mapper).SetSensorMount(drive->T_body_sensor); !st) return st.error();
   const sim::RangeCameraSpec camera_spec = world->camera.Scaled(spec.camera_width);
+  // An obstacle is seen well where it fills as much of the view as 30 pixels of a 160 x 120
+  // image (120 of the worlds' 320 x 240).
+  const int seen_well_pixels =
+      std::max(1, static_cast<int>(std::lround(kSeenWellPixels160 * camera_spec.model.width *
+                                               camera_spec.model.height / (160.0 * 120.0))));
 
   std::map<int, int> pixels_seen;
   std::map<int, double> first_seen_m;
@@ -251,7 +256,9 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
       }
       for (const auto& [object, n] : pixels) {
         pixels_seen[object] = std::max(pixels_seen[object], n);
-        if (n >= 30 && first_seen_m.count(object) == 0) first_seen_m[object] = s.distance_m;
+        if (n >= seen_well_pixels && first_seen_m.count(object) == 0) {
+          first_seen_m[object] = s.distance_m;
+        }
       }
       const Eigen::Isometry3d& fused = record->T_world_sensor;
       for (const Eigen::Vector3d& p : terrain_returns) {
@@ -311,7 +318,7 @@ Expected<DriftRunResult> RunDrift(const DriftRunSpec& spec) {
   double sum = 0.0;
   for (const MapObjectScore& o : r.score.objects) {
     const auto seen = pixels_seen.find(o.id);
-    if (!o.scored() || seen == pixels_seen.end() || seen->second < 30) continue;
+    if (!o.scored() || seen == pixels_seen.end() || seen->second < seen_well_pixels) continue;
     r.obstacles.push_back({o.name, first_seen_m.at(o.id), o.nearest_lethal_m});
     r.max_distance_m = std::max(r.max_distance_m, o.nearest_lethal_m);
     sum += o.nearest_lethal_m;

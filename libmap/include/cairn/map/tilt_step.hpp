@@ -76,8 +76,9 @@ struct TiltConfig {
   /// its error is common to them, not independent from frame to frame, so the sigma is the
   /// scatter of one measurement (0.3 m, the value before) times about the square root of the
   /// window's 12 frames; at 0.3 m the twelve held the height where the first frames, before
-  /// the mount or the biases were learned, had put the map. In datasets/maps/REPORT.md, 1.0
-  /// against 0.3 m, ground RMS in the window: the weaving climb 0.043-0.061 -> 0.035-0.044 m
+  /// the mount or the biases were learned, had put the map. In datasets/maps/REPORT.md (with
+  /// its camera at 160 x 120, as it was until 2026-12-05), 1.0 against 0.3 m, ground RMS in
+  /// the window: the weaving climb 0.043-0.061 -> 0.035-0.044 m
   /// with the attitude and gyro errors and 0.081 -> 0.055 m with a 2.5 deg mount error
   /// (smoothed: 0.057 -> 0.041 m); the straight climb 0.009-0.033 -> 0.017-0.026 m, the hill
   /// 0.020-0.034 -> 0.023-0.030 m and the side slope 0.007-0.032 -> 0.013-0.024 m; with 1 %
@@ -104,10 +105,11 @@ struct TiltConfig {
   /// has only the pitch over the distance driven and the ground rises for the height, which
   /// a straight drive or a drifting odometry scale leaves loose. In datasets/maps/REPORT.md
   /// (`smoothed`, with 0.9, against `smoothed_free`), the straight climb's ground RMS is
-  /// 0.005-0.023 m with it and 0.020-0.034 m without (0.017-0.026 m in the window; attitude,
-  /// gyro and mount errors), and with 3 % odometry 0.046 against 0.157 m (0.055); where the
-  /// window's first frames were far off, the weaving climb with a misaligned mount, its map
-  /// holds them back: 0.029-0.051 m with it, 0.023-0.039 m without (three drives). 0.9 was
+  /// 0.021-0.027 m with it and 0.044-0.048 m without (0.024-0.038 m in the window; attitude,
+  /// gyro and mount errors), and with 3 % odometry 0.048 against 0.158 m (0.056). With the
+  /// report's camera at 160 x 120 (until 2026-12-05), where the window's first frames were far
+  /// off, the weaving climb with a misaligned mount, its map held them back: 0.029-0.051 m with
+  /// it, 0.023-0.039 m without (three drives; at 320 x 240, 0.024 m either way). 0.9 was
   /// chosen over 0.3 and 3 on 13 drives of the same worlds, with the window's
   /// gravity_ground_sigma_m at 0.3 (a scratch sweep, not kept: the mean ground RMS 0.047 m,
   /// against 0.049 and 0.052, and 0.060 without it). Swept again with the window's at 1.0

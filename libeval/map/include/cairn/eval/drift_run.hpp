@@ -65,7 +65,11 @@ struct DriftRunSpec {
 /// proportion, 0.5 deg of heading per 10 m at 1 %.
 void DriftOdometryBy(DriftRunSpec& spec, double fraction);
 
-/// One seen obstacle (30 pixels or more in some frame) against the map.
+/// An obstacle is seen well in a frame where it covers this many pixels of a 160 x 120 image,
+/// or the same part of the view at another size (120 pixels of 320 x 240).
+constexpr double kSeenWellPixels160 = 30.0;
+
+/// One obstacle seen well (kSeenWellPixels160) against the map.
 struct ObstacleScore {
   std::string name;
   double first_seen_distance_m = 0.0;  ///< distance driven at the first frame seeing it well
@@ -95,8 +99,8 @@ struct DriftRunResult {
   int refined_frames = 0;
   /// The map against the world (ScoreMap with its default options).
   MapScore score;
-  /// The obstacles seen well (30 pixels in some frame), by id, and over them the largest and
-  /// mean distance to the nearest lethal cell and how many are within found_within_m.
+  /// The obstacles seen well (kSeenWellPixels160) in some frame, by id, and over them the largest
+  /// and mean distance to the nearest lethal cell and how many are within found_within_m.
   std::vector<ObstacleScore> obstacles;
   double max_distance_m = 0.0, mean_distance_m = 0.0;
   int found_0_3 = 0;
