@@ -120,11 +120,19 @@ TEST(TerrainMapDrift, ConstantImuBiasOnASlopeKeepsObstaclesButNotElevation) {
   EXPECT_GE(refined.score.iou, biased.score.iou - 0.02);
 }
 
+// The quantile of angles [rad] in degrees (the nearest rank; NaN for none).
+double QuantileDeg(std::vector<double> angles_rad, double quantile) {
+  if (angles_rad.empty()) return NAN;
+  std::sort(angles_rad.begin(), angles_rad.end());
+  const std::size_t k = std::min(angles_rad.size() - 1,
+                                 static_cast<std::size_t>(quantile * (angles_rad.size() - 1) + 0.5));
+  return angles_rad[k] / kDegToRad;
+}
+
 double MedianTiltDeg(const DriftRunResult& r, double quantile = 0.5) {
   std::vector<double> tilt;
-  for (const PoseError& e : r.pose_errors) tilt.push_back(e.tilt_rad / kDegToRad);
-  std::sort(tilt.begin(), tilt.end());
-  return tilt[std::min(tilt.size() - 1, static_cast<std::size_t>(quantile * (tilt.size() - 1) + 0.5))];
+  for (const PoseError& e : r.pose_errors) tilt.push_back(e.tilt_rad);
+  return QuantileDeg(tilt, quantile);
 }
 
 // The same biased drive through the gravity estimator: the accelerometer and the trunks and
@@ -282,13 +290,8 @@ TEST(TerrainMapDrift, SmoothingTheWholeDriveMendsTheFramesBeforeTheMountWasLearn
   ASSERT_TRUE(window_run.ok()) << window_run.error().message;
   spec.measure_cues = false;
   // The trunks' axes from the vertical (median) at either resolution.
-  const auto median_cue_deg = [](std::vector<double> cues) -> double {
-    if (cues.empty()) return NAN;
-    std::nth_element(cues.begin(), cues.begin() + cues.size() / 2, cues.end());
-    return cues[cues.size() / 2] / kDegToRad;
-  };
-  const double sharp_cue_deg = median_cue_deg(sharp_run->cue_errors_rad);
-  const double coarse_cue_deg = median_cue_deg(window_run->cue_errors_rad);
+  const double sharp_cue_deg = QuantileDeg(sharp_run->cue_errors_rad, 0.5);
+  const double coarse_cue_deg = QuantileDeg(window_run->cue_errors_rad, 0.5);
   std::printf(
       "[ figures  ] the cues lean %.2f deg from the vertical (median of %zu) at 320 x 240, "
       "%.2f deg (of %zu) at 160 x 120\n",
