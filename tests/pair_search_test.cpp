@@ -14,12 +14,14 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <random>
 #include <string>
 #include <variant>
 #include <vector>
 
 #include "../libod/src/detection_internal.hpp"
+#include "../libod/src/simd.hpp"
 #include "cairn/od/column_detector.hpp"
 #include "cairn/od/detector.hpp"
 #include "cairn/od/io/depth_png.hpp"
@@ -349,6 +351,60 @@ TEST(PairSearch, EqualsTheRegionScanOnTheKittiScan) {
                "KITTI 00 scan 0, " + std::to_string(threads) + " threads");
   }
   ExpectSameColumns(*image, config, 0, "KITTI 00 scan 0");
+}
+
+// Every vector width the processor has (simd.hpp), down to one pair at a time, finds the same
+// pairs: random views, scans and the lattice against the definition (both detectors), and the
+// KITTI scan against the widest.
+TEST(PairSearch, EveryVectorWidthFindsTheSamePairs) {
+  struct Uncap {
+    ~Uncap() { internal::CapVectorLanes(0); }
+  } uncap;
+  const int widest = internal::VectorLanes();
+  std::mt19937 rng(515);
+  std::vector<RangeImage> images;
+  std::vector<DetectorConfig> configs;
+  for (int k = 0; k < 6; ++k) {
+    images.push_back(RandomView(600 + k, k % 2 ? 0.03 : 0.0, 0.05));
+    configs.push_back(RandomConfig(rng));
+  }
+  for (int k = 0; k < 4; ++k) {
+    images.push_back(RandomScan(rng, k % 2 ? "VLP-16" : "OS1-64", 60 + 8 * k));
+    configs.push_back(RandomConfig(rng));
+  }
+  for (int trial = 0; trial < 6; ++trial) {
+    images.push_back(LatticeImage(rng, 40, 30, 10.0 + trial));
+    configs.push_back(LatticeConfig(trial));
+  }
+  std::vector<Detection> brute;
+  for (std::size_t k = 0; k < images.size(); ++k) {
+    brute.push_back(*DetectBruteForce(images[k], configs[k]));
+  }
+  const std::string kitti = kShared + "/kitti-seq00-0-10/velodyne/000000.bin";
+  std::optional<RangeImage> scan;
+  DetectorConfig scan_config;
+  std::optional<Detection> widest_scan;
+  if (std::filesystem::exists(kitti)) {
+    scan = *LoadScan(kitti, "HDL-64E");
+    scan_config = io::LoadDetectSettings(kSource + "/config/sensors/hdl-64e.yaml")->detector;
+    scan_config.threads = 1;
+    widest_scan = *Detect(*scan, scan_config);
+  }
+  int widths = 0;
+  for (int lanes : {16, 8, 4, 1}) {
+    if (lanes > widest) continue;
+    ++widths;
+    internal::CapVectorLanes(lanes);
+    ASSERT_EQ(internal::VectorLanes(), lanes);
+    const std::string width = std::to_string(lanes) + " lanes, ";
+    for (std::size_t k = 0; k < images.size(); ++k) {
+      ExpectSame(*Detect(images[k], configs[k]), brute[k], width + "image " + std::to_string(k));
+      ExpectSameColumns(images[k], configs[k], 0, width + "image " + std::to_string(k));
+    }
+    if (scan) ExpectSame(*Detect(*scan, scan_config), *widest_scan, width + "KITTI 00 scan 0");
+  }
+  EXPECT_GE(widths, 2);
+  if (!scan) GTEST_SKIP() << kitti << " is absent (../shared/datasets): the random scenes passed";
 }
 
 // The bundled demo frame and its detector settings (config/default.yaml).

@@ -12,6 +12,7 @@
 #endif
 
 #include "cairn/od/parallel.hpp"
+#include "simd.hpp"
 
 namespace cairn::od::internal {
 
@@ -359,6 +360,61 @@ inline __m128 NotRejected(const __m128* a_lo, const __m128* a_hi, const __m128* 
 }
 #endif
 
+#if defined(CAIRN_OD_WIDE_VECTORS)
+// Search::Hits eight (AVX2) and sixteen (AVX-512F) packed points at a time, with its float
+// operations in its order: the bits of the points in p's cone, and of those HT..Hmax above p
+// (`in_window`). The points are padded to a multiple of sixteen.
+__attribute__((target("avx2"))) std::uint64_t HitsAvx2(const float* qx, const float* qy,
+                                                       const float* qz, int count, const float* p,
+                                                       const PairTest& t,
+                                                       std::uint64_t& in_window) {
+  const __m256 px = _mm256_set1_ps(p[0]), py = _mm256_set1_ps(p[1]), pz = _mm256_set1_ps(p[2]);
+  const __m256 vht = _mm256_set1_ps(t.min_height), vh = _mm256_set1_ps(t.max_height);
+  const __m256 vt = _mm256_set1_ps(t.tan2_theta);
+  std::uint64_t hits = 0, window_bits = 0;
+  for (int k = 0; k < count; k += 8) {
+    const __m256 dz = _mm256_sub_ps(_mm256_load_ps(qz + k), pz);
+    const __m256 dx = _mm256_sub_ps(_mm256_load_ps(qx + k), px);
+    const __m256 dy = _mm256_sub_ps(_mm256_load_ps(qy + k), py);
+    const __m256 reach =
+        _mm256_mul_ps(vt, _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)));
+    const __m256 window =
+        _mm256_and_ps(_mm256_cmp_ps(dz, vht, _CMP_GT_OQ), _mm256_cmp_ps(dz, vh, _CMP_LT_OQ));
+    const __m256 in =
+        _mm256_and_ps(window, _mm256_cmp_ps(_mm256_mul_ps(dz, dz), reach, _CMP_GT_OQ));
+    window_bits |= static_cast<std::uint64_t>(_mm256_movemask_ps(window)) << k;
+    hits |= static_cast<std::uint64_t>(_mm256_movemask_ps(in)) << k;
+  }
+  in_window = window_bits;
+  return hits;
+}
+
+__attribute__((target("avx512f"))) std::uint64_t HitsAvx512(const float* qx, const float* qy,
+                                                            const float* qz, int count,
+                                                            const float* p, const PairTest& t,
+                                                            std::uint64_t& in_window) {
+  const __m512 px = _mm512_set1_ps(p[0]), py = _mm512_set1_ps(p[1]), pz = _mm512_set1_ps(p[2]);
+  const __m512 vht = _mm512_set1_ps(t.min_height), vh = _mm512_set1_ps(t.max_height);
+  const __m512 vt = _mm512_set1_ps(t.tan2_theta);
+  std::uint64_t hits = 0, window_bits = 0;
+  for (int k = 0; k < count; k += 16) {
+    const __m512 dz = _mm512_sub_ps(_mm512_load_ps(qz + k), pz);
+    const __m512 dx = _mm512_sub_ps(_mm512_load_ps(qx + k), px);
+    const __m512 dy = _mm512_sub_ps(_mm512_load_ps(qy + k), py);
+    const __m512 reach =
+        _mm512_mul_ps(vt, _mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy)));
+    const __mmask16 window = static_cast<__mmask16>(_mm512_cmp_ps_mask(dz, vht, _CMP_GT_OQ) &
+                                                    _mm512_cmp_ps_mask(dz, vh, _CMP_LT_OQ));
+    const __mmask16 in = static_cast<__mmask16>(
+        window & _mm512_cmp_ps_mask(_mm512_mul_ps(dz, dz), reach, _CMP_GT_OQ));
+    window_bits |= static_cast<std::uint64_t>(window) << k;
+    hits |= static_cast<std::uint64_t>(in) << k;
+  }
+  in_window = window_bits;
+  return hits;
+}
+#endif
+
 enum NodeFlag : std::uint8_t { kFull = 1, kUnified = 2 };
 
 using Node = PointTree::Node;
@@ -461,7 +517,8 @@ class alignas(64) Search {
         lower_(found.lower),
         raised_(found.raised),
         flags_lo_(found.flags_lo),
-        flags_up_(found.flags_up) {}
+        flags_up_(found.flags_up),
+        lanes_(VectorLanes()) {}
 
   void Visit(int a, int b) {
     const Node& A = lo_.nodes[a];
@@ -655,14 +712,14 @@ class alignas(64) Search {
     return near;
   }
 
-  // An upper leaf's points near the lower leaf, packed side by side (padded with points
-  // infinitely high, for four at a time), in the leaf's order: by height, which the test's
-  // count of points tested relies on (the hits do not; unsorted leaves were slower all the
-  // same, BENCHMARKS.md).
+  // An upper leaf's points near the lower leaf, packed side by side (padded to a multiple of
+  // sixteen with points infinitely high, for Hits' widest loads), in the leaf's order: by height,
+  // which the test's count of points tested relies on (the hits do not; unsorted leaves were slower
+  // all the same, BENCHMARKS.md).
   struct Packed {
-    alignas(16) float x[PointTree::kMaxLeafPoints + 3];
-    alignas(16) float y[PointTree::kMaxLeafPoints + 3];
-    alignas(16) float z[PointTree::kMaxLeafPoints + 3];
+    alignas(64) float x[PointTree::kMaxLeafPoints + 15];
+    alignas(64) float y[PointTree::kMaxLeafPoints + 15];
+    alignas(64) float z[PointTree::kMaxLeafPoints + 15];
     std::int32_t at[PointTree::kMaxLeafPoints];  ///< the point's index in the tree
     int count = 0;
   };
@@ -676,7 +733,7 @@ class alignas(64) Search {
       q.at[c++] = j;
     }
     q.count = c;
-    for (int k = c; k < ((c + 3) & ~3); ++k) {
+    for (int k = c; k < ((c + 15) & ~15); ++k) {
       q.x[k] = q.y[k] = 0.0f;
       q.z[k] = std::numeric_limits<float>::infinity();
     }
@@ -684,32 +741,45 @@ class alignas(64) Search {
 
   // Bit k for each packed point k that the pair test puts in p's cone (more than HT and less
   // than Hmax above p, steeper than theta), with the pair test's float operations in its
-  // order: all of them at once, with no window to find and no stop to mispredict. `tested`
-  // gets the number HT..Hmax above p.
+  // order: all of them at once, with no window to find and no stop to mispredict, as many at
+  // a time as the processor tests (simd.hpp). `tested` gets the number HT..Hmax above p.
   std::uint64_t Hits(const Packed& q, const float* p, std::int64_t& tested) const {
     const float ht = test_.min_height, hmax = test_.max_height, tan2 = test_.tan2_theta;
     std::uint64_t hits = 0, in_window = 0;
-#if defined(__SSE2__)
-    const __m128 px = _mm_set1_ps(p[0]), py = _mm_set1_ps(p[1]), pz = _mm_set1_ps(p[2]);
-    const __m128 vht = _mm_set1_ps(ht), vh = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
-    for (int k = 0; k < q.count; k += 4) {
-      const __m128 dz = _mm_sub_ps(_mm_load_ps(q.z + k), pz);
-      const __m128 dx = _mm_sub_ps(_mm_load_ps(q.x + k), px);
-      const __m128 dy = _mm_sub_ps(_mm_load_ps(q.y + k), py);
-      const __m128 reach = _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)));
-      const __m128 window = _mm_and_ps(_mm_cmpgt_ps(dz, vht), _mm_cmplt_ps(dz, vh));
-      const __m128 in = _mm_and_ps(window, _mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach));
-      in_window |= static_cast<std::uint64_t>(_mm_movemask_ps(window)) << k;
-      hits |= static_cast<std::uint64_t>(_mm_movemask_ps(in)) << k;
-    }
-#else
-    for (int k = 0; k < q.count; ++k) {
-      const float dx = q.x[k] - p[0], dy = q.y[k] - p[1], dz = q.z[k] - p[2];
-      const bool window = dz > ht && dz < hmax;
-      in_window |= static_cast<std::uint64_t>(window) << k;
-      hits |= static_cast<std::uint64_t>(window && dz * dz > tan2 * (dx * dx + dy * dy)) << k;
-    }
+    switch (lanes_) {
+#if defined(CAIRN_OD_WIDE_VECTORS)
+      case 16:
+        hits = HitsAvx512(q.x, q.y, q.z, q.count, p, test_, in_window);
+        break;
+      case 8:
+        hits = HitsAvx2(q.x, q.y, q.z, q.count, p, test_, in_window);
+        break;
 #endif
+#if defined(__SSE2__)
+      case 4: {
+        const __m128 px = _mm_set1_ps(p[0]), py = _mm_set1_ps(p[1]), pz = _mm_set1_ps(p[2]);
+        const __m128 vht = _mm_set1_ps(ht), vh = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
+        for (int k = 0; k < q.count; k += 4) {
+          const __m128 dz = _mm_sub_ps(_mm_load_ps(q.z + k), pz);
+          const __m128 dx = _mm_sub_ps(_mm_load_ps(q.x + k), px);
+          const __m128 dy = _mm_sub_ps(_mm_load_ps(q.y + k), py);
+          const __m128 reach = _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)));
+          const __m128 window = _mm_and_ps(_mm_cmpgt_ps(dz, vht), _mm_cmplt_ps(dz, vh));
+          const __m128 in = _mm_and_ps(window, _mm_cmpgt_ps(_mm_mul_ps(dz, dz), reach));
+          in_window |= static_cast<std::uint64_t>(_mm_movemask_ps(window)) << k;
+          hits |= static_cast<std::uint64_t>(_mm_movemask_ps(in)) << k;
+        }
+        break;
+      }
+#endif
+      default:
+        for (int k = 0; k < q.count; ++k) {
+          const float dx = q.x[k] - p[0], dy = q.y[k] - p[1], dz = q.z[k] - p[2];
+          const bool window = dz > ht && dz < hmax;
+          in_window |= static_cast<std::uint64_t>(window) << k;
+          hits |= static_cast<std::uint64_t>(window && dz * dz > tan2 * (dx * dx + dy * dy)) << k;
+        }
+    }
     // The packed points ascend in height, so those in the window are one run of bits: its
     // length without a population count (a library call on x86-64's baseline).
     if (in_window != 0) tested += 64 - __builtin_clzll(in_window) - __builtin_ctzll(in_window);
@@ -901,6 +971,7 @@ class alignas(64) Search {
   Flags& raised_;
   Flags& flags_lo_;
   Flags& flags_up_;
+  const int lanes_;  // Hits' width (simd.hpp)
   DetectionStats stats_;
 };
 

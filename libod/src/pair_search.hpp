@@ -20,7 +20,8 @@
 //    down to leaves. There the upper leaf's points that the lower leaf's box rejects are
 //    dropped, the lower points are classified against the box of the others (the near
 //    points), and each lower point left is tested against all the near points at once, four
-//    at a time where the compiler has SSE2; a lower point that has a partner already takes as
+//    at a time with SSE2, eight with AVX2 and sixteen with AVX-512F where the processor has
+//    them (simd.hpp); a lower point that has a partner already takes as
 //    partners only the near points not yet raised in its set (a pair of two such points
 //    changes nothing).
 // 4. Tasks. The lower tree is cut into 256 or more tasks (its largest nodes first), each searched

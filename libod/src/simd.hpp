@@ -1,0 +1,25 @@
+// Internal: how many float lanes the detectors' vector loops test at once. The library is
+// built for x86-64's baseline (SSE2, four lanes); where the processor runs AVX2 (eight) or
+// AVX-512F (sixteen), the loops that gain from it take the wider path, chosen once per process
+// at run time. Every path does the pair test's float operations in the same order (no fused
+// multiply-add: the library is built with -ffp-contract=off), so every width finds the same
+// pairs; the tests run each width the processor has against the definition.
+#pragma once
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+// The AVX2 and AVX-512F kernels, each function compiled for its instruction set alone.
+#define CAIRN_OD_WIDE_VECTORS 1
+#include <immintrin.h>
+#endif
+
+namespace cairn::od::internal {
+
+/// 16 (AVX-512F), 8 (AVX2), 4 (SSE2) or 1 (one at a time): the widest the build and the
+/// processor have, at most the cap.
+int VectorLanes();
+
+/// Tests: the vector loops use at most `lanes` (1, 4, 8 or 16) from now on, process-wide;
+/// 0 lifts the cap.
+void CapVectorLanes(int lanes);
+
+}  // namespace cairn::od::internal
