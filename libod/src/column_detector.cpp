@@ -14,6 +14,7 @@
 #endif
 
 #include "detection_internal.hpp"
+#include "simd.hpp"
 
 namespace cairn::od {
 
@@ -114,6 +115,68 @@ __m128 LaneMask(int bits) {
 }
 #endif
 
+#if defined(CAIRN_OD_WIDE_VECTORS)
+// FindColumnPairs' test of one lower point p with the points [r0, r1) of its neighbourhood,
+// eight (AVX2) or sixteen (AVX-512F) at a time, with the pair test's float operations in its
+// order: the upper points hit get all ones in `upper_hit`; `tested` and `compatible` count the
+// points HT..Hmax above p and the hits. Returns whether p has a partner. Reads up to fifteen
+// points past r1 (the padding), which do not count.
+__attribute__((target("avx2,popcnt"))) bool DirectAvx2(
+    const float* cx, const float* cy, const float* cz, int r0, int r1, const float* p,
+    const PairTest& t, std::int32_t* upper_hit, std::int64_t& tested, std::int64_t& compatible) {
+  const __m256 px = _mm256_set1_ps(p[0]), py = _mm256_set1_ps(p[1]), pz = _mm256_set1_ps(p[2]);
+  const __m256 vht = _mm256_set1_ps(t.min_height), vh = _mm256_set1_ps(t.max_height);
+  const __m256 vt = _mm256_set1_ps(t.tan2_theta);
+  int any = 0;
+  for (int j = r0; j < r1; j += 8) {
+    const int valid = r1 - j >= 8 ? 0xff : (1 << (r1 - j)) - 1;
+    const __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(cz + j), pz);
+    const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(cx + j), px);
+    const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(cy + j), py);
+    const __m256 window =
+        _mm256_and_ps(_mm256_cmp_ps(dz, vht, _CMP_GT_OQ), _mm256_cmp_ps(dz, vh, _CMP_LT_OQ));
+    const __m256 steep = _mm256_cmp_ps(
+        _mm256_mul_ps(dz, dz),
+        _mm256_mul_ps(vt, _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy))), _CMP_GT_OQ);
+    const int in_window = _mm256_movemask_ps(window) & valid;
+    const int bits = _mm256_movemask_ps(_mm256_and_ps(window, steep)) & valid;
+    tested += __builtin_popcount(in_window);
+    compatible += __builtin_popcount(bits);
+    any |= bits;
+    for (int b = bits; b != 0; b &= b - 1) upper_hit[j + __builtin_ctz(b)] = -1;
+  }
+  return any != 0;
+}
+
+__attribute__((target("avx512f,popcnt"))) bool DirectAvx512(
+    const float* cx, const float* cy, const float* cz, int r0, int r1, const float* p,
+    const PairTest& t, std::int32_t* upper_hit, std::int64_t& tested, std::int64_t& compatible) {
+  const __m512 px = _mm512_set1_ps(p[0]), py = _mm512_set1_ps(p[1]), pz = _mm512_set1_ps(p[2]);
+  const __m512 vht = _mm512_set1_ps(t.min_height), vh = _mm512_set1_ps(t.max_height);
+  const __m512 vt = _mm512_set1_ps(t.tan2_theta);
+  const __m512i ones = _mm512_set1_epi32(-1);
+  int any = 0;
+  for (int j = r0; j < r1; j += 16) {
+    const auto valid = static_cast<__mmask16>(r1 - j >= 16 ? 0xffff : (1 << (r1 - j)) - 1);
+    const __m512 dz = _mm512_sub_ps(_mm512_loadu_ps(cz + j), pz);
+    const __m512 dx = _mm512_sub_ps(_mm512_loadu_ps(cx + j), px);
+    const __m512 dy = _mm512_sub_ps(_mm512_loadu_ps(cy + j), py);
+    const __mmask16 window = static_cast<__mmask16>(
+        valid & _mm512_cmp_ps_mask(dz, vht, _CMP_GT_OQ) & _mm512_cmp_ps_mask(dz, vh, _CMP_LT_OQ));
+    const __mmask16 bits = static_cast<__mmask16>(
+        window & _mm512_cmp_ps_mask(
+                     _mm512_mul_ps(dz, dz),
+                     _mm512_mul_ps(vt, _mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy))),
+                     _CMP_GT_OQ));
+    tested += __builtin_popcount(window);
+    compatible += __builtin_popcount(bits);
+    any |= bits;
+    _mm512_mask_storeu_epi32(upper_hit + j, bits, ones);
+  }
+  return any != 0;
+}
+#endif
+
 // The compatible pairs within each column, fast. A partner q of a lower point p lies less
 // than reach = Hmax / tan(theta) from it horizontally, so less than reach along any
 // horizontal direction: the column's points are put in bins of that width along the
@@ -173,10 +236,10 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       }
     }
   };
-  // The column's points side by side (x, y, z) in sorted order, with room for reading four
-  // from any point and from three before the first; and per point whether it is the upper
-  // point of a pair found (all ones) or the lower one.
-  constexpr int kPad = 4;
+  // The column's points side by side (x, y, z) in sorted order, with room for reading
+  // sixteen from any point and four from three before the first; and per point whether it is the
+  // upper point of a pair found (all ones) or the lower one.
+  constexpr int kPad = 16;
   const std::size_t stride = static_cast<std::size_t>(height) + 2 * kPad;
   std::vector<float> xyz(3 * stride, 0.0f);
   float* const cx = xyz.data() + kPad;
@@ -192,6 +255,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
                                  LaneMask(12), LaneMask(13), LaneMask(14), LaneMask(15)};
 #endif
   const float ht = test.min_height, hmax = test.max_height, tan2 = test.tan2_theta;
+  const int lanes = internal::VectorLanes();
   // The bins are wider than the reach by a margin covering the rounding of u. Bin numbers
   // are clamped to +-1e9: a bin that far out holds nothing within reach of the others.
   const double bin_width =
@@ -280,7 +344,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       for (int h = h0; h < h1; ++h) top = std::max(top, cz[bins[h].end - 1]);
 #if defined(__SSE2__)
       const int r0 = bins[h0].begin, r1 = bins[h1 - 1].end;
-      if (r1 - r0 <= kDirectPoints) {
+      if (lanes >= 4 && r1 - r0 <= kDirectPoints) {
         // Few points near: each lower point meets all of them four at a time, the window
         // HT..Hmax and the slope as bit masks (the pair test's float operations in its
         // order), without a branch on either.
@@ -288,6 +352,17 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
         for (int k = bins[g].begin; k < bins[g].end; ++k) {
           const float pz_scalar = cz[k];
           if (!(top - pz_scalar > ht)) break;  // nothing more than HT above this point or the next
+#if defined(CAIRN_OD_WIDE_VECTORS)
+          if (lanes > 4) {
+            const float p[3] = {cx[k], cy[k], pz_scalar};
+            const bool any = lanes == 16 ? DirectAvx512(cx, cy, cz, r0, r1, p, test, upper_hit,
+                                                        pairs_tested, pairs_compatible)
+                                         : DirectAvx2(cx, cy, cz, r0, r1, p, test, upper_hit,
+                                                      pairs_tested, pairs_compatible);
+            lower_hit[k] |= any ? -1 : 0;
+            continue;
+          }
+#endif
           const __m128 px = _mm_set1_ps(cx[k]), py = _mm_set1_ps(cy[k]);
           const __m128 pz = _mm_set1_ps(pz_scalar);
           int any = 0;
@@ -332,44 +407,48 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
           const int j_end = bins[h].end;
           while (j0 < j_end && !(cz[j0] - pz > ht)) ++j0;
 #if defined(__SSE2__)
-          // Four at a time (heights ascend: past the first point Hmax or more above, none is
-          // less); the hits of the four marked.
-          for (int j = j0; j < j_end; j += 4) {
-            const int valid = j_end - j >= 4 ? 0xf : (1 << (j_end - j)) - 1;
-            const __m128 dz = _mm_sub_ps(_mm_loadu_ps(cz + j), vpz);
-            const __m128 dx = _mm_sub_ps(_mm_loadu_ps(cx + j), vpx);
-            const __m128 dy = _mm_sub_ps(_mm_loadu_ps(cy + j), vpy);
-            const __m128 window = _mm_and_ps(_mm_cmplt_ps(dz, vhmax), kLaneMasks[valid]);
-            const __m128 steep =
-                _mm_cmpgt_ps(_mm_mul_ps(dz, dz),
-                             _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
-            const __m128 hit = _mm_and_ps(window, steep);
-            const int in_window = _mm_movemask_ps(window);
-            const int bits = _mm_movemask_ps(hit);
-            pairs_tested += kBitCount[in_window];
-            if (bits != 0) {
-              pairs_compatible += kBitCount[bits];
-              __m128i* marks = reinterpret_cast<__m128i*>(upper_hit + j);
-              _mm_storeu_si128(marks, _mm_or_si128(_mm_loadu_si128(marks), _mm_castps_si128(hit)));
-              found = true;
-              break;
+          if (lanes >= 4) {
+            // Four at a time (heights ascend: past the first point Hmax or more above, none is
+            // less); the hits of the four marked.
+            for (int j = j0; j < j_end; j += 4) {
+              const int valid = j_end - j >= 4 ? 0xf : (1 << (j_end - j)) - 1;
+              const __m128 dz = _mm_sub_ps(_mm_loadu_ps(cz + j), vpz);
+              const __m128 dx = _mm_sub_ps(_mm_loadu_ps(cx + j), vpx);
+              const __m128 dy = _mm_sub_ps(_mm_loadu_ps(cy + j), vpy);
+              const __m128 window = _mm_and_ps(_mm_cmplt_ps(dz, vhmax), kLaneMasks[valid]);
+              const __m128 steep =
+                  _mm_cmpgt_ps(_mm_mul_ps(dz, dz),
+                               _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
+              const __m128 hit = _mm_and_ps(window, steep);
+              const int in_window = _mm_movemask_ps(window);
+              const int bits = _mm_movemask_ps(hit);
+              pairs_tested += kBitCount[in_window];
+              if (bits != 0) {
+                pairs_compatible += kBitCount[bits];
+                __m128i* marks = reinterpret_cast<__m128i*>(upper_hit + j);
+                _mm_storeu_si128(marks,
+                                 _mm_or_si128(_mm_loadu_si128(marks), _mm_castps_si128(hit)));
+                found = true;
+                break;
+              }
+              if (in_window != 0xf) break;
             }
-            if (in_window != 0xf) break;
-          }
-#else
-          for (int j = j0; j < j_end; ++j) {
-            bool window;
-            const bool compatible = pair_at(k, j, true, window);
-            if (!window) break;
-            ++pairs_tested;
-            if (compatible) {
-              ++pairs_compatible;
-              upper_hit[j] = -1;
-              found = true;
-              break;
-            }
-          }
+          } else  // one at a time (lanes capped to 1)
 #endif
+          {
+            for (int j = j0; j < j_end; ++j) {
+              bool window;
+              const bool compatible = pair_at(k, j, true, window);
+              if (!window) break;
+              ++pairs_tested;
+              if (compatible) {
+                ++pairs_compatible;
+                upper_hit[j] = -1;
+                found = true;
+                break;
+              }
+            }
+          }
         }
         if (found) lower_hit[k] = -1;
       }
@@ -409,34 +488,37 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
           j_hi = std::max(j_hi, j_lo);
           while (j_hi < j_end && qz - cz[j_hi] > ht) ++j_hi;
 #if defined(__SSE2__)
-          for (int j = j_hi - 4; j > j_lo - 4; j -= 4) {
-            // Lanes below j_lo are out of the window (past it, in the padding or another bin).
-            const int valid = j >= j_lo ? 0xf : 0xf & (0xf << (j_lo - j));
-            const __m128 dz = _mm_sub_ps(vqz, _mm_loadu_ps(cz + j));
-            const __m128 dx = _mm_sub_ps(vqx, _mm_loadu_ps(cx + j));
-            const __m128 dy = _mm_sub_ps(vqy, _mm_loadu_ps(cy + j));
-            const __m128 steep =
-                _mm_cmpgt_ps(_mm_mul_ps(dz, dz),
-                             _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
-            const int bits = _mm_movemask_ps(_mm_and_ps(steep, kLaneMasks[valid]));
-            pairs_tested += kBitCount[valid];
-            if (bits != 0) {
-              pairs_compatible += kBitCount[bits];
-              found = true;
-              break;
+          if (lanes >= 4) {
+            for (int j = j_hi - 4; j > j_lo - 4; j -= 4) {
+              // Lanes below j_lo are out of the window (past it, in the padding or another bin).
+              const int valid = j >= j_lo ? 0xf : 0xf & (0xf << (j_lo - j));
+              const __m128 dz = _mm_sub_ps(vqz, _mm_loadu_ps(cz + j));
+              const __m128 dx = _mm_sub_ps(vqx, _mm_loadu_ps(cx + j));
+              const __m128 dy = _mm_sub_ps(vqy, _mm_loadu_ps(cy + j));
+              const __m128 steep =
+                  _mm_cmpgt_ps(_mm_mul_ps(dz, dz),
+                               _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
+              const int bits = _mm_movemask_ps(_mm_and_ps(steep, kLaneMasks[valid]));
+              pairs_tested += kBitCount[valid];
+              if (bits != 0) {
+                pairs_compatible += kBitCount[bits];
+                found = true;
+                break;
+              }
             }
-          }
-#else
-          for (int j = j_hi - 1; j >= j_lo; --j) {
-            bool window;
-            ++pairs_tested;
-            if (pair_at(k, j, false, window)) {
-              ++pairs_compatible;
-              found = true;
-              break;
-            }
-          }
+          } else  // one at a time (lanes capped to 1)
 #endif
+          {
+            for (int j = j_hi - 1; j >= j_lo; --j) {
+              bool window;
+              ++pairs_tested;
+              if (pair_at(k, j, false, window)) {
+                ++pairs_compatible;
+                found = true;
+                break;
+              }
+            }
+          }
         }
         if (found) upper_hit[k] = -1;
       }
