@@ -8,6 +8,8 @@
 //  - on all of these, the column baseline's pass over each column against its own definition
 //    (DetectColumnsBruteForce);
 //  - the surface slope of a segment (detector.hpp) on planes of known inclination.
+#include "../libod/src/pair_search.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -390,12 +392,32 @@ TEST(PairSearch, EveryVectorWidthFindsTheSamePairs) {
     scan_config.threads = 1;
     widest_scan = *Detect(*scan, scan_config);
   }
+  // The point trees of the lattice (many equal heights), leaves of 2 x 32 and of 8 x 8, one at
+  // a time: each leaf's points by height, ties in pixel order.
+  const auto trees = [&] {
+    std::vector<std::vector<float>> stored;
+    for (std::size_t k = images.size() - 6; k < images.size(); ++k) {
+      const internal::LevelPoints level(images[k]);
+      std::vector<std::uint8_t> all(images[k].size());
+      for (int i = 0; i < images[k].size(); ++i) all[i] = images[k].valid(i);
+      for (const int rows : {2, 8}) {
+        const internal::PointTree tree(level, all, images[k].width(), images[k].height(), rows,
+                                       64 / rows);
+        stored.push_back(tree.z);
+        stored.emplace_back(tree.pixel.begin(), tree.pixel.end());
+      }
+    }
+    return stored;
+  };
+  internal::CapVectorLanes(1);
+  const std::vector<std::vector<float>> one_at_a_time = trees();
   int widths = 0;
   for (int lanes : {16, 8, 4, 1}) {
     if (lanes > widest) continue;
     ++widths;
     internal::CapVectorLanes(lanes);
     ASSERT_EQ(internal::VectorLanes(), lanes);
+    EXPECT_TRUE(trees() == one_at_a_time) << lanes << " lanes: the point trees differ";
     const std::string width = std::to_string(lanes) + " lanes, ";
     for (std::size_t k = 0; k < images.size(); ++k) {
       ExpectSame(*Detect(images[k], configs[k]), brute[k], width + "image " + std::to_string(k));
