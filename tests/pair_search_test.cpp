@@ -15,7 +15,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <random>
 #include <string>
@@ -353,6 +355,75 @@ TEST(PairSearch, EqualsTheRegionScanOnTheKittiScan) {
                "KITTI 00 scan 0, " + std::to_string(threads) + " threads");
   }
   ExpectSameColumns(*image, config, 0, "KITTI 00 scan 0");
+}
+
+// The leaves' box tests at every width the processor has against one at a time (Classify
+// itself), on points and boxes at multiples of 1/8 m with HT 0.25 m, Hmax 1 m and theta 45 deg
+// or atan 2 (all exact in floats): many points lie exactly on a bound, where rounding decides.
+TEST(PairSearch, TheLeafBoxTestsAreTheSameAtEveryWidth) {
+  std::mt19937 rng(8080);
+  const auto eighths = [&](int lo, int hi) {
+    return 0.125f * static_cast<float>(lo + static_cast<int>(rng() % (hi - lo + 1)));
+  };
+  const float inf = std::numeric_limits<float>::infinity();
+  std::int64_t kept = 0, accepted = 0, near = 0, on_bound = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    DetectorConfig config;
+    config.min_height_m = 0.25;
+    config.max_height_m = 1.0;
+    config.min_slope_rad = trial % 2 ? kPi / 4 : std::atan(2.0);
+    const PairTest test(config);
+    const int count = 1 + static_cast<int>(rng() % 64);
+    std::vector<float> x(count + 16, 0.0f), y(count + 16, 0.0f), z(count + 16, inf);
+    for (int k = 0; k < count; ++k) {
+      x[k] = eighths(-4, 4);
+      y[k] = eighths(-4, 4);
+      z[k] = eighths(-8, 8);
+    }
+    float lo[3], hi[3];
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = eighths(-4, 4);
+      hi[d] = lo[d] + eighths(0, d < 2 ? 2 : 4);
+    }
+    std::uint64_t keep_one = 0, accept_one = 0;
+    internal::ClassifyByBox(1, x.data(), y.data(), z.data(), count, lo, hi, test, keep_one,
+                            accept_one);
+    float near_lo_one[3], near_hi_one[3];
+    const std::uint64_t near_one = internal::NearBox(1, x.data(), y.data(), z.data(), count, lo, hi,
+                                                     test, near_lo_one, near_hi_one);
+    kept += __builtin_popcountll(keep_one);
+    accepted += __builtin_popcountll(accept_one);
+    near += __builtin_popcountll(near_one);
+    for (int k = 0; k < count; ++k) {
+      on_bound += z[k] - lo[2] == 0.25f || hi[2] - z[k] == 0.25f || lo[2] - z[k] == 0.25f;
+    }
+    for (const int lanes : {4, 8, 16}) {
+      if (lanes > internal::VectorLanes()) continue;
+      const std::string what = std::to_string(lanes) + " lanes, trial " + std::to_string(trial);
+      std::uint64_t keep = 0, accept = 0;
+      internal::ClassifyByBox(lanes, x.data(), y.data(), z.data(), count, lo, hi, test, keep,
+                              accept);
+      EXPECT_EQ(keep, keep_one) << what;
+      EXPECT_EQ(accept, accept_one) << what;
+      float near_lo[3], near_hi[3];
+      EXPECT_EQ(internal::NearBox(lanes, x.data(), y.data(), z.data(), count, lo, hi, test, near_lo,
+                                  near_hi),
+                near_one)
+          << what;
+      for (int d = 0; d < 3; ++d) {
+        EXPECT_EQ(near_lo[d], near_lo_one[d]) << what;
+        EXPECT_EQ(near_hi[d], near_hi_one[d]) << what;
+      }
+    }
+  }
+  // Every verdict is met often, and bounds are hit.
+  EXPECT_GT(accepted, 1000);
+  EXPECT_GT(kept - accepted, 1000);
+  EXPECT_GT(near, 1000);
+  EXPECT_GT(on_bound, 1000);
+  std::printf("box tests: %lld kept, %lld accepted, %lld near, %lld on a bound\n",
+              static_cast<long long>(kept), static_cast<long long>(accepted),
+              static_cast<long long>(near), static_cast<long long>(on_bound));
 }
 
 // Every vector width the processor has (simd.hpp), down to one pair at a time, finds the same

@@ -398,6 +398,14 @@ inline __m128 NotRejected(const __m128* a_lo, const __m128* a_hi, const __m128* 
 #endif
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
+// GCC 12's AVX-512 min and max pass an undefined vector as the unused merge source, which
+// -Wuninitialized and -Wmaybe-uninitialized report once inlined (GCC bug 105593, mended in
+// GCC 13).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#endif
 // Search::Hits eight (AVX2) and sixteen (AVX-512F) packed points at a time, with its float
 // operations in its order: the bits of the points in p's cone, and of those HT..Hmax above p
 // (`in_window`). The points are padded to a multiple of sixteen.
@@ -450,7 +458,239 @@ __attribute__((target("avx512f"))) std::uint64_t HitsAvx512(const float* qx, con
   in_window = window_bits;
   return hits;
 }
+
+// NotRejected for sixteen pairs of boxes (lower a, upper b), with Classify's float operations
+// in its order: the lanes it does not reject.
+__attribute__((target("avx512f"))) inline __mmask16 NotRejected16(const __m512* a_lo,
+                                                                  const __m512* a_hi,
+                                                                  const __m512* b_lo,
+                                                                  const __m512* b_hi,
+                                                                  const PairTest& t) {
+  const __m512 ht = _mm512_set1_ps(t.min_height), hmax = _mm512_set1_ps(t.max_height);
+  const __m512 dz_hi = _mm512_sub_ps(b_hi[2], a_lo[2]), dz_lo = _mm512_sub_ps(b_lo[2], a_hi[2]);
+  const __mmask16 heights = static_cast<__mmask16>(_mm512_cmp_ps_mask(dz_hi, ht, _CMP_GT_OQ) &
+                                                   _mm512_cmp_ps_mask(dz_lo, hmax, _CMP_LT_OQ));
+  const __m512 dz_best = _mm512_min_ps(dz_hi, hmax);
+  const __m512 zero = _mm512_setzero_ps();
+  const __m512 gx = _mm512_max_ps(
+      _mm512_max_ps(_mm512_sub_ps(b_lo[0], a_hi[0]), _mm512_sub_ps(a_lo[0], b_hi[0])), zero);
+  const __m512 gy = _mm512_max_ps(
+      _mm512_max_ps(_mm512_sub_ps(b_lo[1], a_hi[1]), _mm512_sub_ps(a_lo[1], b_hi[1])), zero);
+  return static_cast<__mmask16>(
+      heights &
+      _mm512_cmp_ps_mask(_mm512_mul_ps(dz_best, dz_best),
+                         _mm512_mul_ps(_mm512_set1_ps(t.tan2_theta),
+                                       _mm512_add_ps(_mm512_mul_ps(gx, gx), _mm512_mul_ps(gy, gy))),
+                         _CMP_GT_OQ));
+}
+
+// The least and the greatest of sixteen lanes (GCC 12's _mm512_reduce_min_ps warns of an
+// uninitialised variable).
+template <bool kMax>
+__attribute__((target("avx512f"))) inline float Extreme16(__m512 v) {
+  __m512 other = _mm512_shuffle_f32x4(v, v, _MM_SHUFFLE(1, 0, 3, 2));  // the other half
+  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
+  other = _mm512_shuffle_f32x4(v, v, _MM_SHUFFLE(2, 3, 0, 1));  // the other quarter
+  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
+  other = _mm512_permute_ps(v, _MM_SHUFFLE(1, 0, 3, 2));  // the other pair of lanes
+  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
+  other = _mm512_permute_ps(v, _MM_SHUFFLE(2, 3, 0, 1));  // the other lane
+  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
+  return _mm512_cvtss_f32(v);
+}
+
+// Search::NearLower sixteen points at a time: the bits of the points [0, count) of x, y, z
+// that the box a_lo..a_hi (the lower leaf's) does not reject, and their box.
+__attribute__((target("avx512f"))) std::uint64_t NearAvx512(const float* x, const float* y,
+                                                            const float* z, int count,
+                                                            const float* a_lo, const float* a_hi,
+                                                            const PairTest& t, float* lo,
+                                                            float* hi) {
+  const __m512 box_lo[3] = {_mm512_set1_ps(a_lo[0]), _mm512_set1_ps(a_lo[1]),
+                            _mm512_set1_ps(a_lo[2])};
+  const __m512 box_hi[3] = {_mm512_set1_ps(a_hi[0]), _mm512_set1_ps(a_hi[1]),
+                            _mm512_set1_ps(a_hi[2])};
+  const __m512 inf = _mm512_set1_ps(std::numeric_limits<float>::infinity());
+  const __m512 minus_inf = _mm512_set1_ps(-std::numeric_limits<float>::infinity());
+  __m512 x_lo = inf, y_lo = inf, z_lo = inf, x_hi = minus_inf, y_hi = minus_inf, z_hi = minus_inf;
+  std::uint64_t near = 0;
+  for (int j = 0; j < count; j += 16) {
+    const auto in_leaf = static_cast<__mmask16>(count - j >= 16 ? 0xffff : (1 << (count - j)) - 1);
+    const __m512 q[3] = {_mm512_maskz_loadu_ps(in_leaf, x + j),
+                         _mm512_maskz_loadu_ps(in_leaf, y + j),
+                         _mm512_maskz_loadu_ps(in_leaf, z + j)};
+    const auto kept = static_cast<__mmask16>(in_leaf & NotRejected16(box_lo, box_hi, q, q, t));
+    near |= static_cast<std::uint64_t>(kept) << j;
+    x_lo = _mm512_mask_min_ps(x_lo, kept, x_lo, q[0]);
+    y_lo = _mm512_mask_min_ps(y_lo, kept, y_lo, q[1]);
+    z_lo = _mm512_mask_min_ps(z_lo, kept, z_lo, q[2]);
+    x_hi = _mm512_mask_max_ps(x_hi, kept, x_hi, q[0]);
+    y_hi = _mm512_mask_max_ps(y_hi, kept, y_hi, q[1]);
+    z_hi = _mm512_mask_max_ps(z_hi, kept, z_hi, q[2]);
+  }
+  lo[0] = Extreme16<false>(x_lo);
+  lo[1] = Extreme16<false>(y_lo);
+  lo[2] = Extreme16<false>(z_lo);
+  hi[0] = Extreme16<true>(x_hi);
+  hi[1] = Extreme16<true>(y_hi);
+  hi[2] = Extreme16<true>(z_hi);
+  return near;
+}
+
+// Search::ClassifyPoints sixteen lower points at a time: of the points [0, count) of x, y,
+// z, `keep` those the box b_lo..b_hi does not reject, `accept` those it accepts.
+__attribute__((target("avx512f"))) void ClassifyAvx512(const float* x, const float* y,
+                                                       const float* z, int count, const float* b_lo,
+                                                       const float* b_hi, const PairTest& t,
+                                                       std::uint64_t& keep, std::uint64_t& accept) {
+  const __m512 ht = _mm512_set1_ps(t.min_height), hmax = _mm512_set1_ps(t.max_height);
+  const __m512 tan2 = _mm512_set1_ps(t.tan2_theta);
+  const __m512 box_lo[3] = {_mm512_set1_ps(b_lo[0]), _mm512_set1_ps(b_lo[1]),
+                            _mm512_set1_ps(b_lo[2])};
+  const __m512 box_hi[3] = {_mm512_set1_ps(b_hi[0]), _mm512_set1_ps(b_hi[1]),
+                            _mm512_set1_ps(b_hi[2])};
+  for (int i = 0; i < count; i += 16) {
+    const auto valid = static_cast<__mmask16>(count - i >= 16 ? 0xffff : (1 << (count - i)) - 1);
+    const __m512 q[3] = {_mm512_maskz_loadu_ps(valid, x + i), _mm512_maskz_loadu_ps(valid, y + i),
+                         _mm512_maskz_loadu_ps(valid, z + i)};
+    const __m512 dz_hi = _mm512_sub_ps(box_hi[2], q[2]), dz_lo = _mm512_sub_ps(box_lo[2], q[2]);
+    const auto kept = static_cast<__mmask16>(valid & NotRejected16(q, q, box_lo, box_hi, t));
+    const auto inside = static_cast<__mmask16>(_mm512_cmp_ps_mask(dz_lo, ht, _CMP_GT_OQ) &
+                                               _mm512_cmp_ps_mask(dz_hi, hmax, _CMP_LT_OQ));
+    const __m512 rx = _mm512_max_ps(_mm512_abs_ps(_mm512_sub_ps(box_hi[0], q[0])),
+                                    _mm512_abs_ps(_mm512_sub_ps(box_lo[0], q[0])));
+    const __m512 ry = _mm512_max_ps(_mm512_abs_ps(_mm512_sub_ps(box_hi[1], q[1])),
+                                    _mm512_abs_ps(_mm512_sub_ps(box_lo[1], q[1])));
+    const __mmask16 all = _mm512_cmp_ps_mask(
+        _mm512_mul_ps(dz_lo, dz_lo),
+        _mm512_mul_ps(tan2, _mm512_add_ps(_mm512_mul_ps(rx, rx), _mm512_mul_ps(ry, ry))),
+        _CMP_GT_OQ);
+    keep |= static_cast<std::uint64_t>(kept) << i;
+    accept |= static_cast<std::uint64_t>(kept & inside & all) << i;
+  }
+}
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
 #endif
+#endif
+
+}  // namespace
+
+void ClassifyByBox(int lanes, const float* lx, const float* ly, const float* lz, int count,
+                   const float* b_lo, const float* b_hi, const PairTest& test, std::uint64_t& keep,
+                   std::uint64_t& accept) {
+  int i = 0;
+#if defined(CAIRN_OD_WIDE_VECTORS)
+  if (lanes == 16) {
+    ClassifyAvx512(lx, ly, lz, count, b_lo, b_hi, test, keep, accept);
+    return;
+  }
+#endif
+#if defined(__SSE2__)
+  // Four at a time, with Classify's float operations in its order.
+  if (lanes >= 4) {
+    const __m128 ht = _mm_set1_ps(test.min_height), hmax = _mm_set1_ps(test.max_height);
+    const __m128 tan2 = _mm_set1_ps(test.tan2_theta);
+    const __m128 sign = _mm_set1_ps(-0.0f);
+    const __m128 box_lo[3] = {_mm_set1_ps(b_lo[0]), _mm_set1_ps(b_lo[1]), _mm_set1_ps(b_lo[2])};
+    const __m128 box_hi[3] = {_mm_set1_ps(b_hi[0]), _mm_set1_ps(b_hi[1]), _mm_set1_ps(b_hi[2])};
+    const __m128 bx_lo = box_lo[0], bx_hi = box_hi[0], by_lo = box_lo[1], by_hi = box_hi[1];
+    for (; i + 4 <= count; i += 4) {
+      const __m128 q[3] = {_mm_loadu_ps(lx + i), _mm_loadu_ps(ly + i), _mm_loadu_ps(lz + i)};
+      const __m128 px = q[0], py = q[1];
+      const __m128 dz_hi = _mm_sub_ps(box_hi[2], q[2]), dz_lo = _mm_sub_ps(box_lo[2], q[2]);
+      const __m128 kept = NotRejected(q, q, box_lo, box_hi, test);
+      const __m128 inside = _mm_and_ps(_mm_cmpgt_ps(dz_lo, ht), _mm_cmplt_ps(dz_hi, hmax));
+      const __m128 rx = _mm_max_ps(_mm_andnot_ps(sign, _mm_sub_ps(bx_hi, px)),
+                                   _mm_andnot_ps(sign, _mm_sub_ps(bx_lo, px)));
+      const __m128 ry = _mm_max_ps(_mm_andnot_ps(sign, _mm_sub_ps(by_hi, py)),
+                                   _mm_andnot_ps(sign, _mm_sub_ps(by_lo, py)));
+      const __m128 all =
+          _mm_cmpgt_ps(_mm_mul_ps(dz_lo, dz_lo),
+                       _mm_mul_ps(tan2, _mm_add_ps(_mm_mul_ps(rx, rx), _mm_mul_ps(ry, ry))));
+      keep |= static_cast<std::uint64_t>(_mm_movemask_ps(kept)) << i;
+      accept |=
+          static_cast<std::uint64_t>(_mm_movemask_ps(_mm_and_ps(kept, _mm_and_ps(inside, all))))
+          << i;
+    }
+  }
+#endif
+  for (; i < count; ++i) {
+    const float p[3] = {lx[i], ly[i], lz[i]};
+    const Verdict v = Classify(p, p, b_lo, b_hi, test);
+    keep |= static_cast<std::uint64_t>(v != kReject) << i;
+    accept |= static_cast<std::uint64_t>(v == kAccept) << i;
+  }
+}
+
+std::uint64_t NearBox(int lanes, const float* ux, const float* uy, const float* uz, int count,
+                      const float* a_lo, const float* a_hi, const PairTest& test, float* lo,
+                      float* hi) {
+  constexpr float kInfinity = std::numeric_limits<float>::infinity();
+  std::uint64_t near = 0;
+  int j = 0;
+#if defined(CAIRN_OD_WIDE_VECTORS)
+  if (lanes == 16) return NearAvx512(ux, uy, uz, count, a_lo, a_hi, test, lo, hi);
+#endif
+#if defined(__SSE2__)
+  if (lanes >= 4) {
+    // Four at a time, with Classify's float operations in its order; the lanes past the leaf
+    // are dropped. The box as four lanes' boxes, a lane not kept adding +-infinity.
+    const __m128 box_lo[3] = {_mm_set1_ps(a_lo[0]), _mm_set1_ps(a_lo[1]), _mm_set1_ps(a_lo[2])};
+    const __m128 box_hi[3] = {_mm_set1_ps(a_hi[0]), _mm_set1_ps(a_hi[1]), _mm_set1_ps(a_hi[2])};
+    const __m128 inf = _mm_set1_ps(kInfinity), minus_inf = _mm_set1_ps(-kInfinity);
+    const __m128 lane = _mm_set_ps(3.0f, 2.0f, 1.0f, 0.0f);
+    __m128 x_lo = inf, y_lo = inf, z_lo = inf, x_hi = minus_inf, y_hi = minus_inf, z_hi = minus_inf;
+    for (; j < count; j += 4) {
+      const __m128 q[3] = {_mm_loadu_ps(ux + j), _mm_loadu_ps(uy + j), _mm_loadu_ps(uz + j)};
+      const __m128 qx = q[0], qy = q[1], qz = q[2];
+      const __m128 in_leaf = _mm_cmplt_ps(lane, _mm_set1_ps(static_cast<float>(count - j)));
+      const __m128 kept = _mm_and_ps(NotRejected(box_lo, box_hi, q, q, test), in_leaf);
+      near |= static_cast<std::uint64_t>(_mm_movemask_ps(kept)) << j;
+      const auto pick = [&kept](__m128 v, __m128 otherwise) {
+        return _mm_or_ps(_mm_and_ps(kept, v), _mm_andnot_ps(kept, otherwise));
+      };
+      x_lo = _mm_min_ps(x_lo, pick(qx, inf));
+      y_lo = _mm_min_ps(y_lo, pick(qy, inf));
+      z_lo = _mm_min_ps(z_lo, pick(qz, inf));
+      x_hi = _mm_max_ps(x_hi, pick(qx, minus_inf));
+      y_hi = _mm_max_ps(y_hi, pick(qy, minus_inf));
+      z_hi = _mm_max_ps(z_hi, pick(qz, minus_inf));
+    }
+    const auto least = [](__m128 v) {
+      v = _mm_min_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2)));
+      return _mm_cvtss_f32(_mm_min_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(2, 3, 0, 1))));
+    };
+    const auto most = [](__m128 v) {
+      v = _mm_max_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2)));
+      return _mm_cvtss_f32(_mm_max_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(2, 3, 0, 1))));
+    };
+    lo[0] = least(x_lo);
+    lo[1] = least(y_lo);
+    lo[2] = least(z_lo);
+    hi[0] = most(x_hi);
+    hi[1] = most(y_hi);
+    hi[2] = most(z_hi);
+    return near;
+  }
+#endif
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = kInfinity;
+    hi[k] = -kInfinity;
+  }
+  for (; j < count; ++j) {
+    const float q[3] = {ux[j], uy[j], uz[j]};
+    if (Classify(a_lo, a_hi, q, q, test) == kReject) continue;
+    near |= std::uint64_t{1} << j;
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], q[k]);
+      hi[k] = std::max(hi[k], q[k]);
+    }
+  }
+  return near;
+}
+
+namespace {
 
 enum NodeFlag : std::uint8_t { kFull = 1, kUnified = 2 };
 
@@ -639,114 +879,19 @@ class alignas(64) Search {
     }
   }
 
-  // Classify(p, p, box b_lo..b_hi) of the lower points [begin, end) (at most 64): bit k of
-  // `keep` is set unless point begin + k is rejected, of `accept` when it is accepted.
+  // The lower points [begin, end) against the box b_lo..b_hi (ClassifyByBox).
   void ClassifyPoints(const float* b_lo, const float* b_hi, int begin, int end, std::uint64_t& keep,
                       std::uint64_t& accept) const {
-    const float* lx = lo_.x.data();
-    const float* ly = lo_.y.data();
-    const float* lz = lo_.z.data();
-    int i = begin;
-#if defined(__SSE2__)
-    // Four at a time, with Classify's float operations in its order.
-    const __m128 ht = _mm_set1_ps(test_.min_height), hmax = _mm_set1_ps(test_.max_height);
-    const __m128 tan2 = _mm_set1_ps(test_.tan2_theta);
-    const __m128 sign = _mm_set1_ps(-0.0f);
-    const __m128 box_lo[3] = {_mm_set1_ps(b_lo[0]), _mm_set1_ps(b_lo[1]), _mm_set1_ps(b_lo[2])};
-    const __m128 box_hi[3] = {_mm_set1_ps(b_hi[0]), _mm_set1_ps(b_hi[1]), _mm_set1_ps(b_hi[2])};
-    const __m128 bx_lo = box_lo[0], bx_hi = box_hi[0], by_lo = box_lo[1], by_hi = box_hi[1];
-    for (; i + 4 <= end; i += 4) {
-      const __m128 q[3] = {_mm_loadu_ps(lx + i), _mm_loadu_ps(ly + i), _mm_loadu_ps(lz + i)};
-      const __m128 px = q[0], py = q[1];
-      const __m128 dz_hi = _mm_sub_ps(box_hi[2], q[2]), dz_lo = _mm_sub_ps(box_lo[2], q[2]);
-      const __m128 kept = NotRejected(q, q, box_lo, box_hi, test_);
-      const __m128 inside = _mm_and_ps(_mm_cmpgt_ps(dz_lo, ht), _mm_cmplt_ps(dz_hi, hmax));
-      const __m128 rx = _mm_max_ps(_mm_andnot_ps(sign, _mm_sub_ps(bx_hi, px)),
-                                   _mm_andnot_ps(sign, _mm_sub_ps(bx_lo, px)));
-      const __m128 ry = _mm_max_ps(_mm_andnot_ps(sign, _mm_sub_ps(by_hi, py)),
-                                   _mm_andnot_ps(sign, _mm_sub_ps(by_lo, py)));
-      const __m128 all =
-          _mm_cmpgt_ps(_mm_mul_ps(dz_lo, dz_lo),
-                       _mm_mul_ps(tan2, _mm_add_ps(_mm_mul_ps(rx, rx), _mm_mul_ps(ry, ry))));
-      const int shift = i - begin;
-      keep |= static_cast<std::uint64_t>(_mm_movemask_ps(kept)) << shift;
-      accept |=
-          static_cast<std::uint64_t>(_mm_movemask_ps(_mm_and_ps(kept, _mm_and_ps(inside, all))))
-          << shift;
-    }
-#endif
-    for (; i < end; ++i) {
-      const float p[3] = {lx[i], ly[i], lz[i]};
-      const Verdict v = Classify(p, p, b_lo, b_hi, test_);
-      keep |= static_cast<std::uint64_t>(v != kReject) << (i - begin);
-      accept |= static_cast<std::uint64_t>(v == kAccept) << (i - begin);
-    }
+    ClassifyByBox(lanes_, lo_.x.data() + begin, lo_.y.data() + begin, lo_.z.data() + begin,
+                  end - begin, b_lo, b_hi, test_, keep, accept);
   }
 
-  // Bit j - B.begin for each point j of upper leaf B that Classify(A's box, j) does not
-  // reject (none past the leaf): a point without its bit is no partner of any lower point of
-  // A. `lo` and `hi` get the box of those points (empty when there are none).
+  // Bit j - B.begin for each point j of upper leaf B that A's box does not reject (NearBox): a
+  // point without its bit is no partner of any lower point of A. `lo` and `hi` get the box of
+  // those points (empty when there are none).
   std::uint64_t NearLower(const Node& A, const Node& B, float* lo, float* hi) const {
-    constexpr float kInfinity = std::numeric_limits<float>::infinity();
-    const float* ux = up_.x.data();
-    const float* uy = up_.y.data();
-    const float* uz = up_.z.data();
-    std::uint64_t near = 0;
-    int j = B.begin;
-#if defined(__SSE2__)
-    // Four at a time, with Classify's float operations in its order; the lanes past the leaf
-    // are dropped. The box as four lanes' boxes, a lane not kept adding +-infinity.
-    const __m128 box_lo[3] = {_mm_set1_ps(A.lo[0]), _mm_set1_ps(A.lo[1]), _mm_set1_ps(A.lo[2])};
-    const __m128 box_hi[3] = {_mm_set1_ps(A.hi[0]), _mm_set1_ps(A.hi[1]), _mm_set1_ps(A.hi[2])};
-    const __m128 inf = _mm_set1_ps(kInfinity), minus_inf = _mm_set1_ps(-kInfinity);
-    const __m128 lane = _mm_set_ps(3.0f, 2.0f, 1.0f, 0.0f);
-    __m128 x_lo = inf, y_lo = inf, z_lo = inf, x_hi = minus_inf, y_hi = minus_inf, z_hi = minus_inf;
-    for (; j < B.end; j += 4) {
-      const __m128 q[3] = {_mm_loadu_ps(ux + j), _mm_loadu_ps(uy + j), _mm_loadu_ps(uz + j)};
-      const __m128 qx = q[0], qy = q[1], qz = q[2];
-      const __m128 in_leaf = _mm_cmplt_ps(lane, _mm_set1_ps(static_cast<float>(B.end - j)));
-      const __m128 kept = _mm_and_ps(NotRejected(box_lo, box_hi, q, q, test_), in_leaf);
-      near |= static_cast<std::uint64_t>(_mm_movemask_ps(kept)) << (j - B.begin);
-      const auto pick = [&kept](__m128 v, __m128 otherwise) {
-        return _mm_or_ps(_mm_and_ps(kept, v), _mm_andnot_ps(kept, otherwise));
-      };
-      x_lo = _mm_min_ps(x_lo, pick(qx, inf));
-      y_lo = _mm_min_ps(y_lo, pick(qy, inf));
-      z_lo = _mm_min_ps(z_lo, pick(qz, inf));
-      x_hi = _mm_max_ps(x_hi, pick(qx, minus_inf));
-      y_hi = _mm_max_ps(y_hi, pick(qy, minus_inf));
-      z_hi = _mm_max_ps(z_hi, pick(qz, minus_inf));
-    }
-    const auto least = [](__m128 v) {
-      v = _mm_min_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2)));
-      return _mm_cvtss_f32(_mm_min_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(2, 3, 0, 1))));
-    };
-    const auto most = [](__m128 v) {
-      v = _mm_max_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2)));
-      return _mm_cvtss_f32(_mm_max_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(2, 3, 0, 1))));
-    };
-    lo[0] = least(x_lo);
-    lo[1] = least(y_lo);
-    lo[2] = least(z_lo);
-    hi[0] = most(x_hi);
-    hi[1] = most(y_hi);
-    hi[2] = most(z_hi);
-#else
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = kInfinity;
-      hi[k] = -kInfinity;
-    }
-    for (; j < B.end; ++j) {
-      const float q[3] = {ux[j], uy[j], uz[j]};
-      if (Classify(A.lo, A.hi, q, q, test_) == kReject) continue;
-      near |= std::uint64_t{1} << (j - B.begin);
-      for (int k = 0; k < 3; ++k) {
-        lo[k] = std::min(lo[k], q[k]);
-        hi[k] = std::max(hi[k], q[k]);
-      }
-    }
-#endif
-    return near;
+    return NearBox(lanes_, up_.x.data() + B.begin, up_.y.data() + B.begin, up_.z.data() + B.begin,
+                   B.end - B.begin, A.lo, A.hi, test_, lo, hi);
   }
 
   // An upper leaf's points near the lower leaf, packed side by side (padded to a multiple of

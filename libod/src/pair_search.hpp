@@ -111,6 +111,23 @@ struct PairSearchResult {
   DetectionStats stats;
 };
 
+/// The leaves' box tests (3. above), `lanes` (VectorLanes(): 16, 8, 4 or 1) points at a time,
+/// every width with Classify's float operations in its order. At most 64 points, read up to
+/// three past `count` (a tree's padding).
+///
+/// The lower points [0, count) of x, y, z against the box of upper points b_lo..b_hi: bit k of
+/// `keep` is set unless the box rejects point k (none of its points can be a partner), of
+/// `accept` when it accepts it (every one is).
+void ClassifyByBox(int lanes, const float* x, const float* y, const float* z, int count,
+                   const float* b_lo, const float* b_hi, const PairTest& test, std::uint64_t& keep,
+                   std::uint64_t& accept);
+/// The upper points [0, count) of x, y, z against the box of lower points a_lo..a_hi: bit k
+/// unless the box rejects point k; `lo` and `hi` get the box of the points kept (empty: +inf
+/// and -inf, when there are none).
+std::uint64_t NearBox(int lanes, const float* x, const float* y, const float* z, int count,
+                      const float* a_lo, const float* a_hi, const PairTest& test, float* lo,
+                      float* hi);
+
 /// Searches the pairs (lower point in `lower`, upper point in `upper`), two trees over the
 /// same image of `pixels` pixels with the same number of roots (matched by position).
 PairSearchResult SearchPairs(const PointTree& lower, const PointTree& upper, int pixels,
