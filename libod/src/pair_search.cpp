@@ -708,43 +708,60 @@ class Cells {
   static_assert(std::is_integral_v<T> && __atomic_always_lock_free(sizeof(T), 0));
 
  public:
+  // The cells through a pointer of the caller's: held in a local, it is not loaded again after
+  // every byte store (which may alias anything in memory, the vector's own pointer too).
+  class View {
+   public:
+    explicit View(T* v) : v_(v) {}
+    T operator[](std::size_t i) const {
+      if constexpr (kAtomic) {
+        return __atomic_load_n(&v_[i], __ATOMIC_RELAXED);
+      } else {
+        return v_[i];
+      }
+    }
+    void Set(std::size_t i, T value) const {
+      if constexpr (kAtomic) {
+        __atomic_store_n(&v_[i], value, __ATOMIC_RELAXED);
+      } else {
+        v_[i] = value;
+      }
+    }
+    // Adds `bits` to element i. A cell that has them already is not written: a store, even of
+    // the same value, would take its cache line from the other workers.
+    void Add(std::size_t i, T bits) const {
+      if ((operator[](i) & bits) == bits) return;
+      if constexpr (kAtomic) {
+        __atomic_fetch_or(&v_[i], bits, __ATOMIC_RELAXED);
+      } else {
+        v_[i] |= bits;
+      }
+    }
+    // Sets element i to `desired` if it is `expected`; returns whether it did.
+    bool CompareExchange(std::size_t i, T expected, T desired) const {
+      if constexpr (kAtomic) {
+        return __atomic_compare_exchange_n(&v_[i], &expected, desired, false, __ATOMIC_RELAXED,
+                                           __ATOMIC_RELAXED);
+      } else {
+        if (v_[i] != expected) return false;
+        v_[i] = desired;
+        return true;
+      }
+    }
+
+   private:
+    T* v_;
+  };
+
   explicit Cells(std::size_t n) : v_(n, T{}) {}
   explicit Cells(std::vector<T> values) : v_(std::move(values)) {}
   std::size_t size() const { return v_.size(); }
-  T operator[](std::size_t i) const {
-    if constexpr (kAtomic) {
-      return __atomic_load_n(&v_[i], __ATOMIC_RELAXED);
-    } else {
-      return v_[i];
-    }
-  }
-  void Set(std::size_t i, T value) {
-    if constexpr (kAtomic) {
-      __atomic_store_n(&v_[i], value, __ATOMIC_RELAXED);
-    } else {
-      v_[i] = value;
-    }
-  }
-  // Adds `bits` to element i. A cell that has them already is not written: a store, even of
-  // the same value, would take its cache line from the other workers.
-  void Add(std::size_t i, T bits) {
-    if ((operator[](i) & bits) == bits) return;
-    if constexpr (kAtomic) {
-      __atomic_fetch_or(&v_[i], bits, __ATOMIC_RELAXED);
-    } else {
-      v_[i] |= bits;
-    }
-  }
-  // Sets element i to `desired` if it is `expected`; returns whether it did.
+  View view() { return View(v_.data()); }
+  T operator[](std::size_t i) const { return View(const_cast<T*>(v_.data()))[i]; }
+  void Set(std::size_t i, T value) { view().Set(i, value); }
+  void Add(std::size_t i, T bits) { view().Add(i, bits); }
   bool CompareExchange(std::size_t i, T expected, T desired) {
-    if constexpr (kAtomic) {
-      return __atomic_compare_exchange_n(&v_[i], &expected, desired, false, __ATOMIC_RELAXED,
-                                         __ATOMIC_RELAXED);
-    } else {
-      if (v_[i] != expected) return false;
-      v_[i] = desired;
-      return true;
-    }
+    return view().CompareExchange(i, expected, desired);
   }
   // The values, once no worker writes any more; the cells are left empty.
   std::vector<T> Take() { return std::move(v_); }
@@ -978,7 +995,13 @@ class alignas(64) Search {
     // Raw pointers: the flag stores below may alias anything, which would reload the
     // vectors' data on every step.
     const std::int32_t* upix = up_.pixel.data();
+    const std::int32_t* lpix = lo_.pixel.data();
+    const float* lx = lo_.x.data();
+    const float* ly = lo_.y.data();
     const float* lz = lo_.z.data();
+    const auto lower = lower_.view();
+    const auto raised = raised_.view();
+    const auto parent = parent_.view();
     const float hmax = test_.max_height;
     const bool b_done = (flags_up_[b] & kFull) && (!unions_ || (flags_up_[b] & kUnified));
     const int b_first = upix[B.begin];
@@ -1007,11 +1030,11 @@ class alignas(64) Search {
     for (; keep != 0; keep &= keep - 1) {
       const int k = __builtin_ctzll(keep);
       const int i = i_begin + k;
-      const float p[3] = {lo_.x[i], lo_.y[i], lo_.z[i]};
-      const int pi = lo_.pixel[i];
-      if (b_done && lower_[pi] && (!unions_ || SameSet(pi, b_first))) continue;
+      const float p[3] = {lx[i], ly[i], lz[i]};
+      const int pi = lpix[i];
+      if (b_done && lower[pi] && (!unions_ || SameSet(pi, b_first))) continue;
       if ((accept >> k) & 1) {
-        lower_.Add(pi, 1);
+        lower.Add(pi, 1);
         stats_.pairs_compatible += Size(B);
         Mark(up_, flags_up_, b, raised_);
         if (unions_) {
@@ -1025,7 +1048,7 @@ class alignas(64) Search {
       int root = unions_ ? Find(pi) : 0;
       // A point with a partner already meets, among B's points raised in its set, none that
       // can change anything: only the others are taken as partners.
-      if (unions_ && lower_[pi]) {
+      if (unions_ && lower[pi]) {
         if (root != done_root) {
           done_root = root;
           done_bits = DoneBits(packed, root);
@@ -1040,20 +1063,20 @@ class alignas(64) Search {
         ++stats_.pairs_compatible;
         any = true;
         const int pj = upix[j];
-        raised_.Add(pj, 1);
+        raised.Add(pj, 1);
         // A partner whose parent is `root` (p's root when found, in p's set however the
         // workers link since: sets only grow) is in p's set already: most are, and skip the
         // walk to their root.
-        if (unions_ && parent_[pj] != root) {
+        if (unions_ && parent[pj] != root) {
           const int rj = Find(pj);
           if (rj != root) root = Union(root, rj);
         }
-        return b_done && (!unions_ || parent_[b_first] == root || root == Find(b_first));
+        return b_done && (!unions_ || parent[b_first] == root || root == Find(b_first));
       };
       for (; hits != 0; hits &= hits - 1) {
         if (partner(packed.at[__builtin_ctzll(hits)])) break;
       }
-      if (any) lower_.Add(pi, 1);
+      if (any) lower.Add(pi, 1);
     }
     UpdateLeaf(lo_, flags_lo_, a, lower_);
     UpdateLeaf(up_, flags_up_, b, raised_);
