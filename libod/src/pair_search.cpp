@@ -1027,6 +1027,7 @@ class alignas(64) Search {
     if (!all_near) accept = 0;
     Packed packed;
     if ((keep & ~accept) != 0) Pack(B, near, packed);
+    bool found = false;  // some pair of the two leaves
     for (; keep != 0; keep &= keep - 1) {
       const int k = __builtin_ctzll(keep);
       const int i = i_begin + k;
@@ -1034,6 +1035,7 @@ class alignas(64) Search {
       const int pi = lpix[i];
       if (b_done && lower[pi] && (!unions_ || SameSet(pi, b_first))) continue;
       if ((accept >> k) & 1) {
+        found = true;
         lower.Add(pi, 1);
         stats_.pairs_compatible += Size(B);
         Mark(up_, flags_up_, b, raised_);
@@ -1076,8 +1078,14 @@ class alignas(64) Search {
       for (; hits != 0; hits &= hits - 1) {
         if (partner(packed.at[__builtin_ctzll(hits)])) break;
       }
-      if (any) lower.Add(pi, 1);
+      if (any) {
+        lower.Add(pi, 1);
+        found = true;
+      }
     }
+    // The leaves' flags are hints (work skipped when set): a pair of leaves that found no pair
+    // leaves them to be set by a later one.
+    if (!found) return;
     UpdateLeaf(lo_, flags_lo_, a, lower_);
     UpdateLeaf(up_, flags_up_, b, raised_);
   }
