@@ -105,7 +105,8 @@ void SortColumn(ColumnPoint* points, int m) {
 constexpr std::uint8_t kBitCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
 
 // Neighbourhoods (a bin and the two beside it) of at most this many points are searched
-// four points at a time without windows; larger ones (dense images) by windows.
+// four, eight or sixteen points at a time (simd.hpp) without windows; larger ones (dense
+// images) by windows.
 constexpr int kDirectPoints = 48;
 
 // Lanes k with bit k of `bits` set all ones, the others zero.
@@ -184,14 +185,15 @@ __attribute__((target("avx512f,popcnt"))) bool DirectAvx512(
 // of its own and the two neighbouring bins from the first more than HT above it (as the
 // pair test rounds the difference, which grows with the upper height) to the last less than
 // Hmax above. Where the three bins hold at most kDirectPoints (a LiDAR column, mostly), p
-// meets all of them four at a time (SSE2), the window a mask, and every pair is found. Where
-// they hold more (or without SSE2) (a dense image's column, whose faces hold hundreds of points
-// each within Hmax of another), a point needs only one partner each way: p's window is searched up
-// to its first hit, and then each point not yet marked as an upper point searches the window below
-// it, nearest first, up to its first hit. The points of a bin stop at the first with no
-// point of those bins more than HT above it. The columns are gathered kBlockColumns at a
-// time, row by row, bottom row first, into reused buffers, and their marks stored row by
-// row once the block is done.
+// meets all of them four at a time (SSE2; eight or sixteen where the processor has AVX2 or
+// AVX-512F, simd.hpp), the window a mask, and every pair is found. Where
+// they hold more (or without SSE2, or with the lanes capped to one) (a dense image's column, whose
+// faces hold hundreds of points each within Hmax of another), a point needs only one partner each
+// way: p's window is searched up to its first hit, and then each point not yet marked as an upper
+// point searches the window below it, nearest first, up to its first hit. The points of a bin stop
+// at the first with no point of those bins more than HT above it. The columns are gathered
+// kBlockColumns at a time, row by row, bottom row first, into reused buffers, and their marks
+// stored row by row once the block is done.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
                             int height) {
   const int n = width * height;
@@ -255,7 +257,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
                                  LaneMask(12), LaneMask(13), LaneMask(14), LaneMask(15)};
 #endif
   const float ht = test.min_height, hmax = test.max_height, tan2 = test.tan2_theta;
-  const int lanes = internal::VectorLanes();
+  [[maybe_unused]] const int lanes = internal::VectorLanes();
   // The bins are wider than the reach by a margin covering the rounding of u. Bin numbers
   // are clamped to +-1e9: a bin that far out holds nothing within reach of the others.
   const double bin_width =
@@ -333,8 +335,9 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       return g + 1 < nb && bins[g + 1].bin == bins[g].bin + 1 ? g + 2 : g + 1;
     };
     // Each point as the lower one: whether some point of the near bins is compatible with it.
-    // With SSE2, where they hold at most kDirectPoints, every one of them is tested, four at a
-    // time, and every hit marked; else (and always without SSE2) each bin's window is searched
+    // With SSE2, where they hold at most kDirectPoints, every one of them is tested, four,
+    // eight or sixteen at a time, and every hit marked; else (and always without SSE2 or with
+    // the lanes capped to one) each bin's window is searched
     // up to the first hit, and the bin is `searched`: the upper points it leaves unmarked are
     // settled below.
     bool any_searched = false;
@@ -345,7 +348,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
 #if defined(__SSE2__)
       const int r0 = bins[h0].begin, r1 = bins[h1 - 1].end;
       if (lanes >= 4 && r1 - r0 <= kDirectPoints) {
-        // Few points near: each lower point meets all of them four at a time, the window
+        // Few points near: each lower point meets all of them 4, 8 or 16 at a time, the window
         // HT..Hmax and the slope as bit masks (the pair test's float operations in its
         // order), without a branch on either.
         const __m128 vht = _mm_set1_ps(ht), vhmax = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);

@@ -576,9 +576,9 @@ __attribute__((target("avx512f"))) void ClassifyAvx512(const float* x, const flo
 
 }  // namespace
 
-void ClassifyByBox(int lanes, const float* lx, const float* ly, const float* lz, int count,
-                   const float* b_lo, const float* b_hi, const PairTest& test, std::uint64_t& keep,
-                   std::uint64_t& accept) {
+void ClassifyByBox([[maybe_unused]] int lanes, const float* lx, const float* ly, const float* lz,
+                   int count, const float* b_lo, const float* b_hi, const PairTest& test,
+                   std::uint64_t& keep, std::uint64_t& accept) {
   int i = 0;
 #if defined(CAIRN_OD_WIDE_VECTORS)
   if (lanes == 16) {
@@ -623,9 +623,9 @@ void ClassifyByBox(int lanes, const float* lx, const float* ly, const float* lz,
   }
 }
 
-std::uint64_t NearBox(int lanes, const float* ux, const float* uy, const float* uz, int count,
-                      const float* a_lo, const float* a_hi, const PairTest& test, float* lo,
-                      float* hi) {
+std::uint64_t NearBox([[maybe_unused]] int lanes, const float* ux, const float* uy, const float* uz,
+                      int count, const float* a_lo, const float* a_hi, const PairTest& test,
+                      float* lo, float* hi) {
   constexpr float kInfinity = std::numeric_limits<float>::infinity();
   std::uint64_t near = 0;
   int j = 0;
@@ -1084,7 +1084,7 @@ class alignas(64) Search {
       }
     }
     // The leaves' flags are hints (work skipped when set): a pair of leaves that found no pair
-    // leaves them to be set by a later one.
+    // leaves them unset, for a later pair that finds one to set, if there is one.
     if (!found) return;
     UpdateLeaf(lo_, flags_lo_, a, lower_);
     UpdateLeaf(up_, flags_up_, b, raised_);
@@ -1184,7 +1184,7 @@ class alignas(64) Search {
   Flags& raised_;
   Flags& flags_lo_;
   Flags& flags_up_;
-  const int lanes_;  // Hits' width (simd.hpp)
+  const int lanes_;  // the width of Hits and the box tests (simd.hpp)
   DetectionStats stats_;
 };
 

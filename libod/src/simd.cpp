@@ -9,8 +9,11 @@ namespace {
 int Widest() {
 #if defined(CAIRN_OD_WIDE_VECTORS)
   __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx512f")) return 16;
-  if (__builtin_cpu_supports("avx2")) return 8;
+  // The wide kernels count bits with POPCNT too (every processor with AVX2 has it).
+  if (__builtin_cpu_supports("popcnt")) {
+    if (__builtin_cpu_supports("avx512f")) return 16;
+    if (__builtin_cpu_supports("avx2")) return 8;
+  }
 #endif
 #if defined(__SSE2__)
   return 4;
