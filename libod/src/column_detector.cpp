@@ -105,7 +105,7 @@ void SortColumn(ColumnPoint* points, int m) {
 constexpr std::uint8_t kBitCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
 
 // Neighbourhoods (a bin and the two beside it) of at most this many points are searched
-// four, eight or sixteen points at a time (simd.hpp) without windows; larger ones (dense
+// four or sixteen points at a time (simd.hpp) without windows; larger ones (dense
 // images) by windows.
 constexpr int kDirectPoints = 48;
 
@@ -118,37 +118,11 @@ __m128 LaneMask(int bits) {
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
 // FindColumnPairs' test of one lower point p with the points [r0, r1) of its neighbourhood,
-// eight (AVX2) or sixteen (AVX-512F) at a time, with the pair test's float operations in its
-// order: the upper points hit get all ones in `upper_hit`; `tested` and `compatible` count the
-// points HT..Hmax above p and the hits. Returns whether p has a partner. Reads up to fifteen
-// points past r1 (the padding), which do not count.
-__attribute__((target("avx2,popcnt"))) bool DirectAvx2(
-    const float* cx, const float* cy, const float* cz, int r0, int r1, const float* p,
-    const PairTest& t, std::int32_t* upper_hit, std::int64_t& tested, std::int64_t& compatible) {
-  const __m256 px = _mm256_set1_ps(p[0]), py = _mm256_set1_ps(p[1]), pz = _mm256_set1_ps(p[2]);
-  const __m256 vht = _mm256_set1_ps(t.min_height), vh = _mm256_set1_ps(t.max_height);
-  const __m256 vt = _mm256_set1_ps(t.tan2_theta);
-  int any = 0;
-  for (int j = r0; j < r1; j += 8) {
-    const int valid = r1 - j >= 8 ? 0xff : (1 << (r1 - j)) - 1;
-    const __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(cz + j), pz);
-    const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(cx + j), px);
-    const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(cy + j), py);
-    const __m256 window =
-        _mm256_and_ps(_mm256_cmp_ps(dz, vht, _CMP_GT_OQ), _mm256_cmp_ps(dz, vh, _CMP_LT_OQ));
-    const __m256 steep = _mm256_cmp_ps(
-        _mm256_mul_ps(dz, dz),
-        _mm256_mul_ps(vt, _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy))), _CMP_GT_OQ);
-    const int in_window = _mm256_movemask_ps(window) & valid;
-    const int bits = _mm256_movemask_ps(_mm256_and_ps(window, steep)) & valid;
-    tested += __builtin_popcount(in_window);
-    compatible += __builtin_popcount(bits);
-    any |= bits;
-    for (int b = bits; b != 0; b &= b - 1) upper_hit[j + __builtin_ctz(b)] = -1;
-  }
-  return any != 0;
-}
-
+// sixteen at a time (AVX-512F; an AVX2 version, eight at a time, was slower than SSE2's four:
+// KITTI 5.1 -> 6.0 ms), with the pair test's float operations in its order: the upper points hit
+// get all ones in `upper_hit`; `tested` and `compatible` count the points HT..Hmax above p and the
+// hits. Returns whether p has a partner. Reads up to fifteen points past r1 (the padding), which do
+// not count.
 __attribute__((target("avx512f,popcnt"))) bool DirectAvx512(
     const float* cx, const float* cy, const float* cz, int r0, int r1, const float* p,
     const PairTest& t, std::int32_t* upper_hit, std::int64_t& tested, std::int64_t& compatible) {
@@ -185,8 +159,8 @@ __attribute__((target("avx512f,popcnt"))) bool DirectAvx512(
 // of its own and the two neighbouring bins from the first more than HT above it (as the
 // pair test rounds the difference, which grows with the upper height) to the last less than
 // Hmax above. Where the three bins hold at most kDirectPoints (a LiDAR column, mostly), p
-// meets all of them four at a time (SSE2; eight or sixteen where the processor has AVX2 or
-// AVX-512F, simd.hpp), the window a mask, and every pair is found. Where
+// meets all of them four at a time (SSE2; sixteen where the processor has AVX-512F,
+// simd.hpp), the window a mask, and every pair is found. Where
 // they hold more (or without SSE2, or with the lanes capped to one) (a dense image's column, whose
 // faces hold hundreds of points each within Hmax of another), a point needs only one partner each
 // way: p's window is searched up to its first hit, and then each point not yet marked as an upper
@@ -335,8 +309,8 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       return g + 1 < nb && bins[g + 1].bin == bins[g].bin + 1 ? g + 2 : g + 1;
     };
     // Each point as the lower one: whether some point of the near bins is compatible with it.
-    // With SSE2, where they hold at most kDirectPoints, every one of them is tested, four,
-    // eight or sixteen at a time, and every hit marked; else (and always without SSE2 or with
+    // With SSE2, where they hold at most kDirectPoints, every one of them is tested, four
+    // or sixteen at a time, and every hit marked; else (and always without SSE2 or with
     // the lanes capped to one) each bin's window is searched
     // up to the first hit, and the bin is `searched`: the upper points it leaves unmarked are
     // settled below.
@@ -348,7 +322,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
 #if defined(__SSE2__)
       const int r0 = bins[h0].begin, r1 = bins[h1 - 1].end;
       if (lanes >= 4 && r1 - r0 <= kDirectPoints) {
-        // Few points near: each lower point meets all of them 4, 8 or 16 at a time, the window
+        // Few points near: each lower point meets all of them 4 or 16 at a time, the window
         // HT..Hmax and the slope as bit masks (the pair test's float operations in its
         // order), without a branch on either.
         const __m128 vht = _mm_set1_ps(ht), vhmax = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
@@ -356,12 +330,10 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
           const float pz_scalar = cz[k];
           if (!(top - pz_scalar > ht)) break;  // nothing more than HT above this point or the next
 #if defined(CAIRN_OD_WIDE_VECTORS)
-          if (lanes > 4) {
+          if (lanes == 16) {
             const float p[3] = {cx[k], cy[k], pz_scalar};
-            const bool any = lanes == 16 ? DirectAvx512(cx, cy, cz, r0, r1, p, test, upper_hit,
-                                                        pairs_tested, pairs_compatible)
-                                         : DirectAvx2(cx, cy, cz, r0, r1, p, test, upper_hit,
-                                                      pairs_tested, pairs_compatible);
+            const bool any = DirectAvx512(cx, cy, cz, r0, r1, p, test, upper_hit, pairs_tested,
+                                          pairs_compatible);
             lower_hit[k] |= any ? -1 : 0;
             continue;
           }
