@@ -39,6 +39,7 @@
 #include "cairn/sim/render.hpp"
 #include "cairn/sim/world.hpp"
 #include "detection_internal.hpp"  // libod/src: the features stage
+#include "pair_search.hpp"         // libod/src: the candidates stage
 
 namespace {
 
@@ -480,6 +481,33 @@ void BM_Features(benchmark::State& state, const std::string& name) {
   state.counters["segments"] = static_cast<double>(last.segments.size());
 }
 
+// The exact detector's first stage (od::internal::FindCandidates), one thread: the points that
+// may be the lower or the upper point of a pair. Checked to keep every obstacle point of the
+// reference (each is one or the other), and counted: the share of the valid points kept.
+void BM_Candidates(benchmark::State& state, const std::string& name) {
+  Frame* f = FrameOrSkip(state, name);
+  if (f == nullptr || !f->reference) return;
+  const od::DetectorConfig config = OneThread(*f);
+  const od::internal::LevelPoints level(f->image, 1, config.min_range_m);
+  const od::PairTest test(config);
+  od::internal::Candidates last;
+  for (auto _ : state) {
+    last = od::internal::FindCandidates(level, test, 1);
+    benchmark::DoNotOptimize(last);
+  }
+  const std::vector<std::int32_t>& labels = f->reference->labels;
+  std::int64_t kept = 0;
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    kept += last.lower[i] || last.upper[i];
+    if (labels[i] != 0 && !last.lower[i] && !last.upper[i]) {
+      g_differs = true;
+      state.SkipWithError((name + ": an obstacle point is no candidate").c_str());
+      return;
+    }
+  }
+  state.counters["kept"] = static_cast<double>(kept) / std::max(1, f->image.valid_count());
+}
+
 // Growth of the cost: Hmax (range(0), cm) on a frame, one thread.
 void BM_DetectHmax(benchmark::State& state, const std::string& name) {
   Frame* f = FrameOrSkip(state, name);
@@ -510,6 +538,7 @@ void Register() {
         ->Arg(1)
         ->Arg(0);
     ms(benchmark::RegisterBenchmark(("Columns/" + name).c_str(), BM_Columns, name));
+    ms(benchmark::RegisterBenchmark(("Candidates/" + name).c_str(), BM_Candidates, name));
     ms(benchmark::RegisterBenchmark(("Features/" + name).c_str(), BM_Features, name));
     ms(benchmark::RegisterBenchmark(("Rules/" + name).c_str(), BM_Rules, name));
     ms(benchmark::RegisterBenchmark(("PaperWindow/" + name).c_str(), BM_PaperWindow, name));
