@@ -303,6 +303,15 @@ double MedianMs(std::vector<double> ms) {
   return ms[ms.size() / 2];
 }
 
+// A frame whose reference failed: an error that fails the run (a benchmark that returns
+// before its loop without one aborts the process).
+bool NoReference(benchmark::State& state, const std::string& name, const Frame& f) {
+  if (f.reference) return false;
+  g_differs = true;
+  state.SkipWithError((name + ": the reference (" + f.reference_name + ") failed").c_str());
+  return true;
+}
+
 Frame* FrameOrSkip(benchmark::State& state, const std::string& name) {
   Frame* f = Get(name);
   if (f == nullptr) state.SkipWithError((name + ": its data is absent").c_str());
@@ -429,7 +438,7 @@ void BM_Layout(benchmark::State& state, const std::string& name) {
 
 void BM_Rules(benchmark::State& state, const std::string& name) {
   Frame* f = FrameOrSkip(state, name);
-  if (f == nullptr || !f->reference) return;
+  if (f == nullptr || NoReference(state, name, *f)) return;
   for (auto _ : state) {
     benchmark::DoNotOptimize(od::Classify(*f->reference, f->settings.rules));
   }
@@ -440,7 +449,7 @@ void BM_Rules(benchmark::State& state, const std::string& name) {
 // inside them; every segment point that is not a foot stands in for them here.
 void BM_Features(benchmark::State& state, const std::string& name) {
   Frame* f = FrameOrSkip(state, name);
-  if (f == nullptr || !f->reference) return;
+  if (f == nullptr || NoReference(state, name, *f)) return;
   const od::Detection& r = *f->reference;
   const od::internal::LevelPoints level(f->image);
   std::vector<std::int32_t> component(r.labels.size(), -1), first(r.segments.size() + 1, -1);
@@ -486,7 +495,7 @@ void BM_Features(benchmark::State& state, const std::string& name) {
 // reference (each is one or the other), and counted: the share of the valid points kept.
 void BM_Candidates(benchmark::State& state, const std::string& name) {
   Frame* f = FrameOrSkip(state, name);
-  if (f == nullptr || !f->reference) return;
+  if (f == nullptr || NoReference(state, name, *f)) return;
   const od::DetectorConfig config = OneThread(*f);
   const od::internal::LevelPoints level(f->image, 1, config.min_range_m);
   const od::PairTest test(config);
@@ -496,16 +505,18 @@ void BM_Candidates(benchmark::State& state, const std::string& name) {
     benchmark::DoNotOptimize(last);
   }
   const std::vector<std::int32_t>& labels = f->reference->labels;
-  std::int64_t kept = 0;
+  std::int64_t kept = 0, valid = 0;
   for (std::size_t i = 0; i < labels.size(); ++i) {
     kept += last.lower[i] || last.upper[i];
+    valid += level.z[i] == level.z[i];  // min_range's returns are not
     if (labels[i] != 0 && !last.lower[i] && !last.upper[i]) {
       g_differs = true;
       state.SkipWithError((name + ": an obstacle point is no candidate").c_str());
       return;
     }
   }
-  state.counters["kept"] = static_cast<double>(kept) / std::max(1, f->image.valid_count());
+  state.counters["kept"] =
+      static_cast<double>(kept) / static_cast<double>(std::max<std::int64_t>(1, valid));
 }
 
 // Growth of the cost: Hmax (range(0), cm) on a frame, one thread.
