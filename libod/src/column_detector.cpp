@@ -82,8 +82,15 @@ std::uint64_t ColumnKey(std::int32_t bin, float z) {
 
 // Sorts by key. A column gathered from its bottom row up comes nearly sorted (the ground
 // recedes, faces rise), so an insertion sort is linear; past a budget of moves it hands
-// over to std::sort.
-void SortColumn(ColumnPoint* points, int m) {
+// over to std::sort, and returns false. With `try_insertion` false it goes to std::sort at
+// once (the column before overflowed: neighbouring columns see the same scene).
+bool SortColumn(ColumnPoint* points, int m, bool try_insertion) {
+  const auto sort = [&] {
+    std::sort(points, points + m,
+              [](const ColumnPoint& a, const ColumnPoint& b) { return a.key < b.key; });
+    return false;
+  };
+  if (!try_insertion) return sort();
   const long budget = 8L * m + 64;
   long moves = 0;
   for (int k = 1; k < m; ++k) {
@@ -92,12 +99,9 @@ void SortColumn(ColumnPoint* points, int m) {
     for (; j > 0 && points[j - 1].key > v.key; --j) points[j] = points[j - 1];
     points[j] = v;
     moves += k - j;
-    if (moves > budget) {
-      std::sort(points, points + m,
-                [](const ColumnPoint& a, const ColumnPoint& b) { return a.key < b.key; });
-      return;
-    }
+    if (moves > budget) return sort();
   }
+  return true;
 }
 
 #if defined(__SSE2__)
@@ -266,6 +270,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     const float dx = cx[up] - cx[lo], dy = cy[up] - cy[lo];
     return window && dz * dz > tan2 * (dx * dx + dy * dy);
   };
+  bool nearly_sorted = true;  // the last column sorted came nearly sorted
   for (int c = 0; c < width; ++c) {
     const int b = c % kBlockColumns;
     if (b == 0) {
@@ -287,7 +292,8 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     }
     direction(mx, my);
     if (m < 2) continue;
-    SortColumn(column, m);
+    // After a column that overflowed, every kBlockColumns-th column tries again.
+    nearly_sorted = SortColumn(column, m, nearly_sorted || b == 0);
     bins.clear();
     for (int k = 0; k < m; ++k) {
       const auto bin = static_cast<std::int32_t>((column[k].key >> 32) ^ 0x80000000u);
