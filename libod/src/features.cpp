@@ -232,15 +232,13 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
   const int m = static_cast<int>(members.size());
   det.stats.obstacle_points = m;
   if (m == 0) return det;
-  // Ids in row-major order of first pixels; id_of_rep maps a representative to its id.
+  // Ids in row-major order of first pixels. A segment's representative is its first pixel,
+  // met before its other members, so the labels map representatives to ids (no array of
+  // the image's size to clear and fill).
   int segments = 0;
-  {
-    std::vector<std::int32_t> id_of_rep(n, 0);
-    for (const int i : members) {
-      std::int32_t& id = id_of_rep[component[i]];
-      if (id == 0) id = ++segments;
-      det.labels[i] = id;
-    }
+  for (const int i : members) {
+    const int rep = component[i];
+    det.labels[i] = rep == i ? ++segments : det.labels[rep];
   }
   // The sums run over parts of the members, each part's per segment, added in order: how
   // the members are cut depends on the members only, so the result does not depend on the
