@@ -672,6 +672,36 @@ TEST(PairSearch, FeaturesOfTheDemoFrameAreTheSameOnAnyThreadsAndMatchTheirDefini
   ExpectFeaturesFollowTheirDefinitions(image, one, "demo frame");
 }
 
+// BuildDetection's segments named by an earlier member (as the search's union-find parents
+// name them) give what their first pixels give: here each member names the member of its
+// segment just before it, which makes chains as long as the segments.
+TEST(PairSearch, SegmentsNamedByEarlierMembersGetTheLabelsOfTheirFirstPixels) {
+  const RangeImage image = DemoFrame();
+  DetectorConfig config = DemoConfig();
+  config.threads = 1;
+  const Detection d = *Detect(image, config);
+  ASSERT_GT(d.segments.size(), 2u);
+  const int n = image.size();
+  std::vector<std::int32_t> first(n, -1), previous(n, -1), last(d.segments.size() + 1, -1);
+  std::vector<std::uint8_t> raised(n, 0);
+  for (int i = 0; i < n; ++i) {
+    const int id = d.labels[i];
+    if (id == 0) continue;
+    first[i] = last[id] < 0 ? i : first[last[id]];
+    previous[i] = last[id] < 0 ? i : last[id];
+    last[id] = i;
+    raised[i] = d.foot[i] == 0;
+  }
+  const internal::LevelPoints level(image);
+  const float ht = static_cast<float>(config.min_height_m);
+  const Detection by_first = internal::BuildDetection(image, level, first, raised, ht, d.stats);
+  const Detection by_previous =
+      internal::BuildDetection(image, level, previous, raised, ht, d.stats);
+  ExpectSame(by_previous, by_first, "previous member against first pixel");
+  // (Their raised counts are the stand-in marks', not Detect's.)
+  EXPECT_TRUE(by_first.labels == d.labels && by_first.foot == d.foot);
+}
+
 // The same on LiDAR scans whose near objects straddle the seam of the azimuth (columns
 // 0 and width - 1, neighbours on a spherical image), at random settings.
 TEST(PairSearch, FeaturesOfLidarScansAcrossTheSeamMatchTheirDefinitions) {

@@ -131,9 +131,11 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   ParallelFor(
       kParts, threads,
       [&](int k) {
+        // A point's parent: itself for a set's first pixel (its root), else a pixel of its set
+        // before it, which is what BuildDetection asks for (no walk to the root).
         const int end = internal::PartBegin(n, k + 1, kParts);
         for (int i = internal::PartBegin(n, k, kParts); i < end; ++i) {
-          if (found.lower[i] || found.raised[i]) component[i] = found.set[i];
+          if (found.lower[i] || found.raised[i]) component[i] = found.parent[i];
         }
       },
       1);

@@ -232,13 +232,13 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
   const int m = static_cast<int>(members.size());
   det.stats.obstacle_points = m;
   if (m == 0) return det;
-  // Ids in row-major order of first pixels. A segment's representative is its first pixel,
-  // met before its other members, so the labels map representatives to ids (no array of
-  // the image's size to clear and fill).
+  // Ids in row-major order of first pixels. A member other than its segment's first pixel
+  // names a member before it, labelled already: its label is that one's (no array of the
+  // image's size to clear and fill).
   int segments = 0;
   for (const int i : members) {
-    const int rep = component[i];
-    det.labels[i] = rep == i ? ++segments : det.labels[rep];
+    const int before = component[i];
+    det.labels[i] = before == i ? ++segments : det.labels[before];
   }
   // The sums run over parts of the members, each part's per segment, added in order: how
   // the members are cut depends on the members only, so the result does not depend on the

@@ -1268,15 +1268,11 @@ PairSearchResult Run(const PointTree& lower, const PointTree& upper, int pixels,
   ParallelFor(
       static_cast<int>(tasks.size()), threads,
       [&](int worker, int k) { workers[worker].Visit(tasks[k].lower, tasks[k].upper); }, 1);
-  // Every worker's calls have returned: the findings are final. Each set's root is its smallest
-  // pixel, and a parent's index is below its child's, so one pass in index order finds them.
+  // Every worker's calls have returned: the findings are final.
   PairSearchResult r;
   r.lower = found.lower.Take();
   r.raised = found.raised.Take();
-  if (options.unions) {
-    r.set = found.parent.Take();
-    for (int i = 0; i < pixels; ++i) r.set[i] = r.set[r.set[i]];
-  }
+  if (options.unions) r.parent = found.parent.Take();
   for (const Search<kAtomic>& w : workers) {
     r.stats.pairs_tested += w.stats().pairs_tested;
     r.stats.pairs_compatible += w.stats().pairs_compatible;

@@ -102,9 +102,9 @@ struct PairSearchOptions {
 struct PairSearchResult {
   std::vector<std::uint8_t> lower;   ///< 1: the lower point of some compatible pair
   std::vector<std::uint8_t> raised;  ///< 1: the upper point of some compatible pair
-  /// With unions: a representative pixel per pixel, equal within a set (a pixel in no pair
-  /// is its own).
-  std::vector<std::int32_t> set;
+  /// With unions: the sets as a forest, a parent pixel per pixel (a pixel in no pair is its
+  /// own). Each set's root is its smallest pixel, and a parent's index is below its child's.
+  std::vector<std::int32_t> parent;
   /// pairs_tested: tested point by point with the upper point HT..Hmax above the lower;
   /// pairs_compatible: found (one by one or in accepted blocks; settled pairs are not looked
   /// at, so this is not the number of pairs).
