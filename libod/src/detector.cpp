@@ -125,17 +125,18 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
                      image.height(), leaf_rows, leaf_cols);
       },
       1);
-  const internal::PairSearchResult found = internal::SearchPairs(*lower, *upper, n, test, options);
-  std::vector<std::int32_t> component(n, -1);
+  internal::PairSearchResult found = internal::SearchPairs(*lower, *upper, n, test, options);
+  // A point's parent is itself for a set's first pixel (its root), else a pixel of its set
+  // before it, which is what BuildDetection asks for (no walk to the root); points in no pair
+  // get -1, in place.
+  std::vector<std::int32_t> component = std::move(found.parent);
   constexpr int kParts = 8;
   ParallelFor(
       kParts, threads,
       [&](int k) {
-        // A point's parent: itself for a set's first pixel (its root), else a pixel of its set
-        // before it, which is what BuildDetection asks for (no walk to the root).
         const int end = internal::PartBegin(n, k + 1, kParts);
         for (int i = internal::PartBegin(n, k, kParts); i < end; ++i) {
-          if (found.lower[i] || found.raised[i]) component[i] = found.parent[i];
+          if (!found.lower[i] && !found.raised[i]) component[i] = -1;
         }
       },
       1);
