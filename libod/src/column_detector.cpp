@@ -587,7 +587,8 @@ Detection Blobs(const RangeImage& image, const internal::LevelPoints& level,
     std::fill(component.begin() + runs[r].begin, component.begin() + runs[r].end,
               runs[root].begin);
   }
-  return internal::BuildDetection(image, level, component, pairs.raised, min_height, pairs.stats);
+  return internal::BuildDetection(image, level, std::move(component), pairs.raised, min_height,
+                                  pairs.stats);
 }
 
 // DetectColumns (fast = true) and DetectColumnsBruteForce.

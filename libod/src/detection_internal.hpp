@@ -128,17 +128,16 @@ inline void Inclinations(const double* squares, const double* verticals, double*
   for (; j < n; ++j) out[j] = Inclination(std::sqrt(squares[j]), verticals[j]);
 }
 
-/// Builds the Detection: `component[i]` is -1 when i is in no segment, i itself when i is its
-/// segment's first pixel (in row-major order), and otherwise a pixel of i's segment before i
-/// (its first, say, or its parent in a union-find whose roots are the sets' smallest pixels).
-/// Ids follow the row-major order of each segment's first pixel; features follow the
-/// definitions in detector.hpp.
-/// `raised[i]` is 1 where i is the upper point of some compatible pair; with `min_height`
-/// (HT) it decides the feet (Detection::foot). On up to `threads` threads (0: all), with the
-/// same result on any: the sums run over parts of the segments' points that the points
-/// alone decide.
+/// Builds the Detection (its labels in `component`'s storage): `component[i]` is -1 when i is in no
+/// segment, i itself when i is its segment's first pixel (in row-major order), and otherwise a
+/// pixel of i's segment before i (its first, say, or its parent in a union-find whose roots are the
+/// sets' smallest pixels). Ids follow the row-major order of each segment's first pixel; features
+/// follow the definitions in detector.hpp. `raised[i]` is 1 where i is the upper point of some
+/// compatible pair; with `min_height` (HT) it decides the feet (Detection::foot). On up to
+/// `threads` threads (0: all), with the same result on any: the sums run over parts of the
+/// segments' points that the points alone decide.
 Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
-                         const std::vector<std::int32_t>& component,
+                         std::vector<std::int32_t> component,
                          const std::vector<std::uint8_t>& raised, float min_height,
                          const DetectionStats& stats, int threads = 1);
 

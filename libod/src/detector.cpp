@@ -140,7 +140,7 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
         }
       },
       1);
-  return internal::BuildDetection(image, level, component, found.raised, test.min_height,
+  return internal::BuildDetection(image, level, std::move(component), found.raised, test.min_height,
                                   found.stats, threads);
 }
 

@@ -196,15 +196,17 @@ struct Partial {
 }  // namespace
 
 Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
-                         const std::vector<std::int32_t>& component,
+                         std::vector<std::int32_t> component,
                          const std::vector<std::uint8_t>& raised, float min_height,
                          const DetectionStats& stats, int threads) {
   const int n = image.size(), width = image.width(), height = image.height();
   Detection det;
   det.width = width;
   det.height = height;
-  det.labels.assign(n, 0);
+  // The names become the labels in place (no array of the image's size to fault in).
+  det.labels = std::move(component);
   det.foot.assign(n, 0);
+  std::int32_t* const labels = det.labels.data();
   det.stats = stats;
 
   // The segments' pixels, in row-major order (gathered in parts, joined in order): every
@@ -221,7 +223,9 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
         int count = 0;
         for (int i = begin; i < end; ++i) {
           part[count] = i;
-          count += component[i] >= 0;
+          const std::int32_t name = labels[i];
+          count += name >= 0;
+          labels[i] = name >= 0 ? name : 0;  // no segment: label 0
         }
         part.resize(count);
         gathered[k] = std::move(part);
@@ -237,8 +241,8 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
   // image's size to clear and fill).
   int segments = 0;
   for (const int i : members) {
-    const int before = component[i];
-    det.labels[i] = before == i ? ++segments : det.labels[before];
+    const int before = labels[i];
+    labels[i] = before == i ? ++segments : labels[before];
   }
   // The sums run over parts of the members, each part's per segment, added in order: how
   // the members are cut depends on the members only, so the result does not depend on the
