@@ -270,7 +270,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     const float dx = cx[up] - cx[lo], dy = cy[up] - cy[lo];
     return window && dz * dz > tan2 * (dx * dx + dy * dy);
   };
-  bool nearly_sorted = true;  // the last column sorted came nearly sorted
+  bool nearly_sorted = true;  // the last column sorted was sorted by insertion within its budget
   for (int c = 0; c < width; ++c) {
     const int b = c % kBlockColumns;
     if (b == 0) {

@@ -58,7 +58,8 @@ class UnionFind {
   void Union(int i, int j);
   /// Adds every union of `other` (over the same pixels) to this one.
   void Merge(UnionFind& other);
-  /// Representative per pixel, or -1 for a pixel alone in its set (no partner).
+  /// Per pixel its set's smallest pixel (the root), or -1 for a pixel alone in its set (no
+  /// partner).
   std::vector<std::int32_t> Components();
 
  private:

@@ -104,6 +104,8 @@ struct PairSearchResult {
   std::vector<std::uint8_t> raised;  ///< 1: the upper point of some compatible pair
   /// With unions: the sets as a forest, a parent pixel per pixel (a pixel in no pair is its
   /// own). Each set's root is its smallest pixel, and a parent's index is below its child's.
+  /// Every pixel of a set of two or more is marked lower or raised, so a marked pixel's
+  /// parent is marked too.
   std::vector<std::int32_t> parent;
   /// pairs_tested: tested point by point with the upper point HT..Hmax above the lower;
   /// pairs_compatible: found (one by one or in accepted blocks; settled pairs are not looked
