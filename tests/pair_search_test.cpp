@@ -284,6 +284,26 @@ TEST(LevelPoints, DropNearReturnsAsTheImageWould) {
             }
           }
         }
+        // The extent and count of the valid points, taken as they were stored, are those
+        // of the points themselves (widths 29..36: every remainder of four, the tail included).
+        float x_min = std::numeric_limits<float>::infinity(), x_max = -x_min;
+        float y_min = x_min, y_max = x_max;
+        int valid = 0;
+        for (int i = 0; i < image.size(); ++i) {
+          if (std::isnan(masked.z[i])) continue;
+          ++valid;
+          x_min = std::min(x_min, masked.x[i]);
+          x_max = std::max(x_max, masked.x[i]);
+          y_min = std::min(y_min, masked.y[i]);
+          y_max = std::max(y_max, masked.y[i]);
+        }
+        const std::string what = "width " + std::to_string(width) + ", min_range " +
+                                 std::to_string(min_range) + ", threads " + std::to_string(threads);
+        EXPECT_EQ(masked.valid, valid) << what;
+        EXPECT_EQ(masked.x_min, x_min) << what;
+        EXPECT_EQ(masked.x_max, x_max) << what;
+        EXPECT_EQ(masked.y_min, y_min) << what;
+        EXPECT_EQ(masked.y_max, y_max) << what;
       }
     }
   }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -21,6 +22,11 @@ namespace cairn::od::internal {
 /// Computed on up to `threads` threads (0: all).
 struct LevelPoints {
   std::vector<float> x, y, z;
+  /// The valid points' extent in x and y (+inf / -inf when there are none) and their count,
+  /// taken as the points are stored.
+  float x_min = std::numeric_limits<float>::infinity(), x_max = -x_min;
+  float y_min = x_min, y_max = -x_min;
+  int valid = 0;
   /// With min_range_m > 0, returns nearer than it to the sensor are NaN too, as
   /// RangeImage::DropReturnsNearerThan would have left them (the same test), without a copy
   /// of the image.

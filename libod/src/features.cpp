@@ -17,11 +17,58 @@ namespace cairn::od::internal {
 LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_m)
     : x(image.size()), y(image.size()), z(image.size()) {
   const Eigen::Matrix3f R = image.R_level_sensor().cast<float>();
+  constexpr float kInfinity = std::numeric_limits<float>::infinity();
   constexpr int kParts = 8;
   const int n = image.size();
+  // Each part's extent and count of valid points, taken from the values as they are stored
+  // (by the last pass over them): a < b ? a : b, lane by lane as _mm_min_ps(a, b) is, so that
+  // a NaN (an invalid point) never replaces a bound.
+  struct Extent {
+    float x_lo = kInfinity, x_hi = -kInfinity, y_lo = kInfinity, y_hi = -kInfinity;
+    int valid = 0;
+  };
+  std::array<Extent, kParts> extents;
+#if defined(__SSE2__)
+  struct Lanes {
+    __m128 x_lo = _mm_set1_ps(kInfinity), x_hi = _mm_set1_ps(-kInfinity);
+    __m128 y_lo = _mm_set1_ps(kInfinity), y_hi = _mm_set1_ps(-kInfinity);
+    __m128i minus_valid = _mm_setzero_si128();  // each lane's valid points as -1s
+    void Add(__m128 px, __m128 py, __m128 pz) {
+      minus_valid = _mm_add_epi32(minus_valid, _mm_castps_si128(_mm_cmpeq_ps(pz, pz)));
+      x_lo = _mm_min_ps(px, x_lo);
+      x_hi = _mm_max_ps(px, x_hi);
+      y_lo = _mm_min_ps(py, y_lo);
+      y_hi = _mm_max_ps(py, y_hi);
+    }
+    void Into(Extent& e) const {
+      alignas(16) float v[4][4];
+      alignas(16) std::int32_t counts[4];
+      _mm_store_ps(v[0], x_lo);
+      _mm_store_ps(v[1], x_hi);
+      _mm_store_ps(v[2], y_lo);
+      _mm_store_ps(v[3], y_hi);
+      _mm_store_si128(reinterpret_cast<__m128i*>(counts), minus_valid);
+      for (int l = 0; l < 4; ++l) {
+        e.x_lo = v[0][l] < e.x_lo ? v[0][l] : e.x_lo;
+        e.x_hi = v[1][l] > e.x_hi ? v[1][l] : e.x_hi;
+        e.y_lo = v[2][l] < e.y_lo ? v[2][l] : e.y_lo;
+        e.y_hi = v[3][l] > e.y_hi ? v[3][l] : e.y_hi;
+        e.valid -= counts[l];
+      }
+    }
+  };
+#endif
+  const auto add = [](Extent& e, float px, float py, float pz) {
+    e.valid += pz == pz;
+    e.x_lo = px < e.x_lo ? px : e.x_lo;
+    e.x_hi = px > e.x_hi ? px : e.x_hi;
+    e.y_lo = py < e.y_lo ? py : e.y_lo;
+    e.y_hi = py > e.y_hi ? py : e.y_hi;
+  };
   ParallelFor(
       kParts, threads,
       [&](int k) {
+        Extent& e = extents[k];
         const float r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2);
         const float r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2);
         const float r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
@@ -39,21 +86,31 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_
               _mm_add_ps(_mm_mul_ps(_mm_set1_ps(a), px), _mm_mul_ps(_mm_set1_ps(b), py)),
               _mm_mul_ps(_mm_set1_ps(c), pz));
         };
+        // The extent here when no return is dropped after (else in the pass that drops them).
+        const bool last_pass = !(min_range_m > 0.0);
+        Lanes lanes;
         for (; i + 4 <= end; i += 4) {
           const __m128 px = _mm_loadu_ps(sx + i), py = _mm_loadu_ps(sy + i),
                        pz = _mm_loadu_ps(sz + i);
-          _mm_storeu_ps(lx + i, row(r00, r01, r02, px, py, pz));
-          _mm_storeu_ps(ly + i, row(r10, r11, r12, px, py, pz));
-          _mm_storeu_ps(lz + i, row(r20, r21, r22, px, py, pz));
+          const __m128 qx = row(r00, r01, r02, px, py, pz), qy = row(r10, r11, r12, px, py, pz);
+          const __m128 qz = row(r20, r21, r22, px, py, pz);
+          _mm_storeu_ps(lx + i, qx);
+          _mm_storeu_ps(ly + i, qy);
+          _mm_storeu_ps(lz + i, qz);
+          if (last_pass) lanes.Add(qx, qy, qz);
         }
+        if (last_pass) lanes.Into(e);
+#else
+        const bool last_pass = !(min_range_m > 0.0);
 #endif
         for (; i < end; ++i) {
           // R p as (r0 x + r1 y) + r2 z, as the four at a time above; NaN stays NaN.
           lx[i] = r00 * sx[i] + r01 * sy[i] + r02 * sz[i];
           ly[i] = r10 * sx[i] + r11 * sy[i] + r12 * sz[i];
           lz[i] = r20 * sx[i] + r21 * sy[i] + r22 * sz[i];
+          if (last_pass) add(e, lx[i], ly[i], lz[i]);
         }
-        if (min_range_m > 0.0) {
+        if (!last_pass) {
           // DropReturnsNearerThan's test, in its double arithmetic (a NaN return compares
           // false and stays NaN).
           constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
@@ -70,6 +127,7 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_
                 _mm_add_pd(_mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)), _mm_mul_pd(dz, dz)),
                 vrange2);
           };
+          Lanes dropped;
           for (; j + 4 <= end; j += 4) {
             const __m128 px = _mm_loadu_ps(sx + j), py = _mm_loadu_ps(sy + j),
                          pz = _mm_loadu_ps(sz + j);
@@ -79,21 +137,34 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_
             // Each double lane's mask is all ones or zeros: its low 32 bits stand for it.
             const __m128 near =
                 _mm_shuffle_ps(_mm_castpd_ps(lo), _mm_castpd_ps(hi), _MM_SHUFFLE(2, 0, 2, 0));
-            for (float* out : {lx, ly, lz}) {
-              const __m128 v = _mm_loadu_ps(out + j);
-              _mm_storeu_ps(out + j, _mm_or_ps(_mm_and_ps(near, vnan), _mm_andnot_ps(near, v)));
+            __m128 q[3];
+            float* const outs[3] = {lx, ly, lz};
+            for (int c = 0; c < 3; ++c) {
+              const __m128 v = _mm_loadu_ps(outs[c] + j);
+              q[c] = _mm_or_ps(_mm_and_ps(near, vnan), _mm_andnot_ps(near, v));
+              _mm_storeu_ps(outs[c] + j, q[c]);
             }
+            dropped.Add(q[0], q[1], q[2]);
           }
+          dropped.Into(e);
 #endif
           for (; j < end; ++j) {
             const double r2 = static_cast<double>(sx[j]) * sx[j] +
                               static_cast<double>(sy[j]) * sy[j] +
                               static_cast<double>(sz[j]) * sz[j];
             if (r2 < range2) lx[j] = ly[j] = lz[j] = kNaN;
+            add(e, lx[j], ly[j], lz[j]);
           }
         }
       },
       1);
+  for (const Extent& e : extents) {
+    x_min = std::min(x_min, e.x_lo);
+    x_max = std::max(x_max, e.x_hi);
+    y_min = std::min(y_min, e.y_lo);
+    y_max = std::max(y_max, e.y_hi);
+    valid += e.valid;
+  }
 }
 
 RowTiles::RowTiles(const LevelPoints& level, int width, int height)

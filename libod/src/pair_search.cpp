@@ -60,68 +60,9 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
   // gather is a count, a minimum or a maximum, so the result is the same on any threads.
   constexpr int kParts = 8;
   const auto part_begin = [n](int k) { return PartBegin(n, k, kParts); };
-  struct Extent {
-    float x_lo = kInf, x_hi = -kInf, y_lo = kInf, y_hi = -kInf;
-    int valid = 0;
-  };
-  std::array<Extent, kParts> parts;
-  ParallelFor(
-      kParts, threads,
-      [&](int k) {
-        // Without a branch: an invalid point's NaN fails every comparison.
-        Extent e;
-        const float* x = level.x.data();
-        const float* y = level.y.data();
-        const float* z = level.z.data();
-        int i = part_begin(k);
-        const int end = part_begin(k + 1);
-#if defined(__SSE2__)
-        // Four at a time: _mm_min_ps(a, b) is a < b ? a : b, and _mm_max_ps(a, b) a > b ? a :
-        // b, as below, lane by lane; each lane counts its valid points as -1s.
-        __m128 x_lo = _mm_set1_ps(kInf), y_lo = x_lo, x_hi = _mm_set1_ps(-kInf), y_hi = x_hi;
-        __m128i minus_valid = _mm_setzero_si128();
-        for (; i + 4 <= end; i += 4) {
-          const __m128 px = _mm_loadu_ps(x + i), py = _mm_loadu_ps(y + i), pz = _mm_loadu_ps(z + i);
-          minus_valid = _mm_add_epi32(minus_valid, _mm_castps_si128(_mm_cmpeq_ps(pz, pz)));
-          x_lo = _mm_min_ps(px, x_lo);
-          x_hi = _mm_max_ps(px, x_hi);
-          y_lo = _mm_min_ps(py, y_lo);
-          y_hi = _mm_max_ps(py, y_hi);
-        }
-        alignas(16) float lanes[4][4];
-        alignas(16) std::int32_t counts[4];
-        _mm_store_ps(lanes[0], x_lo);
-        _mm_store_ps(lanes[1], x_hi);
-        _mm_store_ps(lanes[2], y_lo);
-        _mm_store_ps(lanes[3], y_hi);
-        _mm_store_si128(reinterpret_cast<__m128i*>(counts), minus_valid);
-        for (int l = 0; l < 4; ++l) {
-          e.x_lo = std::min(e.x_lo, lanes[0][l]);
-          e.x_hi = std::max(e.x_hi, lanes[1][l]);
-          e.y_lo = std::min(e.y_lo, lanes[2][l]);
-          e.y_hi = std::max(e.y_hi, lanes[3][l]);
-          e.valid -= counts[l];
-        }
-#endif
-        for (; i < end; ++i) {
-          e.valid += z[i] == z[i];
-          e.x_lo = x[i] < e.x_lo ? x[i] : e.x_lo;
-          e.x_hi = x[i] > e.x_hi ? x[i] : e.x_hi;
-          e.y_lo = y[i] < e.y_lo ? y[i] : e.y_lo;
-          e.y_hi = y[i] > e.y_hi ? y[i] : e.y_hi;
-        }
-        parts[k] = e;
-      },
-      1);
-  float x_lo = kInf, x_hi = -kInf, y_lo = kInf, y_hi = -kInf;
-  int valid = 0;
-  for (const Extent& e : parts) {
-    x_lo = std::min(x_lo, e.x_lo);
-    x_hi = std::max(x_hi, e.x_hi);
-    y_lo = std::min(y_lo, e.y_lo);
-    y_hi = std::max(y_hi, e.y_hi);
-    valid += e.valid;
-  }
+  // The valid points' extent, which the level points took as they were stored.
+  const float x_lo = level.x_min, x_hi = level.x_max, y_lo = level.y_min, y_hi = level.y_max;
+  const int valid = level.valid;
   if (!(x_lo <= x_hi)) return c;
   // Cells of a quarter of the reach, at most 256 a side and at most about 2 sqrt(points) a
   // side (so that a small cloud spread wide does not pay for a grid far larger than itself);
