@@ -265,7 +265,8 @@ TEST(LevelPoints, DropNearReturnsAsTheImageWould) {
     std::vector<float> depth(model.width * model.height);
     for (float& d : depth) d = rng() % 7 == 0 ? 0.0f : 0.25f * (1 + rng() % 16);
     const RangeImage image = *RangeImage::FromDepth(depth, model, {0.3, -1.0, 0.1});
-    for (const double min_range : {0.0, 1.0, 2.0, 2.25, 3.7}) {
+    // (100 m: every return dropped, no valid point in any part.)
+    for (const double min_range : {0.0, 1.0, 2.0, 2.25, 3.7, 100.0}) {
       RangeImage holes = image;
       if (min_range > 0.0) holes.DropReturnsNearerThan(min_range);
       for (const int threads : {1, 2}) {

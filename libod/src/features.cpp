@@ -68,7 +68,7 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_
   ParallelFor(
       kParts, threads,
       [&](int k) {
-        Extent& e = extents[k];
+        Extent e;  // in registers, stored once (the stores below may alias a member)
         const float r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2);
         const float r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2);
         const float r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
@@ -80,14 +80,14 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_
         float* lz = z.data();
         const int begin = PartBegin(n, k, kParts), end = PartBegin(n, k + 1, kParts);
         int i = begin;
+        // The extent here when no return is dropped after (else in the pass that drops them).
+        const bool last_pass = !(min_range_m > 0.0);
 #if defined(__SSE2__)
         const auto row = [&](float a, float b, float c, __m128 px, __m128 py, __m128 pz) {
           return _mm_add_ps(
               _mm_add_ps(_mm_mul_ps(_mm_set1_ps(a), px), _mm_mul_ps(_mm_set1_ps(b), py)),
               _mm_mul_ps(_mm_set1_ps(c), pz));
         };
-        // The extent here when no return is dropped after (else in the pass that drops them).
-        const bool last_pass = !(min_range_m > 0.0);
         Lanes lanes;
         for (; i + 4 <= end; i += 4) {
           const __m128 px = _mm_loadu_ps(sx + i), py = _mm_loadu_ps(sy + i),
@@ -100,8 +100,6 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_
           if (last_pass) lanes.Add(qx, qy, qz);
         }
         if (last_pass) lanes.Into(e);
-#else
-        const bool last_pass = !(min_range_m > 0.0);
 #endif
         for (; i < end; ++i) {
           // R p as (r0 x + r1 y) + r2 z, as the four at a time above; NaN stays NaN.
@@ -156,6 +154,7 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_
             add(e, lx[j], ly[j], lz[j]);
           }
         }
+        extents[k] = e;
       },
       1);
   for (const Extent& e : extents) {

@@ -1,7 +1,6 @@
 #include "pair_search.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 #include <numeric>
