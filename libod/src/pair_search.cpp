@@ -707,6 +707,15 @@ class Cells {
         v_[i] |= bits;
       }
     }
+    // Sets element i to 1 (a mark). One worker alone stores it without looking: no load to
+    // wait for, no branch to mispredict.
+    void Mark(std::size_t i) const {
+      if constexpr (kAtomic) {
+        Add(i, 1);
+      } else {
+        v_[i] = 1;
+      }
+    }
     // Sets element i to `desired` if it is `expected`; returns whether it did.
     bool CompareExchange(std::size_t i, T expected, T desired) const {
       if constexpr (kAtomic) {
@@ -973,7 +982,8 @@ class alignas(64) Search {
     const auto raised = raised_.view();
     const auto parent = parent_.view();
     const float hmax = test_.max_height;
-    const bool b_done = (flags_up_[b] & kFull) && (!unions_ || (flags_up_[b] & kUnified));
+    const bool unions = unions_;  // in a register (the mark stores may alias the member)
+    const bool b_done = (flags_up_[b] & kFull) && (!unions || (flags_up_[b] & kUnified));
     const int b_first = upix[B.begin];
     // B's points that some point of A may pair with, and their box: the others are never
     // looked at. When they are all of B, their box is B's.
@@ -997,61 +1007,66 @@ class alignas(64) Search {
     if (!all_near) accept = 0;
     Packed packed;
     if ((keep & ~accept) != 0) Pack(B, near, packed);
+    const std::uint64_t packed_bits =
+        packed.count < 64 ? ~(~std::uint64_t{0} << packed.count) : ~std::uint64_t{0};
     bool found = false;  // some pair of the two leaves
     for (; keep != 0; keep &= keep - 1) {
       const int k = __builtin_ctzll(keep);
       const int i = i_begin + k;
       const float p[3] = {lx[i], ly[i], lz[i]};
       const int pi = lpix[i];
-      if (b_done && lower[pi] && (!unions_ || SameSet(pi, b_first))) continue;
+      if (b_done && lower[pi] && (!unions || SameSet(pi, b_first))) continue;
       if ((accept >> k) & 1) {
         found = true;
         lower.Add(pi, 1);
         stats_.pairs_compatible += Size(B);
         Mark(up_, flags_up_, b, raised_);
-        if (unions_) {
+        if (unions) {
           Unify(up_, flags_up_, b);
           Union(pi, b_first);
         }
         continue;
       }
-      std::uint64_t hits = Hits(packed, p, stats_.pairs_tested);
-      if (hits == 0) continue;
-      int root = unions_ ? Find(pi) : 0;
       // A point with a partner already meets, among B's points raised in its set, none that
-      // can change anything: only the others are taken as partners.
-      if (unions_ && lower[pi]) {
+      // can change anything: only the others are taken as partners, and when none is left it
+      // is not tested at all.
+      const bool has_partner = unions && lower[pi];
+      int root = 0;
+      if (has_partner) {
+        root = Find(pi);
         if (root != done_root) {
           done_root = root;
           done_bits = DoneBits(packed, root);
         }
-        hits &= ~done_bits;
-        if (hits == 0) continue;
+        if ((packed_bits & ~done_bits) == 0) continue;
       }
-      bool any = false;
+      std::uint64_t hits = Hits(packed, p, stats_.pairs_tested);
+      if (has_partner) hits &= ~done_bits;
+      if (hits == 0) continue;
+      if (unions && !has_partner) root = Find(pi);
       // One partner (upper point j): raised, joined; true when the rest of B can change
       // nothing.
       const auto partner = [&](int j) {
-        ++stats_.pairs_compatible;
-        any = true;
         const int pj = upix[j];
-        raised.Add(pj, 1);
+        raised.Mark(pj);
         // A partner whose parent is `root` (p's root when found, in p's set however the
         // workers link since: sets only grow) is in p's set already: most are, and skip the
         // walk to their root.
-        if (unions_ && parent[pj] != root) {
+        if (unions && parent[pj] != root) {
           const int rj = Find(pj);
           if (rj != root) root = Union(root, rj);
         }
-        return b_done && (!unions_ || parent[b_first] == root || root == Find(b_first));
+        return b_done && (!unions || parent[b_first] == root || root == Find(b_first));
       };
+      // Counted here: the member would be loaded and stored again around every mark.
+      int partners = 0;
       for (; hits != 0; hits &= hits - 1) {
+        ++partners;
         if (partner(packed.at[__builtin_ctzll(hits)])) break;
       }
-      if (any) {
-        lower.Add(pi, 1);
-        found = true;
-      }
+      stats_.pairs_compatible += partners;
+      lower.Add(pi, 1);
+      found = true;
     }
     // The leaves' flags are hints (work skipped when set): a pair of leaves that found no pair
     // leaves them unset, for a later pair that finds one to set, if there is one.
