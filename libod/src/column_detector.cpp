@@ -112,6 +112,9 @@ constexpr std::uint8_t kBitCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3
 // four or sixteen points at a time (simd.hpp) without windows; larger ones (dense
 // images) by windows.
 constexpr int kDirectPoints = 48;
+// Columns of at most this many points (a LiDAR column) are searched whole, unsorted: each point
+// meets every other, sixteen or four at a time, with no keys, sort or bins to pay for.
+constexpr int kWholeColumn = 64;
 
 // Lanes k with bit k of `bits` set all ones, the others zero.
 __m128 LaneMask(int bits) {
@@ -156,20 +159,72 @@ __attribute__((target("avx512f,popcnt"))) bool DirectAvx512(
 }
 #endif
 
-// The compatible pairs within each column, fast. A partner q of a lower point p lies less
-// than reach = Hmax / tan(theta) from it horizontally, so less than reach along any
-// horizontal direction: the column's points are put in bins of that width along the
-// column's mean horizontal direction u, each bin sorted by height, and p meets the points
-// of its own and the two neighbouring bins from the first more than HT above it (as the
-// pair test rounds the difference, which grows with the upper height) to the last less than
-// Hmax above. Where the three bins hold at most kDirectPoints (a LiDAR column, mostly), p
-// meets all of them four at a time (SSE2; sixteen where the processor has AVX-512F,
-// simd.hpp), the window a mask, and every pair is found. Where
-// they hold more (or without SSE2, or with the lanes capped to one) (a dense image's column, whose
-// faces hold hundreds of points each within Hmax of another), a point needs only one partner each
-// way: p's window is searched up to its first hit, and then each point not yet marked as an upper
-// point searches the window below it, nearest first, up to its first hit. The points of a bin stop
-// at the first with no point of those bins more than HT above it. The columns are gathered
+#if defined(CAIRN_OD_WIDE_VECTORS)
+// A whole column of at most 16 kChunks points, unsorted, padded to that many with points
+// infinitely high: each point p with more than HT between it and the column's `top` meets every
+// point, sixteen at a time from registers, with the pair test's float operations in its order.
+// Bit k of `lower` is set when point k is the lower point of a pair found, of `upper` when the
+// upper one; `tested` and `compatible` count the points HT..Hmax above p and the hits.
+template <int kChunks>
+__attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
+    const float* cx, const float* cy, const float* cz, int m, float top, const PairTest& t,
+    std::uint64_t& lower, std::uint64_t& upper, std::int64_t& tested, std::int64_t& compatible) {
+  __m512 x[kChunks], y[kChunks], z[kChunks];
+  for (int c = 0; c < kChunks; ++c) {
+    x[c] = _mm512_loadu_ps(cx + 16 * c);
+    y[c] = _mm512_loadu_ps(cy + 16 * c);
+    z[c] = _mm512_loadu_ps(cz + 16 * c);
+  }
+  const __m512 vht = _mm512_set1_ps(t.min_height), vh = _mm512_set1_ps(t.max_height);
+  const __m512 vt = _mm512_set1_ps(t.tan2_theta);
+  std::uint64_t lo = 0, up = 0;
+  int in_window = 0, hit = 0;
+  for (int k = 0; k < m; ++k) {
+    if (!(top - cz[k] > t.min_height)) continue;  // nothing more than HT above it
+    const __m512 px = _mm512_set1_ps(cx[k]), py = _mm512_set1_ps(cy[k]);
+    const __m512 pz = _mm512_set1_ps(cz[k]);
+    std::uint64_t hits = 0;
+    for (int c = 0; c < kChunks; ++c) {
+      const __m512 dz = _mm512_sub_ps(z[c], pz);
+      const __m512 dx = _mm512_sub_ps(x[c], px);
+      const __m512 dy = _mm512_sub_ps(y[c], py);
+      const __mmask16 window = static_cast<__mmask16>(_mm512_cmp_ps_mask(dz, vht, _CMP_GT_OQ) &
+                                                      _mm512_cmp_ps_mask(dz, vh, _CMP_LT_OQ));
+      const __mmask16 bits = static_cast<__mmask16>(
+          window & _mm512_cmp_ps_mask(_mm512_mul_ps(dz, dz),
+                                      _mm512_mul_ps(vt, _mm512_add_ps(_mm512_mul_ps(dx, dx),
+                                                                      _mm512_mul_ps(dy, dy))),
+                                      _CMP_GT_OQ));
+      in_window += __builtin_popcount(window);
+      hits |= static_cast<std::uint64_t>(bits) << (16 * c);
+    }
+    hit += __builtin_popcountll(hits);
+    up |= hits;
+    lo |= static_cast<std::uint64_t>(hits != 0) << k;
+  }
+  lower = lo;
+  upper = up;
+  tested += in_window;
+  compatible += hit;
+}
+#endif
+
+// The compatible pairs within each column, fast. A column of at most kWholeColumn points (a
+// LiDAR column) is searched whole: each point meets every point of the column, four at a time
+// (SSE2; sixteen, held in registers, where the processor has AVX-512F, simd.hpp), the window a
+// mask, and every pair is found. Larger columns, and every column without SSE2 or with the lanes
+// capped to one, are cut into bins. A partner q of a lower point p lies less than reach = Hmax /
+// tan(theta) from it horizontally, so less than reach along any horizontal direction: the
+// column's points are put in bins of that width along the column's mean horizontal direction u,
+// each bin sorted by height, and p meets the points of its own and the two neighbouring bins from
+// the first more than HT above it (as the pair test rounds the difference, which grows with the
+// upper height) to the last less than Hmax above. Where the three bins hold at most
+// kDirectPoints, p meets all of them as a whole column's points do. Where they hold more (a dense
+// image's column, whose faces hold hundreds of points each within Hmax of another), and always
+// without SSE2 or with the lanes capped to one, a point needs only one partner each way: p's
+// window is searched up to its first hit, and then each point not yet marked as an upper point
+// searches the window below it, nearest first, up to its first hit. The points of a bin stop at
+// the first with no point of those bins more than HT above it. The columns are gathered
 // kBlockColumns at a time, row by row, bottom row first, into reused buffers, and their marks
 // stored row by row once the block is done.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
@@ -270,6 +325,49 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     const float dx = cx[up] - cx[lo], dy = cy[up] - cy[lo];
     return window && dz * dz > tan2 * (dx * dx + dy * dy);
   };
+#if defined(__SSE2__)
+  // The point k as the lower point against the points [r0, r1): each of them tested, 4 or 16 at
+  // a time, the window HT..Hmax and the slope as bit masks (the pair test's float operations in
+  // its order), without a branch on either; every hit marked.
+  const auto direct = [&](int k, int r0, int r1) {
+#if defined(CAIRN_OD_WIDE_VECTORS)
+    if (lanes == 16) {
+      const float p[3] = {cx[k], cy[k], cz[k]};
+      const bool any =
+          DirectAvx512(cx, cy, cz, r0, r1, p, test, upper_hit, pairs_tested, pairs_compatible);
+      lower_hit[k] |= any ? -1 : 0;
+      return;
+    }
+#endif
+    const __m128 vht = _mm_set1_ps(ht), vhmax = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
+    const __m128 px = _mm_set1_ps(cx[k]), py = _mm_set1_ps(cy[k]), pz = _mm_set1_ps(cz[k]);
+    int any = 0;
+    for (int j = r0; j < r1; j += 4) {
+      const int valid = r1 - j >= 4 ? 0xf : (1 << (r1 - j)) - 1;
+      const __m128 dz = _mm_sub_ps(_mm_loadu_ps(cz + j), pz);
+      const __m128 dx = _mm_sub_ps(_mm_loadu_ps(cx + j), px);
+      const __m128 dy = _mm_sub_ps(_mm_loadu_ps(cy + j), py);
+      const __m128 window = _mm_and_ps(_mm_cmpgt_ps(dz, vht), _mm_cmplt_ps(dz, vhmax));
+      const __m128 steep = _mm_cmpgt_ps(
+          _mm_mul_ps(dz, dz), _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
+      const __m128 hit = _mm_and_ps(_mm_and_ps(window, steep), kLaneMasks[valid]);
+      const int bits = _mm_movemask_ps(hit);
+      pairs_tested += kBitCount[_mm_movemask_ps(window) & valid];
+      pairs_compatible += kBitCount[bits];
+      any |= bits;
+      __m128i* marks = reinterpret_cast<__m128i*>(upper_hit + j);
+      _mm_storeu_si128(marks, _mm_or_si128(_mm_loadu_si128(marks), _mm_castps_si128(hit)));
+    }
+    lower_hit[k] |= any;
+  };
+#endif
+  // The column's marks by row (bit 0 obstacle, bit 1 raised).
+  const auto store_marks = [&](const ColumnPoint* column, int m, std::uint8_t* column_marks) {
+    for (int k = 0; k < m; ++k) {
+      const int up = upper_hit[k] != 0;
+      column_marks[column[k].row] = static_cast<std::uint8_t>(3 * up | (lower_hit[k] != 0));
+    }
+  };
   bool nearly_sorted = true;  // the last column sorted was sorted by insertion within its budget
   for (int c = 0; c < width; ++c) {
     const int b = c % kBlockColumns;
@@ -280,6 +378,49 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     std::uint8_t* const column_marks = block_marks.data() + static_cast<std::size_t>(b) * height;
     ColumnPoint* const column = gathered.data() + static_cast<std::size_t>(b) * height;
     const int m = gathered_count[b];
+#if defined(__SSE2__)
+    if (lanes >= 4 && m <= kWholeColumn) {
+      // Few points (a LiDAR column): each meets every point of the column, unsorted and
+      // without bins; only a point with nothing more than HT above it is passed over.
+      double mx = 0.0, my = 0.0;
+      float top = -std::numeric_limits<float>::infinity();
+      for (int k = 0; k < m; ++k) {
+        cx[k] = column[k].x;
+        cy[k] = column[k].y;
+        cz[k] = column[k].z;
+        upper_hit[k] = 0;
+        lower_hit[k] = 0;
+        top = std::max(top, cz[k]);
+        mx += cx[k];
+        my += cy[k];
+      }
+      direction(mx, my);
+#if defined(CAIRN_OD_WIDE_VECTORS)
+      if (lanes == 16) {
+        for (int k = m; k < ((m + 15) & ~15); ++k) {
+          cx[k] = cy[k] = 0.0f;
+          cz[k] = std::numeric_limits<float>::infinity();
+        }
+        std::uint64_t lower = 0, upper = 0;
+        const auto whole = m <= 16   ? WholeColumnAvx512<1>
+                           : m <= 32 ? WholeColumnAvx512<2>
+                           : m <= 48 ? WholeColumnAvx512<3>
+                                     : WholeColumnAvx512<4>;
+        whole(cx, cy, cz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
+        for (int k = 0; k < m; ++k) {
+          column_marks[column[k].row] =
+              static_cast<std::uint8_t>(3 * ((upper >> k) & 1) | ((lower >> k) & 1));
+        }
+        continue;
+      }
+#endif
+      for (int k = 0; k < m; ++k) {
+        if (top - cz[k] > ht) direct(k, 0, m);
+      }
+      store_marks(column, m, column_marks);
+      continue;
+    }
+#endif
     double mx = 0.0, my = 0.0;
     for (int k = 0; k < m; ++k) {
       const float x = column[k].x, y = column[k].y;
@@ -328,43 +469,9 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
 #if defined(__SSE2__)
       const int r0 = bins[h0].begin, r1 = bins[h1 - 1].end;
       if (lanes >= 4 && r1 - r0 <= kDirectPoints) {
-        // Few points near: each lower point meets all of them 4 or 16 at a time, the window
-        // HT..Hmax and the slope as bit masks (the pair test's float operations in its
-        // order), without a branch on either.
-        const __m128 vht = _mm_set1_ps(ht), vhmax = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
         for (int k = bins[g].begin; k < bins[g].end; ++k) {
-          const float pz_scalar = cz[k];
-          if (!(top - pz_scalar > ht)) break;  // nothing more than HT above this point or the next
-#if defined(CAIRN_OD_WIDE_VECTORS)
-          if (lanes == 16) {
-            const float p[3] = {cx[k], cy[k], pz_scalar};
-            const bool any = DirectAvx512(cx, cy, cz, r0, r1, p, test, upper_hit, pairs_tested,
-                                          pairs_compatible);
-            lower_hit[k] |= any ? -1 : 0;
-            continue;
-          }
-#endif
-          const __m128 px = _mm_set1_ps(cx[k]), py = _mm_set1_ps(cy[k]);
-          const __m128 pz = _mm_set1_ps(pz_scalar);
-          int any = 0;
-          for (int j = r0; j < r1; j += 4) {
-            const int valid = r1 - j >= 4 ? 0xf : (1 << (r1 - j)) - 1;
-            const __m128 dz = _mm_sub_ps(_mm_loadu_ps(cz + j), pz);
-            const __m128 dx = _mm_sub_ps(_mm_loadu_ps(cx + j), px);
-            const __m128 dy = _mm_sub_ps(_mm_loadu_ps(cy + j), py);
-            const __m128 window = _mm_and_ps(_mm_cmpgt_ps(dz, vht), _mm_cmplt_ps(dz, vhmax));
-            const __m128 steep =
-                _mm_cmpgt_ps(_mm_mul_ps(dz, dz),
-                             _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
-            const __m128 hit = _mm_and_ps(_mm_and_ps(window, steep), kLaneMasks[valid]);
-            const int bits = _mm_movemask_ps(hit);
-            pairs_tested += kBitCount[_mm_movemask_ps(window) & valid];
-            pairs_compatible += kBitCount[bits];
-            any |= bits;
-            __m128i* marks = reinterpret_cast<__m128i*>(upper_hit + j);
-            _mm_storeu_si128(marks, _mm_or_si128(_mm_loadu_si128(marks), _mm_castps_si128(hit)));
-          }
-          lower_hit[k] |= any;
+          if (!(top - cz[k] > ht)) break;  // nothing more than HT above this point or the next
+          direct(k, r0, r1);
         }
         continue;
       }
@@ -504,10 +611,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
         if (found) upper_hit[k] = -1;
       }
     }
-    for (int k = 0; k < m; ++k) {
-      const int up = upper_hit[k] != 0;
-      column_marks[column[k].row] = static_cast<std::uint8_t>(3 * up | (lower_hit[k] != 0));
-    }
+    store_marks(column, m, column_marks);
   }
   if (width > 0) store_block((width - 1) / kBlockColumns * kBlockColumns);
   out.stats.pairs_compatible = pairs_compatible;
