@@ -205,6 +205,61 @@ TEST(PairSearch, EqualsTheDefinitionOnThresholdsExactly) {
   }
 }
 
+// Columns holding exactly as many points as the column baseline's limits (a whole column of at
+// most 64, in one to four vectors of sixteen; binned above), lattice depths (pairs exactly on the
+// thresholds), at every vector width the processor has: the definition's result, and from four
+// lanes up the same pairs tested and found at every width.
+TEST(PairSearch, TheColumnBaselineAtItsColumnSizesEqualsTheDefinition) {
+  struct Uncap {
+    ~Uncap() { internal::CapVectorLanes(0); }
+  } uncap;
+  const int widest = internal::VectorLanes();
+  const std::vector<int> counts = {0, 1, 2, 15, 16, 17, 31, 32, 33, 47, 48, 49, 63, 64, 65, 70};
+  const int width = static_cast<int>(counts.size()), height = 70;
+  std::mt19937 rng(6464);
+  for (int trial = 0; trial < 6; ++trial) {
+    PinholeModel model;
+    model.width = width;
+    model.height = height;
+    model.fx = model.fy = 8.0 + trial;
+    model.cx = 0.5 * (width - 1);
+    model.cy = 0.5 * (height - 1);
+    std::vector<float> depth(static_cast<std::size_t>(width) * height, 0.0f);
+    for (int c = 0; c < width; ++c) {
+      std::vector<int> rows(height);
+      for (int r = 0; r < height; ++r) rows[r] = r;
+      std::shuffle(rows.begin(), rows.end(), rng);
+      for (int k = 0; k < counts[c]; ++k) {
+        depth[static_cast<std::size_t>(rows[k]) * width + c] = 0.1f * (5 + rng() % 30);
+      }
+    }
+    const RangeImage image = *RangeImage::FromDepth(depth, model, {0.0, -1.0, 0.0});
+    for (int c = 0; c < width; ++c) {
+      int valid = 0;
+      for (int r = 0; r < height; ++r) valid += image.valid(r * width + c);
+      ASSERT_EQ(valid, counts[c]) << "column " << c;
+    }
+    DetectorConfig config = LatticeConfig(trial);
+    ColumnConfig columns = ColumnConfig::From(config);
+    columns.min_blob_pixels = 0;
+    const Detection brute = *DetectColumnsBruteForce(image, columns);
+    EXPECT_GT(brute.stats.pairs_compatible, 0) << "trial " << trial;
+    std::optional<DetectionStats> wide;
+    for (const int lanes : {16, 8, 4, 1}) {
+      if (lanes > widest) continue;
+      internal::CapVectorLanes(lanes);
+      const std::string what =
+          "trial " + std::to_string(trial) + ", " + std::to_string(lanes) + " lanes";
+      ExpectSameColumns(image, config, 0, what);
+      const DetectionStats stats = DetectColumns(image, columns)->stats;
+      if (lanes < 4) continue;
+      if (!wide) wide = stats;
+      EXPECT_EQ(stats.pairs_tested, wide->pairs_tested) << what;
+      EXPECT_EQ(stats.pairs_compatible, wide->pairs_compatible) << what;
+    }
+  }
+}
+
 // The same lattice in tall, narrow images: each column holds up to 200 points over a few
 // metres, so its neighbourhoods are dense and the column baseline searches them only up to
 // each point's first partner each way (it then finds fewer pairs than there are); its marks

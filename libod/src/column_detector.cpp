@@ -60,8 +60,9 @@ struct ColumnPairs {
   DetectionStats stats;
 };
 
-// One valid point of a column, with its sort key: the bin (see FindColumnPairs) in the
-// high half and the height's bits, made to order as unsigned integers, in the low half.
+// One valid point of a column, with its sort key (set only where the column is binned): the bin
+// (see FindColumnPairs) in the high half and the height's bits, made to order as unsigned
+// integers, in the low half.
 struct ColumnPoint {
   std::uint64_t key;
   float x, y, z;
@@ -113,7 +114,8 @@ constexpr std::uint8_t kBitCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3
 // images) by windows.
 constexpr int kDirectPoints = 48;
 // Columns of at most this many points (a LiDAR column) are searched whole, unsorted: each point
-// meets every other, sixteen or four at a time, with no keys, sort or bins to pay for.
+// with something more than HT above it meets every point of the column, sixteen or four at a
+// time, with no keys, sort or bins to pay for.
 constexpr int kWholeColumn = 64;
 
 // Lanes k with bit k of `bits` set all ones, the others zero.
@@ -160,9 +162,10 @@ __attribute__((target("avx512f,popcnt"))) bool DirectAvx512(
 #endif
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
-// A whole column of at most 16 kChunks points, unsorted, padded to that many with points
-// infinitely high: each point p with more than HT between it and the column's `top` meets every
-// point, sixteen at a time from registers, with the pair test's float operations in its order.
+// A whole column of m <= 16 kChunks points, unsorted, padded by the caller to 16 kChunks with
+// points infinitely high (x = y = 0), which no window holds (infinity is not less than Hmax):
+// each point p with more than HT between it and the column's `top` meets every point, sixteen
+// at a time from registers, with the pair test's float operations in its order.
 // Bit k of `lower` is set when point k is the lower point of a pair found, of `upper` when the
 // upper one; `tested` and `compatible` count the points HT..Hmax above p and the hits.
 template <int kChunks>
@@ -210,23 +213,23 @@ __attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
 #endif
 
 // The compatible pairs within each column, fast. A column of at most kWholeColumn points (a
-// LiDAR column) is searched whole: each point meets every point of the column, four at a time
-// (SSE2; sixteen, held in registers, where the processor has AVX-512F, simd.hpp), the window a
-// mask, and every pair is found. Larger columns, and every column without SSE2 or with the lanes
-// capped to one, are cut into bins. A partner q of a lower point p lies less than reach = Hmax /
-// tan(theta) from it horizontally, so less than reach along any horizontal direction: the
-// column's points are put in bins of that width along the column's mean horizontal direction u,
-// each bin sorted by height, and p meets the points of its own and the two neighbouring bins from
-// the first more than HT above it (as the pair test rounds the difference, which grows with the
-// upper height) to the last less than Hmax above. Where the three bins hold at most
-// kDirectPoints, p meets all of them as a whole column's points do. Where they hold more (a dense
-// image's column, whose faces hold hundreds of points each within Hmax of another), and always
-// without SSE2 or with the lanes capped to one, a point needs only one partner each way: p's
-// window is searched up to its first hit, and then each point not yet marked as an upper point
-// searches the window below it, nearest first, up to its first hit. The points of a bin stop at
-// the first with no point of those bins more than HT above it. The columns are gathered
-// kBlockColumns at a time, row by row, bottom row first, into reused buffers, and their marks
-// stored row by row once the block is done.
+// LiDAR column) is searched whole, unsorted: each point with something more than HT above it
+// meets every point of the column, four at a time (SSE2; sixteen, held in registers, where the
+// processor has AVX-512F, simd.hpp), the window a mask, and every pair is found. Larger columns,
+// and every column without SSE2 or with the lanes capped to one, are cut into bins. A partner q of
+// a lower point p lies less than reach = Hmax / tan(theta) from it horizontally, so less than reach
+// along any horizontal direction: the column's points are put in bins of that width along the
+// column's mean horizontal direction u, each bin sorted by height, and p meets the points of its
+// own and the two neighbouring bins from the first more than HT above it (as the pair test rounds
+// the difference, which grows with the upper height) to the last less than Hmax above. Where the
+// three bins hold at most kDirectPoints, p meets all of them four or sixteen at a time
+// (DirectAvx512), every pair found. Where they hold more (a dense image's column, whose faces hold
+// hundreds of points each within Hmax of another), and always without SSE2 or with the lanes capped
+// to one, a point needs only one partner each way: p's window is searched up to its first hit, and
+// then each point not yet marked as an upper point searches the window below it, nearest first, up
+// to its first hit. The points of a bin stop at the first with no point of those bins more than HT
+// above it. The columns are gathered kBlockColumns at a time, row by row, bottom row first, into
+// reused buffers, and their marks stored row by row once the block is done.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
                             int height) {
   const int n = width * height;
@@ -271,9 +274,10 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       }
     }
   };
-  // The column's points side by side (x, y, z) in sorted order, with room for reading
-  // sixteen from any point and four from three before the first; and per point whether it is the
-  // upper point of a pair found (all ones) or the lower one.
+  // The column's points side by side (x, y, z), in sorted order where it is binned, with room for
+  // reading sixteen from any point and four from three before the first; and per point whether it
+  // is the upper point of a pair found (all ones) or the lower one (unused by a whole column with
+  // AVX-512F, whose marks are bits).
   constexpr int kPad = 16;
   const std::size_t stride = static_cast<std::size_t>(height) + 2 * kPad;
   std::vector<float> xyz(3 * stride, 0.0f);
@@ -388,8 +392,6 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
         cx[k] = column[k].x;
         cy[k] = column[k].y;
         cz[k] = column[k].z;
-        upper_hit[k] = 0;
-        lower_hit[k] = 0;
         top = std::max(top, cz[k]);
         mx += cx[k];
         my += cy[k];
@@ -414,6 +416,8 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
         continue;
       }
 #endif
+      std::fill(upper_hit, upper_hit + m, 0);
+      std::fill(lower_hit, lower_hit + m, 0);
       for (int k = 0; k < m; ++k) {
         if (top - cz[k] > ht) direct(k, 0, m);
       }

@@ -707,8 +707,8 @@ class Cells {
         v_[i] |= bits;
       }
     }
-    // Sets element i to 1 (a mark). One worker alone stores it without looking: no load to
-    // wait for, no branch to mispredict.
+    // Sets element i, a mark that holds 0 or 1 only (lower, raised), to 1. One worker alone
+    // stores it without looking: no load to wait for, no branch to mispredict.
     void Mark(std::size_t i) const {
       if constexpr (kAtomic) {
         Add(i, 1);
