@@ -113,9 +113,10 @@ constexpr std::uint8_t kBitCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3
 // four or sixteen points at a time (simd.hpp) without windows; larger ones (dense
 // images) by windows.
 constexpr int kDirectPoints = 48;
-// Columns of at most this many points (a LiDAR column) are searched whole, unsorted: each point
-// with something more than HT above it meets every point of the column, sixteen or four at a
-// time, with no keys, sort or bins to pay for.
+// Columns of at most this many points (a LiDAR column) are searched whole, unsorted, where the
+// processor has AVX-512F: each point with something more than HT above it meets every point of
+// the column, sixteen at a time, with no keys, sort or bins to pay for. (Four lanes test a whole
+// column slower than its bins: KITTI 5.1 -> 7.7 ms, BENCHMARKS.md.)
 constexpr int kWholeColumn = 64;
 
 // Lanes k with bit k of `bits` set all ones, the others zero.
@@ -212,11 +213,11 @@ __attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
 }
 #endif
 
-// The compatible pairs within each column, fast. A column of at most kWholeColumn points (a
-// LiDAR column) is searched whole, unsorted: each point with something more than HT above it
-// meets every point of the column, four at a time (SSE2; sixteen, held in registers, where the
-// processor has AVX-512F, simd.hpp), the window a mask, and every pair is found. Larger columns,
-// and every column without SSE2 or with the lanes capped to one, are cut into bins. A partner q of
+// The compatible pairs within each column, fast. Where the processor has AVX-512F (simd.hpp), a
+// column of at most kWholeColumn points (a LiDAR column) is searched whole, unsorted: each point
+// with something more than HT above it meets every point of the column, sixteen at a time, held
+// in registers, the window a mask, and every pair is found. Larger columns, and every column on
+// narrower vectors, are cut into bins. A partner q of
 // a lower point p lies less than reach = Hmax / tan(theta) from it horizontally, so less than reach
 // along any horizontal direction: the column's points are put in bins of that width along the
 // column's mean horizontal direction u, each bin sorted by height, and p meets the points of its
@@ -276,8 +277,8 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
   };
   // The column's points side by side (x, y, z), in sorted order where it is binned, with room for
   // reading sixteen from any point and four from three before the first; and per point whether it
-  // is the upper point of a pair found (all ones) or the lower one (unused by a whole column with
-  // AVX-512F, whose marks are bits).
+  // is the upper point of a pair found (all ones) or the lower one (unused by a whole column, whose
+  // marks are bits).
   constexpr int kPad = 16;
   const std::size_t stride = static_cast<std::size_t>(height) + 2 * kPad;
   std::vector<float> xyz(3 * stride, 0.0f);
@@ -382,8 +383,8 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     std::uint8_t* const column_marks = block_marks.data() + static_cast<std::size_t>(b) * height;
     ColumnPoint* const column = gathered.data() + static_cast<std::size_t>(b) * height;
     const int m = gathered_count[b];
-#if defined(__SSE2__)
-    if (lanes >= 4 && m <= kWholeColumn) {
+#if defined(CAIRN_OD_WIDE_VECTORS)
+    if (lanes == 16 && m <= kWholeColumn) {
       // Few points (a LiDAR column): each meets every point of the column, unsorted and
       // without bins; only a point with nothing more than HT above it is passed over.
       double mx = 0.0, my = 0.0;
@@ -397,31 +398,20 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
         my += cy[k];
       }
       direction(mx, my);
-#if defined(CAIRN_OD_WIDE_VECTORS)
-      if (lanes == 16) {
-        for (int k = m; k < ((m + 15) & ~15); ++k) {
-          cx[k] = cy[k] = 0.0f;
-          cz[k] = std::numeric_limits<float>::infinity();
-        }
-        std::uint64_t lower = 0, upper = 0;
-        const auto whole = m <= 16   ? WholeColumnAvx512<1>
-                           : m <= 32 ? WholeColumnAvx512<2>
-                           : m <= 48 ? WholeColumnAvx512<3>
-                                     : WholeColumnAvx512<4>;
-        whole(cx, cy, cz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
-        for (int k = 0; k < m; ++k) {
-          column_marks[column[k].row] =
-              static_cast<std::uint8_t>(3 * ((upper >> k) & 1) | ((lower >> k) & 1));
-        }
-        continue;
+      for (int k = m; k < ((m + 15) & ~15); ++k) {
+        cx[k] = cy[k] = 0.0f;
+        cz[k] = std::numeric_limits<float>::infinity();
       }
-#endif
-      std::fill(upper_hit, upper_hit + m, 0);
-      std::fill(lower_hit, lower_hit + m, 0);
+      std::uint64_t lower = 0, upper = 0;
+      const auto whole = m <= 16   ? WholeColumnAvx512<1>
+                         : m <= 32 ? WholeColumnAvx512<2>
+                         : m <= 48 ? WholeColumnAvx512<3>
+                                   : WholeColumnAvx512<4>;
+      whole(cx, cy, cz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
       for (int k = 0; k < m; ++k) {
-        if (top - cz[k] > ht) direct(k, 0, m);
+        column_marks[column[k].row] =
+            static_cast<std::uint8_t>(3 * ((upper >> k) & 1) | ((lower >> k) & 1));
       }
-      store_marks(column, m, column_marks);
       continue;
     }
 #endif

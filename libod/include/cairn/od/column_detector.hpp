@@ -27,14 +27,15 @@ struct ColumnConfig {
 /// Result in the cone detector's form: labels are the 8-connected blobs that survive the
 /// area rejection, numbered in row-major order of their first pixel; features, feet and
 /// stats follow the cone detector's definitions (detector.hpp). Cost: one pass over each
-/// column. A column of at most 64 points (a LiDAR column) is tested whole: each point with
-/// something more than HT above it against every point of the column, 4 or 16 at a time, so
-/// stats.pairs_tested counts every pair HT..Hmax apart. A larger column (a camera's) has its
-/// points sorted into bins, plus one test per candidate pair within HT..Hmax in the bins next
-/// to it (where those bins are dense, and on every column where the compiler has no SSE2 or
-/// the vector lanes are capped to one, only up to each point's first partner above and below:
-/// stats.pairs_compatible then counts the pairs found, at most as many as there are, and
-/// stats.pairs_tested may count a pair from each end), and blob colouring by runs.
+/// column. Where the processor has AVX-512F, a column of at most 64 points (a LiDAR column) is
+/// tested whole: each point with something more than HT above it against every point of the
+/// column, 16 at a time, so stats.pairs_tested counts every pair HT..Hmax apart. A larger column
+/// (a camera's), and every column on narrower vectors, has its points sorted into bins, plus one
+/// test per candidate pair within HT..Hmax in the bins next to it (where those bins are dense, and
+/// on every column where the compiler has no SSE2 or the vector lanes are capped to one, only up to
+/// each point's first partner above and below: stats.pairs_compatible then counts the pairs found,
+/// at most as many as there are, and stats.pairs_tested may count a pair from each end), and blob
+/// colouring by runs.
 Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& config);
 
 /// The same result by the definition: every pair of points of each column tested, O(H^2)
