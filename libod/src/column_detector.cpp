@@ -330,49 +330,6 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     const float dx = cx[up] - cx[lo], dy = cy[up] - cy[lo];
     return window && dz * dz > tan2 * (dx * dx + dy * dy);
   };
-#if defined(__SSE2__)
-  // The point k as the lower point against the points [r0, r1): each of them tested, 4 or 16 at
-  // a time, the window HT..Hmax and the slope as bit masks (the pair test's float operations in
-  // its order), without a branch on either; every hit marked.
-  const auto direct = [&](int k, int r0, int r1) {
-#if defined(CAIRN_OD_WIDE_VECTORS)
-    if (lanes == 16) {
-      const float p[3] = {cx[k], cy[k], cz[k]};
-      const bool any =
-          DirectAvx512(cx, cy, cz, r0, r1, p, test, upper_hit, pairs_tested, pairs_compatible);
-      lower_hit[k] |= any ? -1 : 0;
-      return;
-    }
-#endif
-    const __m128 vht = _mm_set1_ps(ht), vhmax = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
-    const __m128 px = _mm_set1_ps(cx[k]), py = _mm_set1_ps(cy[k]), pz = _mm_set1_ps(cz[k]);
-    int any = 0;
-    for (int j = r0; j < r1; j += 4) {
-      const int valid = r1 - j >= 4 ? 0xf : (1 << (r1 - j)) - 1;
-      const __m128 dz = _mm_sub_ps(_mm_loadu_ps(cz + j), pz);
-      const __m128 dx = _mm_sub_ps(_mm_loadu_ps(cx + j), px);
-      const __m128 dy = _mm_sub_ps(_mm_loadu_ps(cy + j), py);
-      const __m128 window = _mm_and_ps(_mm_cmpgt_ps(dz, vht), _mm_cmplt_ps(dz, vhmax));
-      const __m128 steep = _mm_cmpgt_ps(
-          _mm_mul_ps(dz, dz), _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
-      const __m128 hit = _mm_and_ps(_mm_and_ps(window, steep), kLaneMasks[valid]);
-      const int bits = _mm_movemask_ps(hit);
-      pairs_tested += kBitCount[_mm_movemask_ps(window) & valid];
-      pairs_compatible += kBitCount[bits];
-      any |= bits;
-      __m128i* marks = reinterpret_cast<__m128i*>(upper_hit + j);
-      _mm_storeu_si128(marks, _mm_or_si128(_mm_loadu_si128(marks), _mm_castps_si128(hit)));
-    }
-    lower_hit[k] |= any;
-  };
-#endif
-  // The column's marks by row (bit 0 obstacle, bit 1 raised).
-  const auto store_marks = [&](const ColumnPoint* column, int m, std::uint8_t* column_marks) {
-    for (int k = 0; k < m; ++k) {
-      const int up = upper_hit[k] != 0;
-      column_marks[column[k].row] = static_cast<std::uint8_t>(3 * up | (lower_hit[k] != 0));
-    }
-  };
   bool nearly_sorted = true;  // the last column sorted was sorted by insertion within its budget
   for (int c = 0; c < width; ++c) {
     const int b = c % kBlockColumns;
@@ -463,9 +420,43 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
 #if defined(__SSE2__)
       const int r0 = bins[h0].begin, r1 = bins[h1 - 1].end;
       if (lanes >= 4 && r1 - r0 <= kDirectPoints) {
+        // Few points near: each lower point meets all of them 4 or 16 at a time, the window
+        // HT..Hmax and the slope as bit masks (the pair test's float operations in its
+        // order), without a branch on either.
+        const __m128 vht = _mm_set1_ps(ht), vhmax = _mm_set1_ps(hmax), vt = _mm_set1_ps(tan2);
         for (int k = bins[g].begin; k < bins[g].end; ++k) {
-          if (!(top - cz[k] > ht)) break;  // nothing more than HT above this point or the next
-          direct(k, r0, r1);
+          const float pz_scalar = cz[k];
+          if (!(top - pz_scalar > ht)) break;  // nothing more than HT above this point or the next
+#if defined(CAIRN_OD_WIDE_VECTORS)
+          if (lanes == 16) {
+            const float p[3] = {cx[k], cy[k], pz_scalar};
+            const bool any = DirectAvx512(cx, cy, cz, r0, r1, p, test, upper_hit, pairs_tested,
+                                          pairs_compatible);
+            lower_hit[k] |= any ? -1 : 0;
+            continue;
+          }
+#endif
+          const __m128 px = _mm_set1_ps(cx[k]), py = _mm_set1_ps(cy[k]);
+          const __m128 pz = _mm_set1_ps(pz_scalar);
+          int any = 0;
+          for (int j = r0; j < r1; j += 4) {
+            const int valid = r1 - j >= 4 ? 0xf : (1 << (r1 - j)) - 1;
+            const __m128 dz = _mm_sub_ps(_mm_loadu_ps(cz + j), pz);
+            const __m128 dx = _mm_sub_ps(_mm_loadu_ps(cx + j), px);
+            const __m128 dy = _mm_sub_ps(_mm_loadu_ps(cy + j), py);
+            const __m128 window = _mm_and_ps(_mm_cmpgt_ps(dz, vht), _mm_cmplt_ps(dz, vhmax));
+            const __m128 steep =
+                _mm_cmpgt_ps(_mm_mul_ps(dz, dz),
+                             _mm_mul_ps(vt, _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy))));
+            const __m128 hit = _mm_and_ps(_mm_and_ps(window, steep), kLaneMasks[valid]);
+            const int bits = _mm_movemask_ps(hit);
+            pairs_tested += kBitCount[_mm_movemask_ps(window) & valid];
+            pairs_compatible += kBitCount[bits];
+            any |= bits;
+            __m128i* marks = reinterpret_cast<__m128i*>(upper_hit + j);
+            _mm_storeu_si128(marks, _mm_or_si128(_mm_loadu_si128(marks), _mm_castps_si128(hit)));
+          }
+          lower_hit[k] |= any;
         }
         continue;
       }
@@ -605,7 +596,10 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
         if (found) upper_hit[k] = -1;
       }
     }
-    store_marks(column, m, column_marks);
+    for (int k = 0; k < m; ++k) {
+      const int up = upper_hit[k] != 0;
+      column_marks[column[k].row] = static_cast<std::uint8_t>(3 * up | (lower_hit[k] != 0));
+    }
   }
   if (width > 0) store_block((width - 1) / kBlockColumns * kBlockColumns);
   out.stats.pairs_compatible = pairs_compatible;
