@@ -803,6 +803,53 @@ TEST(PairSearch, FeaturesOfLidarScansAcrossTheSeamMatchTheirDefinitions) {
   EXPECT_GT(across, 0) << "no segment across the seam: the test would not see the wrap";
 }
 
+// The features, labels and feet at every vector width the processor has, bit for bit: with
+// AVX-512F, BuildDetection gathers a segment's pixels sixteen at a time, and takes the normals of
+// a run's inner points and the slopes' angles eight at a time; at four lanes it does each one at
+// a time (and the angles two at a time). On the demo frame (runs of hundreds of points, first and
+// last rows) and on LiDAR scans across the seam (short runs, wrapped neighbours).
+TEST(PairSearch, FeaturesAreTheSameAtEveryVectorWidth) {
+  struct Uncap {
+    ~Uncap() { internal::CapVectorLanes(0); }
+  } uncap;
+  const int widest = internal::VectorLanes();
+  std::mt19937 rng(4242);
+  std::vector<std::pair<RangeImage, DetectorConfig>> frames = {{DemoFrame(), DemoConfig()}};
+  for (int trial = 0; trial < 3; ++trial) {
+    frames.emplace_back(RandomScan(rng, trial % 2 ? "VLP-16" : "OS1-64", 69 + 17 * trial),
+                        RandomConfig(rng));
+  }
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const auto& [image, config] = frames[f];
+    internal::CapVectorLanes(1);
+    const Detection one = *Detect(image, config);
+    ASSERT_FALSE(one.segments.empty()) << "frame " << f;
+    for (const int lanes : {16, 8, 4}) {
+      if (lanes > widest) continue;
+      internal::CapVectorLanes(lanes);
+      const Detection d = *Detect(image, config);
+      const std::string what =
+          "frame " + std::to_string(f) + ", " + std::to_string(lanes) + " lanes against one";
+      EXPECT_TRUE(d.labels == one.labels && d.foot == one.foot) << what;
+      ASSERT_EQ(d.segments.size(), one.segments.size()) << what;
+      for (std::size_t k = 0; k < d.segments.size(); ++k) {
+        const SegmentFeatures &a = d.segments[k], &b = one.segments[k];
+        EXPECT_TRUE(a.point_count == b.point_count && a.raised_count == b.raised_count &&
+                    a.foot_count == b.foot_count && a.slope_points == b.slope_points &&
+                    a.bbox_min == b.bbox_min && a.bbox_max == b.bbox_max &&
+                    a.centroid == b.centroid && a.range_min_m == b.range_min_m &&
+                    a.range_mean_m == b.range_mean_m && a.ground_height_m == b.ground_height_m &&
+                    a.row_min == b.row_min && a.row_max == b.row_max && a.col_min == b.col_min &&
+                    a.col_max == b.col_max)
+            << what << ", segment " << k;
+        // Bit for bit (EXPECT_EQ on doubles compares values exactly).
+        EXPECT_EQ(a.slope_mean_rad, b.slope_mean_rad) << what << ", segment " << k;
+        EXPECT_EQ(a.slope_max_rad, b.slope_max_rad) << what << ", segment " << k;
+      }
+    }
+  }
+}
+
 // --- Surface slope -----------------------------------------------------------------------
 
 // A level camera (up = -y) facing a plane that rises 4 m ahead at `slope` from the

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "../libod/src/detection_internal.hpp"
+#include "../libod/src/simd.hpp"
 #include "cairn/od/leveling.hpp"
 #include "cairn/od/units.hpp"
 
@@ -190,14 +191,22 @@ TEST(Inclination, IsAtan2) {
     check(h, v);
   }
   EXPECT_GT(worst, 0.0);  // a polynomial, not atan2 itself
-  // An odd count, so that the last one goes through the one-at-a-time tail.
-  const int n = static_cast<int>(squares.size()) - (squares.size() % 2 == 0 ? 1 : 0);
+  // An odd count, so that the last one goes through the one-at-a-time tail (and, with
+  // AVX-512F, three after the last eight through the SSE2 loop), at every vector width.
+  struct Uncap {
+    ~Uncap() { internal::CapVectorLanes(0); }
+  } uncap;
+  const int n = static_cast<int>(squares.size() / 8 * 8) - 5;
   std::vector<double> many(n);
-  internal::Inclinations(squares.data(), verticals.data(), many.data(), n);
-  for (int j = 0; j < n; ++j) {
-    const double one = internal::Inclination(std::sqrt(squares[j]), verticals[j]);
-    ASSERT_EQ(std::memcmp(&many[j], &one, sizeof one), 0)
-        << std::setprecision(17) << many[j] << " against " << one << " at " << j;
+  for (const int lanes : {16, 4, 1}) {
+    internal::CapVectorLanes(lanes);
+    internal::Inclinations(squares.data(), verticals.data(), many.data(), n);
+    for (int j = 0; j < n; ++j) {
+      const double one = internal::Inclination(std::sqrt(squares[j]), verticals[j]);
+      ASSERT_EQ(std::memcmp(&many[j], &one, sizeof one), 0)
+          << std::setprecision(17) << many[j] << " against " << one << " at " << j << ", " << lanes
+          << " lanes";
+    }
   }
 }
 

@@ -9,10 +9,6 @@
 #include <optional>
 #include <vector>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 #include "cairn/od/detector.hpp"
 #include "cairn/od/range_image.hpp"
 
@@ -100,40 +96,10 @@ inline double Inclination(double horizontal, double vertical) {
   return offset + t * p;
 }
 
-/// out[j] = Inclination(sqrt(squares[j]), verticals[j]) for j < n, bit for bit: two at a
-/// time in SSE2 (the same operations in the same order, the pieces chosen by masks).
-inline void Inclinations(const double* squares, const double* verticals, double* out, int n) {
-  int j = 0;
-#if defined(__SSE2__)
-  constexpr double kTanPi8 = 0.41421356237309503, kPi4 = 0.78539816339744831;
-  const __m128d tan_pi8 = _mm_set1_pd(kTanPi8), sign = _mm_set1_pd(-0.0);
-  const __m128d all = _mm_castsi128_pd(_mm_set1_epi32(-1));
-  const auto poly = [](__m128d z, __m128d c, double next) {
-    return _mm_add_pd(_mm_mul_pd(c, z), _mm_set1_pd(next));
-  };
-  for (; j + 2 <= n; j += 2) {
-    const __m128d h = _mm_sqrt_pd(_mm_loadu_pd(squares + j)), v = _mm_loadu_pd(verticals + j);
-    const __m128d low = _mm_cmple_pd(h, _mm_mul_pd(v, tan_pi8));
-    const __m128d high = _mm_andnot_pd(low, _mm_cmple_pd(v, _mm_mul_pd(h, tan_pi8)));
-    const __m128d mid = _mm_andnot_pd(_mm_or_pd(low, high), all);
-    const __m128d num =
-        _mm_or_pd(_mm_or_pd(_mm_and_pd(low, h), _mm_and_pd(high, _mm_xor_pd(v, sign))),
-                  _mm_and_pd(mid, _mm_sub_pd(h, v)));
-    const __m128d den = _mm_or_pd(_mm_or_pd(_mm_and_pd(low, v), _mm_and_pd(high, h)),
-                                  _mm_and_pd(mid, _mm_add_pd(h, v)));
-    const __m128d offset =
-        _mm_or_pd(_mm_and_pd(high, _mm_set1_pd(2.0 * kPi4)), _mm_and_pd(mid, _mm_set1_pd(kPi4)));
-    const __m128d t = _mm_div_pd(num, den), z = _mm_mul_pd(t, t);
-    __m128d p = poly(z, _mm_set1_pd(-0.058377893120734145), 0.10480595274350676);
-    p = poly(z, p, -0.1422416064933773);
-    p = poly(z, p, 0.19997023132834191);
-    p = poly(z, p, -0.33333271105929246);
-    p = poly(z, p, 0.99999999627057046);
-    _mm_storeu_pd(out + j, _mm_add_pd(offset, _mm_mul_pd(t, p)));
-  }
-#endif
-  for (; j < n; ++j) out[j] = Inclination(std::sqrt(squares[j]), verticals[j]);
-}
+/// out[j] = Inclination(sqrt(squares[j]), verticals[j]) for j < n, bit for bit: eight at a
+/// time with AVX-512F where the processor has it (simd.hpp), else two at a time in SSE2 (the
+/// same operations in the same order, the pieces chosen by masks).
+void Inclinations(const double* squares, const double* verticals, double* out, int n);
 
 /// Builds the Detection (its labels in `component`'s storage): `component[i]` is -1 when i is in no
 /// segment, i itself when i is its segment's first pixel (in row-major order), and otherwise a

@@ -11,6 +11,7 @@
 
 #include "cairn/od/parallel.hpp"
 #include "detection_internal.hpp"
+#include "simd.hpp"
 
 namespace cairn::od::internal {
 
@@ -229,6 +230,167 @@ std::vector<std::int32_t> UnionFind::Components() {
 
 namespace {
 
+#if defined(CAIRN_OD_WIDE_VECTORS)
+// GCC 12's AVX-512 intrinsics pass an undefined vector as an unused merge source, which
+// -Wuninitialized and -Wmaybe-uninitialized report once inlined (GCC bug 105593, mended in
+// GCC 13).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#endif
+// Inclinations eight at a time (AVX-512F), with the SSE2 loop's operations in its order; the
+// pieces chosen by masks. Returns how many it did (a multiple of eight).
+__attribute__((target("avx512f"))) int InclinationsAvx512(const double* squares,
+                                                          const double* verticals, double* out,
+                                                          int n) {
+  constexpr double kTanPi8 = 0.41421356237309503, kPi4 = 0.78539816339744831;
+  const __m512d tan_pi8 = _mm512_set1_pd(kTanPi8);
+  const __m512i sign = _mm512_set1_epi64(std::numeric_limits<std::int64_t>::min());
+  const __m512d zero = _mm512_setzero_pd();
+  int j = 0;
+  for (; j + 8 <= n; j += 8) {
+    const __m512d h = _mm512_sqrt_pd(_mm512_loadu_pd(squares + j));
+    const __m512d v = _mm512_loadu_pd(verticals + j);
+    const __mmask8 low = _mm512_cmp_pd_mask(h, _mm512_mul_pd(v, tan_pi8), _CMP_LE_OQ);
+    const __mmask8 high =
+        static_cast<__mmask8>(~low & _mm512_cmp_pd_mask(v, _mm512_mul_pd(h, tan_pi8), _CMP_LE_OQ));
+    const __mmask8 mid = static_cast<__mmask8>(~(low | high));
+    const __m512d minus_v = _mm512_castsi512_pd(_mm512_xor_epi64(_mm512_castpd_si512(v), sign));
+    // low: h / v; high: -v / h; between: (h - v) / (h + v).
+    const __m512d num =
+        _mm512_mask_mov_pd(_mm512_mask_mov_pd(_mm512_sub_pd(h, v), high, minus_v), low, h);
+    const __m512d den =
+        _mm512_mask_mov_pd(_mm512_mask_mov_pd(_mm512_add_pd(h, v), high, h), low, v);
+    const __m512d offset = _mm512_mask_mov_pd(
+        _mm512_mask_mov_pd(zero, high, _mm512_set1_pd(2.0 * kPi4)), mid, _mm512_set1_pd(kPi4));
+    const __m512d t = _mm512_div_pd(num, den), z = _mm512_mul_pd(t, t);
+    __m512d p = _mm512_set1_pd(-0.058377893120734145);
+    for (const double next : {0.10480595274350676, -0.1422416064933773, 0.19997023132834191,
+                              -0.33333271105929246, 0.99999999627057046}) {
+      p = _mm512_add_pd(_mm512_mul_pd(p, z), _mm512_set1_pd(next));
+    }
+    _mm512_storeu_pd(out + j, _mm512_add_pd(offset, _mm512_mul_pd(t, p)));
+  }
+  return j;
+}
+
+// Eight level points (k <= 8 of them, from `at`) as doubles; lanes outside `lanes` are 0 and
+// not read.
+__attribute__((target("avx512f"))) inline __m512d Widen(const float* at, __mmask16 lanes) {
+  return _mm512_cvtps_pd(_mm512_castps512_ps256(_mm512_maskz_loadu_ps(lanes, at)));
+}
+
+// BuildDetection's surface normals at k <= 8 inner points i..i+k-1 of a run of segment `id`
+// along a row (their row neighbours are the run's own), eight at a time (AVX-512F) with the
+// scalar code's double operations in its order: the row tangent from the two row neighbours,
+// the column tangent from the neighbours above and below that are in the segment (a point with
+// neither has no normal), their cross product. Each normal that is not zero puts the square of
+// its horizontal part in `squares` and its vertical part's size in `verticals`, in the points'
+// order; returns how many did.
+__attribute__((target("avx512f,popcnt"))) int InnerNormalsAvx512(
+    const float* x, const float* y, const float* z, const std::int32_t* labels, int i, int k,
+    int width, bool has_up, bool has_down, std::int32_t id, double* squares, double* verticals) {
+  const auto lanes = static_cast<__mmask16>((1u << k) - 1);
+  const __m512i vid = _mm512_set1_epi32(id);
+  const auto in_segment = [&](int at) __attribute__((target("avx512f"))) {
+    return _mm512_mask_cmpeq_epi32_mask(lanes, _mm512_maskz_loadu_epi32(lanes, labels + at), vid);
+  };
+  const __mmask16 below = has_down ? in_segment(i + width) : 0;
+  const __mmask16 above = has_up ? in_segment(i - width) : 0;
+  const __m512d px = Widen(x + i, lanes), py = Widen(y + i, lanes), pz = Widen(z + i, lanes);
+  const __m512d ux = _mm512_sub_pd(Widen(x + i + 1, lanes), Widen(x + i - 1, lanes));
+  const __m512d uy = _mm512_sub_pd(Widen(y + i + 1, lanes), Widen(y + i - 1, lanes));
+  const __m512d uz = _mm512_sub_pd(Widen(z + i + 1, lanes), Widen(z + i - 1, lanes));
+  // (below ? the point below : p) - (above ? the point above : p).
+  const auto b8 = static_cast<__mmask8>(below), a8 = static_cast<__mmask8>(above);
+  const __m512d vx = _mm512_sub_pd(_mm512_mask_blend_pd(b8, px, Widen(x + i + width, below)),
+                                   _mm512_mask_blend_pd(a8, px, Widen(x + i - width, above)));
+  const __m512d vy = _mm512_sub_pd(_mm512_mask_blend_pd(b8, py, Widen(y + i + width, below)),
+                                   _mm512_mask_blend_pd(a8, py, Widen(y + i - width, above)));
+  const __m512d vz = _mm512_sub_pd(_mm512_mask_blend_pd(b8, pz, Widen(z + i + width, below)),
+                                   _mm512_mask_blend_pd(a8, pz, Widen(z + i - width, above)));
+  // Eigen's cross product, term for term.
+  const __m512d nx = _mm512_sub_pd(_mm512_mul_pd(uy, vz), _mm512_mul_pd(uz, vy));
+  const __m512d ny = _mm512_sub_pd(_mm512_mul_pd(uz, vx), _mm512_mul_pd(ux, vz));
+  const __m512d nz = _mm512_sub_pd(_mm512_mul_pd(ux, vy), _mm512_mul_pd(uy, vx));
+  const __m512d square = _mm512_add_pd(_mm512_mul_pd(nx, nx), _mm512_mul_pd(ny, ny));
+  const __m512d zero = _mm512_setzero_pd();
+  const auto kept =
+      static_cast<__mmask8>((a8 | b8) & (_mm512_cmp_pd_mask(square, zero, _CMP_GT_OQ) |
+                                         _mm512_cmp_pd_mask(nz, zero, _CMP_NEQ_UQ)));
+  _mm512_mask_compressstoreu_pd(squares, kept, square);
+  _mm512_mask_compressstoreu_pd(verticals, kept, _mm512_abs_pd(nz));
+  return __builtin_popcount(kept);
+}
+
+// BuildDetection's gathering of the pixels [begin, end) that are in a segment (label >= 0),
+// sixteen at a time (AVX-512F): each such pixel is appended to `part` at `count`, and every
+// label below 0 becomes 0. Returns the first pixel it left (fewer than sixteen before `end`).
+__attribute__((target("avx512f,popcnt"))) int GatherMembersAvx512(std::int32_t* labels, int begin,
+                                                                  int end, std::int32_t* part,
+                                                                  int& count) {
+  const __m512i zero = _mm512_setzero_si512(), sixteen = _mm512_set1_epi32(16);
+  __m512i index =
+      _mm512_add_epi32(_mm512_set1_epi32(begin),
+                       _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0));
+  int i = begin, c = count;
+  for (; i + 16 <= end; i += 16) {
+    const __m512i name = _mm512_loadu_si512(labels + i);
+    const __mmask16 member = _mm512_cmpge_epi32_mask(name, zero);
+    _mm512_mask_compressstoreu_epi32(part + c, member, index);
+    c += __builtin_popcount(member);
+    _mm512_storeu_si512(labels + i, _mm512_max_epi32(name, zero));
+    index = _mm512_add_epi32(index, sixteen);
+  }
+  count = c;
+  return i;
+}
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif
+
+}  // namespace
+
+void Inclinations(const double* squares, const double* verticals, double* out, int n) {
+  int j = 0;
+#if defined(CAIRN_OD_WIDE_VECTORS)
+  if (VectorLanes() == 16) j = InclinationsAvx512(squares, verticals, out, n);
+#endif
+#if defined(__SSE2__)
+  constexpr double kTanPi8 = 0.41421356237309503, kPi4 = 0.78539816339744831;
+  const __m128d tan_pi8 = _mm_set1_pd(kTanPi8), sign = _mm_set1_pd(-0.0);
+  const __m128d all = _mm_castsi128_pd(_mm_set1_epi32(-1));
+  const auto poly = [](__m128d z, __m128d c, double next) {
+    return _mm_add_pd(_mm_mul_pd(c, z), _mm_set1_pd(next));
+  };
+  for (; j + 2 <= n; j += 2) {
+    const __m128d h = _mm_sqrt_pd(_mm_loadu_pd(squares + j)), v = _mm_loadu_pd(verticals + j);
+    const __m128d low = _mm_cmple_pd(h, _mm_mul_pd(v, tan_pi8));
+    const __m128d high = _mm_andnot_pd(low, _mm_cmple_pd(v, _mm_mul_pd(h, tan_pi8)));
+    const __m128d mid = _mm_andnot_pd(_mm_or_pd(low, high), all);
+    const __m128d num =
+        _mm_or_pd(_mm_or_pd(_mm_and_pd(low, h), _mm_and_pd(high, _mm_xor_pd(v, sign))),
+                  _mm_and_pd(mid, _mm_sub_pd(h, v)));
+    const __m128d den = _mm_or_pd(_mm_or_pd(_mm_and_pd(low, v), _mm_and_pd(high, h)),
+                                  _mm_and_pd(mid, _mm_add_pd(h, v)));
+    const __m128d offset =
+        _mm_or_pd(_mm_and_pd(high, _mm_set1_pd(2.0 * kPi4)), _mm_and_pd(mid, _mm_set1_pd(kPi4)));
+    const __m128d t = _mm_div_pd(num, den), z = _mm_mul_pd(t, t);
+    __m128d p = poly(z, _mm_set1_pd(-0.058377893120734145), 0.10480595274350676);
+    p = poly(z, p, -0.1422416064933773);
+    p = poly(z, p, 0.19997023132834191);
+    p = poly(z, p, -0.33333271105929246);
+    p = poly(z, p, 0.99999999627057046);
+    _mm_storeu_pd(out + j, _mm_add_pd(offset, _mm_mul_pd(t, p)));
+  }
+#endif
+  for (; j < n; ++j) out[j] = Inclination(std::sqrt(squares[j]), verticals[j]);
+}
+
+namespace {
+
 // One segment's features over some of its points, before the means: the sums behind them.
 struct Partial {
   SegmentFeatures f;
@@ -279,6 +441,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
   std::int32_t* const labels = det.labels.data();
   det.stats = stats;
 
+  [[maybe_unused]] const bool wide = VectorLanes() == 16;
   // The segments' pixels, in row-major order (gathered in parts, joined in order): every
   // later pass visits only them.
   constexpr int kPixelParts = 8;
@@ -290,8 +453,11 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
         // advanced at members (no branch to mispredict).
         const int begin = PartBegin(n, k, kPixelParts), end = PartBegin(n, k + 1, kPixelParts);
         std::vector<std::int32_t> part(end - begin);  // count <= i - begin at each write
-        int count = 0;
-        for (int i = begin; i < end; ++i) {
+        int count = 0, i = begin;
+#if defined(CAIRN_OD_WIDE_VECTORS)
+        if (wide) i = GatherMembersAvx512(labels, begin, end, part.data(), count);
+#endif
+        for (; i < end; ++i) {
           part[count] = i;
           const std::int32_t name = labels[i];
           count += name >= 0;
@@ -399,8 +565,12 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
             s_range += range;
             range_min = std::min(range_min, range);
             raised_points += raised[i] != 0;
-
-            // Inside the run both row neighbours are the segment's; at its ends, as anywhere.
+          }
+          // The slopes, in the points' order. Inside the run both row neighbours are the
+          // segment's; at its ends, as anywhere.
+          const int up = r > 0 ? -width : 0, down = r + 1 < height ? width : 0;
+          const auto slope_at = [&](int j) {
+            const int i = i0 + j;
             Eigen::Vector3d tu, tv;
             if (j > 0 && j + 1 < len) {
               tu = at(i + 1) - at(i - 1);
@@ -409,18 +579,34 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
               int left = c > 0 ? i - 1 : (wraps ? i + width - 1 : -1);
               int right = c + 1 < width ? i + 1 : (wraps ? i - c : -1);
               if (width == 1) left = right = -1;
-              if (!tangent(i, left, right, tu)) continue;
+              if (!tangent(i, left, right, tu)) return;
             }
-            const int up = r > 0 ? i - width : -1, down = r + 1 < height ? i + width : -1;
-            if (!tangent(i, up, down, tv)) continue;
+            if (!tangent(i, up != 0 ? i + up : -1, down != 0 ? i + down : -1, tv)) return;
             const Eigen::Vector3d normal = tu.cross(tv);
             const double square = normal.x() * normal.x() + normal.y() * normal.y();
-            if (!(square > 0.0 || normal.z() != 0.0)) continue;
+            if (!(square > 0.0 || normal.z() != 0.0)) return;
             if (pending == kChunk) add_slopes();
             squares[pending] = square;
             verticals[pending] = std::abs(normal.z());
             owners[pending++] = &s;
+          };
+          slope_at(0);
+          int j = 1;
+#if defined(CAIRN_OD_WIDE_VECTORS)
+          if (wide) {  // the inner points eight at a time
+            for (; j + 1 < len; j += 8) {
+              if (pending + 8 > kChunk) add_slopes();
+              const int kept =
+                  InnerNormalsAvx512(level.x.data(), level.y.data(), level.z.data(), labels, i0 + j,
+                                     std::min(8, len - 1 - j), width, up != 0, down != 0, id,
+                                     squares + pending, verticals + pending);
+              std::fill(owners + pending, owners + pending + kept, &s);
+              pending += kept;
+            }
           }
+#endif
+          for (; j + 1 < len; ++j) slope_at(j);
+          if (len > 1) slope_at(len - 1);
           SegmentFeatures& f = s.f;
           f.point_count += len;
           f.raised_count += raised_points;
