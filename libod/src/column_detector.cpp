@@ -163,6 +163,39 @@ __attribute__((target("avx512f,popcnt"))) bool DirectAvx512(
 #endif
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
+// FindColumnPairs' window of one bin for the lower point p in a dense column, sixteen at a time
+// (AVX-512F), with the pair test's float operations in its order: the points [j0, j_end), which
+// ascend in height from the first more than HT above p, up to the first sixteen holding a hit
+// (its hits get all ones in `upper_hit`) or to the first point Hmax or more above p. `tested` and
+// `compatible` count the points looked at less than Hmax above p and the hits. Returns whether p
+// has a partner. Reads up to fifteen points past j_end (the padding), which do not count.
+__attribute__((target("avx512f,popcnt"))) bool WindowAvx512(
+    const float* cx, const float* cy, const float* cz, int j0, int j_end, const float* p,
+    const PairTest& t, std::int32_t* upper_hit, std::int64_t& tested, std::int64_t& compatible) {
+  const __m512 px = _mm512_set1_ps(p[0]), py = _mm512_set1_ps(p[1]), pz = _mm512_set1_ps(p[2]);
+  const __m512 vh = _mm512_set1_ps(t.max_height), vt = _mm512_set1_ps(t.tan2_theta);
+  for (int j = j0; j < j_end; j += 16) {
+    const auto valid = static_cast<__mmask16>(j_end - j >= 16 ? 0xffff : (1 << (j_end - j)) - 1);
+    const __m512 dz = _mm512_sub_ps(_mm512_loadu_ps(cz + j), pz);
+    const __m512 dx = _mm512_sub_ps(_mm512_loadu_ps(cx + j), px);
+    const __m512 dy = _mm512_sub_ps(_mm512_loadu_ps(cy + j), py);
+    const auto window = static_cast<__mmask16>(valid & _mm512_cmp_ps_mask(dz, vh, _CMP_LT_OQ));
+    const auto bits = static_cast<__mmask16>(
+        window & _mm512_cmp_ps_mask(
+                     _mm512_mul_ps(dz, dz),
+                     _mm512_mul_ps(vt, _mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy))),
+                     _CMP_GT_OQ));
+    tested += __builtin_popcount(window);
+    if (bits != 0) {
+      compatible += __builtin_popcount(bits);
+      _mm512_mask_storeu_epi32(upper_hit + j, bits, _mm512_set1_epi32(-1));
+      return true;
+    }
+    if (window != 0xffff) return false;  // past Hmax above p, or the bin's end
+  }
+  return false;
+}
+
 // A whole column of m <= 16 kChunks points, unsorted, padded by the caller to 16 kChunks with
 // points infinitely high (x = y = 0), which no window holds (infinity is not less than Hmax):
 // each point p with more than HT between it and the column's `top` meets every point, sixteen
@@ -226,11 +259,12 @@ __attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
 // three bins hold at most kDirectPoints, p meets all of them four or sixteen at a time
 // (DirectAvx512), every pair found. Where they hold more (a dense image's column, whose faces hold
 // hundreds of points each within Hmax of another), and always without SSE2 or with the lanes capped
-// to one, a point needs only one partner each way: p's window is searched up to its first hit, and
-// then each point not yet marked as an upper point searches the window below it, nearest first, up
-// to its first hit. The points of a bin stop at the first with no point of those bins more than HT
-// above it. The columns are gathered kBlockColumns at a time, row by row, bottom row first, into
-// reused buffers, and their marks stored row by row once the block is done.
+// to one, a point needs only one partner each way: p's window is searched up to its first hit
+// (four points at a time, sixteen with AVX-512F, every hit among them marked), and then each point
+// not yet marked as an upper point searches the window below it, nearest first, up to its first
+// hit. The points of a bin stop at the first with no point of those bins more than HT above it. The
+// columns are gathered kBlockColumns at a time, row by row, bottom row first, into reused buffers,
+// and their marks stored row by row once the block is done.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
                             int height) {
   const int n = width * height;
@@ -479,6 +513,14 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
           int& j0 = first[h - h0];
           const int j_end = bins[h].end;
           while (j0 < j_end && !(cz[j0] - pz > ht)) ++j0;
+#if defined(CAIRN_OD_WIDE_VECTORS)
+          if (lanes == 16) {
+            const float p[3] = {cx[k], cy[k], pz};
+            found = WindowAvx512(cx, cy, cz, j0, j_end, p, test, upper_hit, pairs_tested,
+                                 pairs_compatible);
+            continue;
+          }
+#endif
 #if defined(__SSE2__)
           if (lanes >= 4) {
             // Four at a time (heights ascend: past the first point Hmax or more above, none is
