@@ -819,11 +819,35 @@ TEST(PairSearch, FeaturesAreTheSameAtEveryVectorWidth) {
     frames.emplace_back(RandomScan(rng, trial % 2 ? "VLP-16" : "OS1-64", 69 + 17 * trial),
                         RandomConfig(rng));
   }
+  // What the frames must hold for the wide paths to be seen: runs of ten points or more (a
+  // block of eight inner points), runs whose last block is shorter, runs in the first or last
+  // row (one neighbour in the column), segments across a LiDAR scan's seam.
+  int long_runs = 0, short_blocks = 0, edge_runs = 0, across = 0;
   for (std::size_t f = 0; f < frames.size(); ++f) {
     const auto& [image, config] = frames[f];
     internal::CapVectorLanes(1);
     const Detection one = *Detect(image, config);
     ASSERT_FALSE(one.segments.empty()) << "frame " << f;
+    const int width = image.width(), height = image.height();
+    for (int r = 0; r < height; ++r) {
+      for (int c = 0; c < width;) {
+        const std::int32_t id = one.labels[static_cast<std::size_t>(r) * width + c];
+        int len = 1;
+        while (c + len < width && one.labels[static_cast<std::size_t>(r) * width + c + len] == id) {
+          ++len;
+        }
+        if (id != 0 && len >= 3) {
+          long_runs += len >= 10;
+          short_blocks += (len - 2) % 8 != 0;
+          edge_runs += r == 0 || r == height - 1;
+        }
+        c += len;
+      }
+    }
+    for (const SegmentFeatures& s : one.segments) {
+      across += s.col_min == 0 && s.col_max == width - 1 &&
+                std::holds_alternative<SphericalModel>(image.model());
+    }
     for (const int lanes : {16, 8, 4}) {
       if (lanes > widest) continue;
       internal::CapVectorLanes(lanes);
@@ -847,6 +871,13 @@ TEST(PairSearch, FeaturesAreTheSameAtEveryVectorWidth) {
         EXPECT_EQ(a.slope_max_rad, b.slope_max_rad) << what << ", segment " << k;
       }
     }
+  }
+  EXPECT_GT(long_runs, 0);
+  EXPECT_GT(short_blocks, 0);
+  EXPECT_GT(edge_runs, 0);
+  EXPECT_GT(across, 0);
+  if (widest < 16) {
+    std::printf("note: no AVX-512F here: the features' wide paths were not run\n");
   }
 }
 

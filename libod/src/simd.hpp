@@ -2,13 +2,15 @@
 // built for x86-64's baseline (SSE2, four lanes); where the processor runs AVX2 (eight) or
 // AVX-512F (sixteen), the loops that gain from it take the wider path, chosen once per process
 // at run time: with AVX2 the exact search's hits, with AVX-512F also its box tests, its leaves'
-// ranks by height, the column baseline's neighbourhoods and whole columns, and the features'
-// gathering of segment pixels, surface normals and slope angles (in double, bit for bit).
-// Capped to one lane, the searches run their scalar code (the level points are still rotated
-// four at a time).
+// ranks by height, the column baseline's neighbourhoods, whole columns and dense windows, and the
+// features' gathering of segment pixels, surface normals and slope angles (in double, bit for
+// bit). Capped to one lane, the searches run their scalar code (the level points are still
+// rotated four at a time, and the features' angles taken two at a time).
 // Every path does the pair test's float operations in the same order (no fused multiply-add:
-// the library is built with -ffp-contract=off), so every width finds the same pairs; the tests
-// run each width the processor has against the definition and against each other.
+// the library is built with -ffp-contract=off), so every width gives the same obstacle points,
+// segments and features (the counts of pairs tested, and found where not every pair is sought,
+// differ); the tests run each width the processor has against the definition and against each
+// other.
 #pragma once
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
