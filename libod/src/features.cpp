@@ -231,14 +231,7 @@ std::vector<std::int32_t> UnionFind::Components() {
 namespace {
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
-// GCC 12's AVX-512 intrinsics pass an undefined vector as an unused merge source, which
-// -Wuninitialized and -Wmaybe-uninitialized report once inlined (GCC bug 105593, mended in
-// GCC 13).
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#pragma GCC diagnostic ignored "-Wuninitialized"
-#endif
+CAIRN_OD_AVX512_KERNELS_BEGIN
 // Inclinations eight at a time (AVX-512F), with the SSE2 loop's operations in its order; the
 // pieces chosen by masks. Returns how many it did (a multiple of eight).
 __attribute__((target("avx512f"))) int InclinationsAvx512(const double* squares,
@@ -346,9 +339,7 @@ __attribute__((target("avx512f,popcnt"))) int GatherMembersAvx512(std::int32_t* 
   count = c;
   return i;
 }
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
+CAIRN_OD_AVX512_KERNELS_END
 #endif
 
 }  // namespace

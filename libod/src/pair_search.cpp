@@ -368,14 +368,7 @@ inline __m128 NotRejected(const __m128* a_lo, const __m128* a_hi, const __m128* 
 #endif
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
-// GCC 12's AVX-512 min and max pass an undefined vector as the unused merge source, which
-// -Wuninitialized and -Wmaybe-uninitialized report once inlined (GCC bug 105593, mended in
-// GCC 13).
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#pragma GCC diagnostic ignored "-Wuninitialized"
-#endif
+CAIRN_OD_AVX512_KERNELS_BEGIN
 // Search::Hits eight (AVX2) and sixteen (AVX-512F) packed points at a time, with its float
 // operations in its order: the bits of the points in p's cone, and of those HT..Hmax above p
 // (`in_window`). The points are padded to a multiple of sixteen.
@@ -539,9 +532,7 @@ __attribute__((target("avx512f"))) void ClassifyAvx512(const float* x, const flo
     accept |= static_cast<std::uint64_t>(kept & inside & all) << i;
   }
 }
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
+CAIRN_OD_AVX512_KERNELS_END
 #endif
 
 }  // namespace

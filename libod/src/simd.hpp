@@ -19,6 +19,19 @@
 #include <immintrin.h>
 #endif
 
+// Around AVX-512 kernels: GCC 12's AVX-512 intrinsics pass an undefined vector as an unused merge
+// source, which -Wuninitialized and -Wmaybe-uninitialized report once inlined (GCC bug 105593,
+// mended in GCC 13).
+#if defined(__GNUC__) && !defined(__clang__)
+#define CAIRN_OD_AVX512_KERNELS_BEGIN                                                        \
+  _Pragma("GCC diagnostic push") _Pragma("GCC diagnostic ignored \"-Wmaybe-uninitialized\"") \
+      _Pragma("GCC diagnostic ignored \"-Wuninitialized\"")
+#define CAIRN_OD_AVX512_KERNELS_END _Pragma("GCC diagnostic pop")
+#else
+#define CAIRN_OD_AVX512_KERNELS_BEGIN
+#define CAIRN_OD_AVX512_KERNELS_END
+#endif
+
 namespace cairn::od::internal {
 
 /// 16 (AVX-512F), 8 (AVX2), 4 (SSE2) or 1 (one at a time): the widest the build and the
