@@ -559,7 +559,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
           }
           // The slopes, in the points' order. Inside the run both row neighbours are the
           // segment's; at its ends, as anywhere.
-          const int up = r > 0 ? -width : 0, down = r + 1 < height ? width : 0;
+          const bool has_up = r > 0, has_down = r + 1 < height;
           const auto slope_at = [&](int j) {
             const int i = i0 + j;
             Eigen::Vector3d tu, tv;
@@ -572,7 +572,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
               if (width == 1) left = right = -1;
               if (!tangent(i, left, right, tu)) return;
             }
-            if (!tangent(i, up != 0 ? i + up : -1, down != 0 ? i + down : -1, tv)) return;
+            if (!tangent(i, has_up ? i - width : -1, has_down ? i + width : -1, tv)) return;
             const Eigen::Vector3d normal = tu.cross(tv);
             const double square = normal.x() * normal.x() + normal.y() * normal.y();
             if (!(square > 0.0 || normal.z() != 0.0)) return;
@@ -589,7 +589,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
               if (pending + 8 > kChunk) add_slopes();
               const int kept =
                   InnerNormalsAvx512(level.x.data(), level.y.data(), level.z.data(), labels, i0 + j,
-                                     std::min(8, len - 1 - j), width, up != 0, down != 0, id,
+                                     std::min(8, len - 1 - j), width, has_up, has_down, id,
                                      squares + pending, verticals + pending);
               std::fill(owners + pending, owners + pending + kept, &s);
               pending += kept;
