@@ -989,8 +989,12 @@ class alignas(64) Search {
     int i_begin = A.begin, i_end = A.end;
     while (i_begin < i_end && !(near_lo[2] - lz[i_begin] < hmax)) ++i_begin;
     while (i_end > i_begin && !(near_hi[2] - lz[i_end - 1] > test_.min_height)) --i_end;
-    int done_root = -1;        // the set DoneBits was last taken for
-    std::uint64_t done_bits = 0;  // and its answer
+    // Packed points known to be raised and in the set of `done_root` (a root when taken; its
+    // set only grows): those the earlier points of A paired with, or DoneBits' answer. A point
+    // of A that pairs with one of them joins that set once, instead of taking each as its
+    // partner again.
+    int done_root = -1;
+    std::uint64_t done_bits = 0;
     // Each point's verdict against the near box, all at once: `keep` those not rejected;
     // `accept` (compatible with all of B) only when the near box is B's.
     std::uint64_t keep = 0, accept = 0;
@@ -1026,15 +1030,28 @@ class alignas(64) Search {
       if (has_partner) {
         root = Find(pi);
         if (root != done_root) {
+          // The same set when the two were joined since; else the known points are taken
+          // for p's set.
+          if (done_root < 0 || Find(done_root) != root) done_bits = DoneBits(packed, root);
           done_root = root;
-          done_bits = DoneBits(packed, root);
         }
         if ((packed_bits & ~done_bits) == 0) continue;
       }
       std::uint64_t hits = Hits(packed, p, stats_.pairs_tested);
-      if (has_partner) hits &= ~done_bits;
       if (hits == 0) continue;
-      if (unions && !has_partner) root = Find(pi);
+      found = true;
+      lower.Add(pi, 1);
+      // Whether p's set is done_root's: then the hits among the known points need nothing
+      // more (p pairing with one of them is p joining their set).
+      bool in_done = has_partner;
+      if (unions && !has_partner) {
+        root = Find(pi);
+        if ((hits & done_bits) != 0) {
+          root = Union(root, done_root);
+          in_done = true;
+        }
+      }
+      if (in_done) hits &= ~done_bits;
       // One partner (upper point j): raised, joined; true when the rest of B can change
       // nothing.
       const auto partner = [&](int j) {
@@ -1051,13 +1068,27 @@ class alignas(64) Search {
       };
       // Counted here: the member would be loaded and stored again around every mark.
       int partners = 0;
+      std::uint64_t taken = 0;  // the partners taken, now raised and in p's set
+      bool all_done = false;    // all of B is, in p's set
       for (; hits != 0; hits &= hits - 1) {
         ++partners;
-        if (partner(packed.at[__builtin_ctzll(hits)])) break;
+        const int bit = __builtin_ctzll(hits);
+        taken |= std::uint64_t{1} << bit;
+        if (partner(packed.at[bit])) {
+          all_done = true;
+          break;
+        }
       }
       stats_.pairs_compatible += partners;
-      lower.Add(pi, 1);
-      found = true;
+      if (!unions) continue;
+      if (all_done) {
+        done_bits = packed_bits;
+      } else if (in_done) {
+        done_bits |= taken;
+      } else {
+        done_bits = taken;
+      }
+      done_root = root;
     }
     // The leaves' flags are hints (work skipped when set): a pair of leaves that found no pair
     // leaves them unset, for a later pair that finds one to set, if there is one.
