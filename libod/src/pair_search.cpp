@@ -889,7 +889,7 @@ class alignas(64) Search {
     alignas(64) float x[PointTree::kMaxLeafPoints + 15];
     alignas(64) float y[PointTree::kMaxLeafPoints + 15];
     alignas(64) float z[PointTree::kMaxLeafPoints + 15];
-    std::int32_t at[PointTree::kMaxLeafPoints];  ///< the point's index in the tree
+    std::int32_t pixel[PointTree::kMaxLeafPoints];  ///< the point's image index
     int count = 0;
   };
   void Pack(const Node& B, std::uint64_t near, Packed& q) const {
@@ -899,7 +899,7 @@ class alignas(64) Search {
       q.x[c] = up_.x[j];
       q.y[c] = up_.y[j];
       q.z[c] = up_.z[j];
-      q.at[c++] = j;
+      q.pixel[c++] = up_.pixel[j];
     }
     q.count = c;
     for (int k = c; k < ((c + 15) & ~15); ++k) {
@@ -1052,10 +1052,9 @@ class alignas(64) Search {
         }
       }
       if (in_done) hits &= ~done_bits;
-      // One partner (upper point j): raised, joined; true when the rest of B can change
-      // nothing.
-      const auto partner = [&](int j) {
-        const int pj = upix[j];
+      // One partner (upper point, image index pj): raised, joined; true when the rest of B can
+      // change nothing.
+      const auto partner = [&](int pj) {
         raised.Mark(pj);
         // A partner whose parent is `root` (p's root when found, in p's set however the
         // workers link since: sets only grow) is in p's set already: most are, and skip the
@@ -1074,7 +1073,7 @@ class alignas(64) Search {
         ++partners;
         const int bit = __builtin_ctzll(hits);
         taken |= std::uint64_t{1} << bit;
-        if (partner(packed.at[bit])) {
+        if (partner(packed.pixel[bit])) {
           all_done = true;
           break;
         }
@@ -1101,11 +1100,18 @@ class alignas(64) Search {
   // point of that set that has a partner changes nothing. Facts only grow, so bits taken
   // earlier stay true.
   std::uint64_t DoneBits(const Packed& q, int root) {
-    std::uint64_t bits = 0;
+    // Those whose parent is the root at once, without a branch; the walk to the root for the
+    // other raised ones.
+    std::uint64_t bits = 0, walk = 0;
     for (int k = 0; k < q.count; ++k) {
-      const int pj = up_.pixel[q.at[k]];
-      const bool done = raised_[pj] && (parent_[pj] == root || Find(pj) == root);
-      bits |= static_cast<std::uint64_t>(done) << k;
+      const int pj = q.pixel[k];
+      const bool raised = raised_[pj] != 0, child = parent_[pj] == root;
+      bits |= static_cast<std::uint64_t>(raised & child) << k;
+      walk |= static_cast<std::uint64_t>(raised & !child) << k;
+    }
+    for (; walk != 0; walk &= walk - 1) {
+      const int k = __builtin_ctzll(walk);
+      bits |= static_cast<std::uint64_t>(Find(q.pixel[k]) == root) << k;
     }
     return bits;
   }
