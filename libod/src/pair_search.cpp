@@ -422,6 +422,31 @@ __attribute__((target("avx512f"))) std::uint64_t HitsAvx512(const float* qx, con
   return hits;
 }
 
+// Search::Pack sixteen points at a time (AVX-512F): the points of bits `near` of x, y, z,
+// pixel [0, size) stored side by side from q_*, their count returned; then padding up to a
+// multiple of sixteen (x = y = 0, z infinite).
+__attribute__((target("avx512f,popcnt"))) int PackAvx512(const float* x, const float* y,
+                                                         const float* z, const std::int32_t* pixel,
+                                                         int size, std::uint64_t near, float* qx,
+                                                         float* qy, float* qz,
+                                                         std::int32_t* qpixel) {
+  int c = 0;
+  for (int j = 0; j < size; j += 16) {
+    const auto take = static_cast<__mmask16>(near >> j);
+    if (take == 0) continue;
+    _mm512_mask_compressstoreu_ps(qx + c, take, _mm512_maskz_loadu_ps(take, x + j));
+    _mm512_mask_compressstoreu_ps(qy + c, take, _mm512_maskz_loadu_ps(take, y + j));
+    _mm512_mask_compressstoreu_ps(qz + c, take, _mm512_maskz_loadu_ps(take, z + j));
+    _mm512_mask_compressstoreu_epi32(qpixel + c, take, _mm512_maskz_loadu_epi32(take, pixel + j));
+    c += __builtin_popcount(take);
+  }
+  const auto pad = static_cast<__mmask16>(((1u << ((16 - (c & 15)) & 15)) - 1));
+  _mm512_mask_storeu_ps(qx + c, pad, _mm512_setzero_ps());
+  _mm512_mask_storeu_ps(qy + c, pad, _mm512_setzero_ps());
+  _mm512_mask_storeu_ps(qz + c, pad, _mm512_set1_ps(std::numeric_limits<float>::infinity()));
+  return c;
+}
+
 // NotRejected for sixteen pairs of boxes (lower a, upper b), with Classify's float operations
 // in its order: the lanes it does not reject.
 __attribute__((target("avx512f"))) inline __mmask16 NotRejected16(const __m512* a_lo,
@@ -886,13 +911,21 @@ class alignas(64) Search {
   // which the test's count of points tested relies on (the hits do not; unsorted leaves were slower
   // all the same, BENCHMARKS.md).
   struct Packed {
-    alignas(64) float x[PointTree::kMaxLeafPoints + 15];
-    alignas(64) float y[PointTree::kMaxLeafPoints + 15];
-    alignas(64) float z[PointTree::kMaxLeafPoints + 15];
+    alignas(64) float x[PointTree::kMaxLeafPoints + 16];
+    alignas(64) float y[PointTree::kMaxLeafPoints + 16];
+    alignas(64) float z[PointTree::kMaxLeafPoints + 16];
     std::int32_t pixel[PointTree::kMaxLeafPoints];  ///< the point's image index
     int count = 0;
   };
   void Pack(const Node& B, std::uint64_t near, Packed& q) const {
+#if defined(CAIRN_OD_WIDE_VECTORS)
+    if (lanes_ == 16) {
+      q.count =
+          PackAvx512(up_.x.data() + B.begin, up_.y.data() + B.begin, up_.z.data() + B.begin,
+                     up_.pixel.data() + B.begin, B.end - B.begin, near, q.x, q.y, q.z, q.pixel);
+      return;
+    }
+#endif
     int c = 0;
     for (; near != 0; near &= near - 1) {
       const int j = B.begin + __builtin_ctzll(near);
@@ -985,10 +1018,13 @@ class alignas(64) Search {
     const bool all_near = near == (size < 64 ? ~(~std::uint64_t{0} << size) : ~std::uint64_t{0});
     // The lower leaf is sorted by height: the points that the near box's heights reject
     // (Classify's first test: nothing more than HT above, or all of it Hmax above or more)
-    // are its two ends, whose bounds the same float differences find.
+    // are its two ends, whose bounds the same float differences find. Sixteen at a time, the
+    // box test rejects them as fast as this walk finds them.
     int i_begin = A.begin, i_end = A.end;
-    while (i_begin < i_end && !(near_lo[2] - lz[i_begin] < hmax)) ++i_begin;
-    while (i_end > i_begin && !(near_hi[2] - lz[i_end - 1] > test_.min_height)) --i_end;
+    if (lanes_ < 16) {
+      while (i_begin < i_end && !(near_lo[2] - lz[i_begin] < hmax)) ++i_begin;
+      while (i_end > i_begin && !(near_hi[2] - lz[i_end - 1] > test_.min_height)) --i_end;
+    }
     // Packed points known to be raised and in the set of `done_root` (a root when taken; its
     // set only grows): those the earlier points of A paired with, or DoneBits' answer. A point
     // of A that pairs with one of them joins that set once, instead of taking each as its
