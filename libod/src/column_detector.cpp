@@ -681,6 +681,22 @@ ColumnPairs FindColumnPairsBruteForce(const internal::LevelPoints& level, const 
 // pixels are joined to the runs of the row above that touch them, corners included. A
 // blob's representative is its first pixel in row-major order (the first pixel of its
 // first run), as a pixel-wise union-find with the smallest root gives.
+// Bit j set when mask[j] is not 0, for j < count <= 64 (the bits above are 0).
+std::uint64_t MaskBits(const std::uint8_t* mask, int count) {
+  std::uint64_t bits = 0;
+  int j = 0;
+#if defined(__SSE2__)
+  const __m128i zero = _mm_setzero_si128();
+  for (; j + 16 <= count; j += 16) {
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(mask + j));
+    const auto clear = static_cast<std::uint64_t>(_mm_movemask_epi8(_mm_cmpeq_epi8(v, zero)));
+    bits |= (~clear & 0xffff) << j;
+  }
+#endif
+  for (; j < count; ++j) bits |= static_cast<std::uint64_t>(mask[j] != 0) << j;
+  return bits;
+}
+
 Detection Blobs(const RangeImage& image, const internal::LevelPoints& level,
                 const ColumnPairs& pairs, const ColumnConfig& config, float min_height) {
   const int n = image.size(), width = image.width(), height = image.height();
@@ -690,14 +706,27 @@ Detection Blobs(const RangeImage& image, const internal::LevelPoints& level,
   };
   std::vector<Run> runs;
   std::vector<int> row_start(height + 1, 0);  // row r's runs: [row_start[r], row_start[r + 1])
+  // Each row 64 pixels at a time as the bits of a word, a run's ends where a bit differs
+  // from the one before it: no branch per pixel.
   for (int row = 0; row < height; ++row) {
-    const std::uint8_t* mask = obstacle.data() + static_cast<std::size_t>(row) * width;
-    for (int c = 0; c < width; ++c) {
-      if (!mask[c]) continue;
-      const int begin = c;
-      while (c + 1 < width && mask[c + 1]) ++c;
-      runs.push_back({row * width + begin, row * width + c + 1});
+    const int first = row * width;
+    const std::uint8_t* mask = obstacle.data() + first;
+    int begin = -1;          // the open run's first column, or -1
+    std::uint64_t last = 0;  // the bit before the word
+    for (int c0 = 0; c0 < width; c0 += 64) {
+      const std::uint64_t bits = MaskBits(mask + c0, std::min(64, width - c0));
+      for (std::uint64_t ends = bits ^ ((bits << 1) | last); ends != 0; ends &= ends - 1) {
+        const int c = c0 + __builtin_ctzll(ends);
+        if (begin < 0) {
+          begin = c;
+        } else {
+          runs.push_back({first + begin, first + c});
+          begin = -1;
+        }
+      }
+      last = bits >> 63;
     }
+    if (begin >= 0) runs.push_back({first + begin, first + width});
     row_start[row + 1] = static_cast<int>(runs.size());
   }
   // Runs of the row above touch a run when they reach from its column begin - 1 to end.
