@@ -81,79 +81,64 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_
         float* lz = z.data();
         const int begin = PartBegin(n, k, kParts), end = PartBegin(n, k + 1, kParts);
         int i = begin;
-        // The extent here when no return is dropped after (else in the pass that drops them).
-        const bool last_pass = !(min_range_m > 0.0);
+        // Returns nearer than min_range dropped (NaN) as they are stored, by
+        // DropReturnsNearerThan's test in its double arithmetic (a NaN return compares false
+        // and stays NaN).
+        const bool drop = min_range_m > 0.0;
+        const double range2 = min_range_m * min_range_m;
+        constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 #if defined(__SSE2__)
         const auto row = [&](float a, float b, float c, __m128 px, __m128 py, __m128 pz) {
           return _mm_add_ps(
               _mm_add_ps(_mm_mul_ps(_mm_set1_ps(a), px), _mm_mul_ps(_mm_set1_ps(b), py)),
               _mm_mul_ps(_mm_set1_ps(c), pz));
         };
+        // Four at a time: each pair of floats widened to doubles, the two halves' "nearer"
+        // masks packed into four float lanes.
+        const __m128d vrange2 = _mm_set1_pd(range2);
+        const __m128 vnan = _mm_set1_ps(kNaN);
+        const auto near2 = [&](__m128 px, __m128 py, __m128 pz) {
+          const __m128d dx = _mm_cvtps_pd(px), dy = _mm_cvtps_pd(py), dz = _mm_cvtps_pd(pz);
+          return _mm_cmplt_pd(
+              _mm_add_pd(_mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)), _mm_mul_pd(dz, dz)),
+              vrange2);
+        };
         Lanes lanes;
         for (; i + 4 <= end; i += 4) {
           const __m128 px = _mm_loadu_ps(sx + i), py = _mm_loadu_ps(sy + i),
                        pz = _mm_loadu_ps(sz + i);
-          const __m128 qx = row(r00, r01, r02, px, py, pz), qy = row(r10, r11, r12, px, py, pz);
-          const __m128 qz = row(r20, r21, r22, px, py, pz);
-          _mm_storeu_ps(lx + i, qx);
-          _mm_storeu_ps(ly + i, qy);
-          _mm_storeu_ps(lz + i, qz);
-          if (last_pass) lanes.Add(qx, qy, qz);
-        }
-        if (last_pass) lanes.Into(e);
-#endif
-        for (; i < end; ++i) {
-          // R p as (r0 x + r1 y) + r2 z, as the four at a time above; NaN stays NaN.
-          lx[i] = r00 * sx[i] + r01 * sy[i] + r02 * sz[i];
-          ly[i] = r10 * sx[i] + r11 * sy[i] + r12 * sz[i];
-          lz[i] = r20 * sx[i] + r21 * sy[i] + r22 * sz[i];
-          if (last_pass) add(e, lx[i], ly[i], lz[i]);
-        }
-        if (!last_pass) {
-          // DropReturnsNearerThan's test, in its double arithmetic (a NaN return compares
-          // false and stays NaN).
-          constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-          const double range2 = min_range_m * min_range_m;
-          int j = begin;
-#if defined(__SSE2__)
-          // Four at a time: each pair of floats widened to doubles, the two halves' "nearer"
-          // masks packed into four float lanes.
-          const __m128d vrange2 = _mm_set1_pd(range2);
-          const __m128 vnan = _mm_set1_ps(kNaN);
-          const auto near2 = [&](__m128 px, __m128 py, __m128 pz) {
-            const __m128d dx = _mm_cvtps_pd(px), dy = _mm_cvtps_pd(py), dz = _mm_cvtps_pd(pz);
-            return _mm_cmplt_pd(
-                _mm_add_pd(_mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)), _mm_mul_pd(dz, dz)),
-                vrange2);
-          };
-          Lanes dropped;
-          for (; j + 4 <= end; j += 4) {
-            const __m128 px = _mm_loadu_ps(sx + j), py = _mm_loadu_ps(sy + j),
-                         pz = _mm_loadu_ps(sz + j);
+          __m128 qx = row(r00, r01, r02, px, py, pz), qy = row(r10, r11, r12, px, py, pz);
+          __m128 qz = row(r20, r21, r22, px, py, pz);
+          if (drop) {
             const __m128d lo = near2(px, py, pz);
             const __m128d hi =
                 near2(_mm_movehl_ps(px, px), _mm_movehl_ps(py, py), _mm_movehl_ps(pz, pz));
             // Each double lane's mask is all ones or zeros: its low 32 bits stand for it.
             const __m128 near =
                 _mm_shuffle_ps(_mm_castpd_ps(lo), _mm_castpd_ps(hi), _MM_SHUFFLE(2, 0, 2, 0));
-            __m128 q[3];
-            float* const outs[3] = {lx, ly, lz};
-            for (int c = 0; c < 3; ++c) {
-              const __m128 v = _mm_loadu_ps(outs[c] + j);
-              q[c] = _mm_or_ps(_mm_and_ps(near, vnan), _mm_andnot_ps(near, v));
-              _mm_storeu_ps(outs[c] + j, q[c]);
-            }
-            dropped.Add(q[0], q[1], q[2]);
+            qx = _mm_or_ps(_mm_and_ps(near, vnan), _mm_andnot_ps(near, qx));
+            qy = _mm_or_ps(_mm_and_ps(near, vnan), _mm_andnot_ps(near, qy));
+            qz = _mm_or_ps(_mm_and_ps(near, vnan), _mm_andnot_ps(near, qz));
           }
-          dropped.Into(e);
+          _mm_storeu_ps(lx + i, qx);
+          _mm_storeu_ps(ly + i, qy);
+          _mm_storeu_ps(lz + i, qz);
+          lanes.Add(qx, qy, qz);
+        }
+        lanes.Into(e);
 #endif
-          for (; j < end; ++j) {
-            const double r2 = static_cast<double>(sx[j]) * sx[j] +
-                              static_cast<double>(sy[j]) * sy[j] +
-                              static_cast<double>(sz[j]) * sz[j];
-            if (r2 < range2) lx[j] = ly[j] = lz[j] = kNaN;
-            add(e, lx[j], ly[j], lz[j]);
+        for (; i < end; ++i) {
+          // R p as (r0 x + r1 y) + r2 z, as the four at a time above; NaN stays NaN.
+          lx[i] = r00 * sx[i] + r01 * sy[i] + r02 * sz[i];
+          ly[i] = r10 * sx[i] + r11 * sy[i] + r12 * sz[i];
+          lz[i] = r20 * sx[i] + r21 * sy[i] + r22 * sz[i];
+          if (drop) {
+            const double r2 = static_cast<double>(sx[i]) * sx[i] +
+                              static_cast<double>(sy[i]) * sy[i] +
+                              static_cast<double>(sz[i]) * sz[i];
+            if (r2 < range2) lx[i] = ly[i] = lz[i] = kNaN;
           }
+          add(e, lx[i], ly[i], lz[i]);
         }
         extents[k] = e;
       },
