@@ -676,11 +676,6 @@ ColumnPairs FindColumnPairsBruteForce(const internal::LevelPoints& level, const 
   return out;
 }
 
-// Blob colouring of the obstacle mask (8-connected), blob-area rejection, then the same
-// assembly as the cone detector. The mask is coloured by runs: each row's runs of obstacle
-// pixels are joined to the runs of the row above that touch them, corners included. A
-// blob's representative is its first pixel in row-major order (the first pixel of its
-// first run), as a pixel-wise union-find with the smallest root gives.
 // Bit j set when mask[j] is not 0, for j < count <= 64 (the bits above are 0).
 std::uint64_t MaskBits(const std::uint8_t* mask, int count) {
   std::uint64_t bits = 0;
@@ -697,6 +692,11 @@ std::uint64_t MaskBits(const std::uint8_t* mask, int count) {
   return bits;
 }
 
+// Blob colouring of the obstacle mask (8-connected), blob-area rejection, then the same
+// assembly as the cone detector. The mask is coloured by runs: each row's runs of obstacle
+// pixels are joined to the runs of the row above that touch them, corners included. A
+// blob's representative is its first pixel in row-major order (the first pixel of its
+// first run), as a pixel-wise union-find with the smallest root gives.
 Detection Blobs(const RangeImage& image, const internal::LevelPoints& level,
                 const ColumnPairs& pairs, const ColumnConfig& config, float min_height) {
   const int n = image.size(), width = image.width(), height = image.height();

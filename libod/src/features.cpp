@@ -22,7 +22,7 @@ LevelPoints::LevelPoints(const RangeImage& image, int threads, double min_range_
   constexpr int kParts = 8;
   const int n = image.size();
   // Each part's extent and count of valid points, taken from the values as they are stored
-  // (by the last pass over them): a < b ? a : b, lane by lane as _mm_min_ps(a, b) is, so that
+  // (near returns dropped already): a < b ? a : b, lane by lane as _mm_min_ps(a, b) is, so that
   // a NaN (an invalid point) never replaces a bound.
   struct Extent {
     float x_lo = kInfinity, x_hi = -kInfinity, y_lo = kInfinity, y_hi = -kInfinity;

@@ -990,14 +990,14 @@ class alignas(64) Search {
 
   // Two leaves, point by point, over the upper points near the lower leaf: a lower point
   // rejected by their box has no partner here, one accepted by it (when they are the whole
-  // upper leaf) pairs with all of them, and once a point has a partner, the near points
-  // raised and in its set already can change nothing.
+  // upper leaf) pairs with all of them, once a point has a partner, the near points
+  // raised and in its set already can change nothing, and a point that pairs with near
+  // points the earlier points took joins their set once.
   void Leaves(int a, int b) {
     const Node& A = lo_.nodes[a];
     const Node& B = up_.nodes[b];
     // Raw pointers: the flag stores below may alias anything, which would reload the
     // vectors' data on every step.
-    const std::int32_t* upix = up_.pixel.data();
     const std::int32_t* lpix = lo_.pixel.data();
     const float* lx = lo_.x.data();
     const float* ly = lo_.y.data();
@@ -1008,7 +1008,7 @@ class alignas(64) Search {
     const float hmax = test_.max_height;
     const bool unions = unions_;  // in a register (the mark stores may alias the member)
     const bool b_done = (flags_up_[b] & kFull) && (!unions || (flags_up_[b] & kUnified));
-    const int b_first = upix[B.begin];
+    const int b_first = up_.pixel[B.begin];
     // B's points that some point of A may pair with, and their box: the others are never
     // looked at. When they are all of B, their box is B's.
     float near_lo[3], near_hi[3];

@@ -23,7 +23,8 @@
 //    at a time with SSE2, eight with AVX2 and sixteen with AVX-512F where the processor has
 //    them (simd.hpp); a lower point that has a partner already takes as
 //    partners only the near points not yet raised in its set (a pair of two such points
-//    changes nothing).
+//    changes nothing), and one that pairs with near points which the leaf's earlier lower
+//    points took (raised, in one set) joins that set once instead of taking each again.
 // 4. Tasks. The lower tree is cut into 256 or more tasks (its largest nodes first), each searched
 //    against the whole upper tree; the workers share one set of marks, flags and sets
 //    (relaxed atomics, a lock-free union-find that links the larger root under the smaller),
