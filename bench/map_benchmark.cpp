@@ -11,11 +11,11 @@
 //                gravity: tilt_ms is the stage that mode adds;
 //   FreeRays/*   the free-space rays of a LiDAR-like frame (52,000 ends within 20 m, 0.1 m
 //                voxels, in azimuth order as a scan gives them) into a brick set: `walk` as
-//                TerrainMap casts them (ForEachRayKeyInTurn, four rays at a time, into a box
-//                of bits, then into a set indexed in the rays' box), `computeRayKeys` as OctoMap
-//                does (each ray stored in a KeyRay, then inserted into a hashed set); one thread.
-//                The walk's counter octomap_x is the reference's time over its own, both measured
-//                in the same process; the sets are checked equal.
+//                TerrainMap casts them (ForEachRayKeyInTurn, four or eight rays at a time, into a
+//                box of bits, then into a set indexed in the rays' box), `computeRayKeys` as
+//                OctoMap does (each ray stored in a KeyRay, then inserted into a hashed set); one
+//                thread. The walk's counter octomap_x is the reference's time over its own, both
+//                measured in the same process; the sets are checked equal.
 //   MapFiles     every file `cairn map` writes of the map the camera drive built
 //                (map::WriteMapFiles: map.bt, map.ot, obstacles.ot, cost.pgm/.png,
 //                elevation.tiff, obstacles.json), into a temporary folder.
@@ -304,7 +304,7 @@ void CastWithComputeRayKeys(const RayFrame& f, map::internal::KeyBricks& keys) {
   }
 }
 
-// TerrainMap's way: four rays at a time into a box of bits, then into a set indexed in the
+// TerrainMap's way: four or eight rays at a time into a box of bits, then into a set indexed in the
 // rays' box.
 std::int64_t CastWithWalk(const RayFrame& f, map::internal::KeyBitBox& box,
                           map::internal::KeyBricks& keys) {

@@ -9,9 +9,11 @@
 // voxel first, the end's voxel never. It only calls f(key) for each.
 //
 // Each step waits on the one before (which axis is next decides the next comparison), so a
-// frame's rays are walked four at a time (ForEachRayKeyInTurn): the same double operations,
-// two rays to an SSE2 register, the axis picked by masks instead of branches, the key kept
-// as a number that a step adds an axis' stride to (a bit's index in a box of bits).
+// frame's rays are walked several at a time (ForEachRayKeyInTurn): the same double
+// operations, two rays to an SSE2 register (four under way) or, where the processor has AVX2
+// (libod's simd.hpp), four to a register (eight under way, 1.1x quicker on the free-space
+// benchmark), the axis picked by masks instead of branches, the key kept as a number that a
+// step adds an axis' stride to (a bit's index in a box of bits).
 #pragma once
 
 #include <octomap/OcTreeKey.h>
@@ -22,6 +24,8 @@
 #include <cstdint>
 #include <limits>
 #include <type_traits>
+
+#include "simd.hpp"  // libod/src: the processor's vector width
 
 #if defined(__SSE2__) && defined(__x86_64__)
 #define CAIRN_RAY_LANES_SSE2 1
@@ -147,8 +151,124 @@ struct KeyLayout {
   }
 };
 
+#if defined(CAIRN_OD_WIDE_VECTORS)
+/// Four rays under way, one to a lane of each register (ForEachRayKeyInTurnAvx2). A lane
+/// without a ray has no length (it ends at every step) and is not live.
+struct RayLanesAvx2 {
+  __m256d t0, t1, t2;  // where each ray leaves its voxel along each axis
+  __m256d d0, d1, d2;  // a voxel's length along the ray, per axis
+  __m256d length;
+  __m256i key, end;    // the key and the end's key, by their numbers
+  __m256i s0, s1, s2;  // a step along each axis, as a number
+  unsigned live = 0;
+  unsigned pending = 0xfu;  // lanes to start the next ray on (every lane at first)
+};
+
+/// The pending lanes of `v` each take the next ray of [first + next, first + count) that has
+/// keys (its first key handed to f), or are left without a ray when there are no more.
+template <typename Tree, typename F>
+__attribute__((target("avx2"), always_inline)) inline void StartRaysAvx2(
+    RayLanesAvx2& v, std::size_t (&ray)[4], const Tree& tree, const octomap::point3d& origin,
+    const octomap::OcTreeKey* first, std::size_t count, std::size_t& next, const KeyLayout& layout,
+    F& f) {
+  for (unsigned m = v.pending; m != 0; m &= m - 1) {
+    const int l = __builtin_ctz(m);
+    v.live &= ~(1u << l);
+    RayWalk w;
+    while (next < count) {
+      const std::size_t r = next++;
+      if (w.Begin(tree, origin, tree.keyToCoord(first[r])) != RayWalk::Start::kWalk) continue;
+      const __m256i lane =  // all ones in lane l
+          _mm256_cmpeq_epi64(_mm256_set_epi64x(3, 2, 1, 0), _mm256_set1_epi64x(l));
+      const __m256d lane_pd = _mm256_castsi256_pd(lane);
+      v.t0 = _mm256_blendv_pd(v.t0, _mm256_set1_pd(w.t0), lane_pd);
+      v.t1 = _mm256_blendv_pd(v.t1, _mm256_set1_pd(w.t1), lane_pd);
+      v.t2 = _mm256_blendv_pd(v.t2, _mm256_set1_pd(w.t2), lane_pd);
+      v.d0 = _mm256_blendv_pd(v.d0, _mm256_set1_pd(w.t_delta[0]), lane_pd);
+      v.d1 = _mm256_blendv_pd(v.d1, _mm256_set1_pd(w.t_delta[1]), lane_pd);
+      v.d2 = _mm256_blendv_pd(v.d2, _mm256_set1_pd(w.t_delta[2]), lane_pd);
+      v.length = _mm256_blendv_pd(v.length, _mm256_set1_pd(w.length_m), lane_pd);
+      const std::int64_t n = layout.Of(w.k0, w.k1, w.k2);
+      v.key = _mm256_blendv_epi8(v.key, _mm256_set1_epi64x(n), lane);
+      v.end = _mm256_blendv_epi8(v.end, _mm256_set1_epi64x(layout.Of(w.e0, w.e1, w.e2)), lane);
+      v.s0 = _mm256_blendv_epi8(v.s0, _mm256_set1_epi64x(w.step[0] * layout.stride[0]), lane);
+      v.s1 = _mm256_blendv_epi8(v.s1, _mm256_set1_epi64x(w.step[1] * layout.stride[1]), lane);
+      v.s2 = _mm256_blendv_epi8(v.s2, _mm256_set1_epi64x(w.step[2] * layout.stride[2]), lane);
+      ray[l] = r;
+      v.live |= 1u << l;
+      f(r, n);
+      break;
+    }
+  }
+  v.pending = 0;
+}
+
+/// One step of the live rays of `v`, in the scalar walk's double operations: f(ray, key) for
+/// those that go on; those that end are marked pending.
+template <typename F>
+__attribute__((target("avx2"), always_inline)) inline void StepRaysAvx2(RayLanesAvx2& v,
+                                                                        const std::size_t (&ray)[4],
+                                                                        F& f) {
+  // The least t, ties to the lower axis.
+  const __m256d first_01 = _mm256_cmp_pd(v.t0, v.t1, _CMP_LT_OQ);
+  const __m256d t01 = _mm256_min_pd(v.t0, v.t1);  // t0 < t1 ? t0 : t1
+  const __m256d before_2 = _mm256_cmp_pd(t01, v.t2, _CMP_LT_OQ);
+  const __m256d on0 = _mm256_and_pd(first_01, before_2);
+  const __m256d on1 = _mm256_andnot_pd(first_01, before_2);
+  v.t0 = _mm256_add_pd(v.t0, _mm256_and_pd(on0, v.d0));
+  v.t1 = _mm256_add_pd(v.t1, _mm256_and_pd(on1, v.d1));
+  v.t2 = _mm256_add_pd(v.t2, _mm256_andnot_pd(before_2, v.d2));
+  const __m256i move =
+      _mm256_or_si256(_mm256_or_si256(_mm256_and_si256(_mm256_castpd_si256(on0), v.s0),
+                                      _mm256_and_si256(_mm256_castpd_si256(on1), v.s1)),
+                      _mm256_andnot_si256(_mm256_castpd_si256(before_2), v.s2));
+  v.key = _mm256_add_epi64(v.key, move);
+  const __m256d least = _mm256_min_pd(_mm256_min_pd(v.t0, v.t1), v.t2);
+  const __m256d at_end = _mm256_castsi256_pd(_mm256_cmpeq_epi64(v.key, v.end));
+  v.pending = static_cast<unsigned>(_mm256_movemask_pd(
+                  _mm256_or_pd(at_end, _mm256_cmp_pd(least, v.length, _CMP_GT_OQ)))) &
+              v.live;
+  const unsigned go_on = v.live & ~v.pending;
+  const __m128i low = _mm256_castsi256_si128(v.key);
+  const __m128i high = _mm256_extracti128_si256(v.key, 1);
+  if (go_on & 1u) f(ray[0], static_cast<std::int64_t>(_mm_cvtsi128_si64(low)));
+  if (go_on & 2u) f(ray[1], static_cast<std::int64_t>(_mm_extract_epi64(low, 1)));
+  if (go_on & 4u) f(ray[2], static_cast<std::int64_t>(_mm_cvtsi128_si64(high)));
+  if (go_on & 8u) f(ray[3], static_cast<std::int64_t>(_mm_extract_epi64(high, 1)));
+}
+
+/// ForEachRayKeyInTurn where the processor has AVX2: eight rays under way, four to a register
+/// (two registers' steps overlap). A ray that ends hands its lane to the next ray there and
+/// then; the others walk on.
+template <typename Tree, typename F>
+__attribute__((target("avx2"))) void ForEachRayKeyInTurnAvx2(const Tree& tree,
+                                                             const octomap::point3d& origin,
+                                                             const octomap::OcTreeKey* first,
+                                                             const octomap::OcTreeKey* last,
+                                                             const KeyLayout& layout, F& f) {
+  const std::size_t count = static_cast<std::size_t>(last - first);
+  std::size_t next = 0;
+  RayLanesAvx2 a, b;
+  a.t0 = a.t1 = a.t2 = a.d0 = a.d1 = a.d2 = _mm256_setzero_pd();
+  a.length = _mm256_set1_pd(-std::numeric_limits<double>::infinity());
+  a.key = a.end = a.s0 = a.s1 = a.s2 = _mm256_setzero_si256();
+  b = a;
+  std::size_t ray_a[4] = {}, ray_b[4] = {};
+  for (;;) {
+    if ((a.pending | b.pending) != 0) {
+      StartRaysAvx2(a, ray_a, tree, origin, first, count, next, layout, f);
+      StartRaysAvx2(b, ray_b, tree, origin, first, count, next, layout, f);
+      if ((a.live | b.live) == 0) return;
+    }
+    StepRaysAvx2(a, ray_a, f);
+    StepRaysAvx2(b, ray_b, f);
+  }
+}
+#endif
+
 /// ForEachRayKey from `origin` to the centre of each key in [first, last), four rays at a
-/// time (each step of a walk waits on the one before; the steps of four overlap): calls
+/// time, eight with AVX2 (each step of a walk waits on the one before; the steps of the rays
+/// under way overlap): calls
 /// f(ray, n) for every key of every ray, `ray` the end's index in [first, last) and n the
 /// key's number in `layout`, each ray's keys in its order (those of the rays under way
 /// interleave). Every key of a ray must have a number in `layout` (a box: the keys between
@@ -158,6 +278,12 @@ template <typename Tree, typename F>
 void ForEachRayKeyInTurn(const Tree& tree, const octomap::point3d& origin,
                          const octomap::OcTreeKey* first, const octomap::OcTreeKey* last,
                          const KeyLayout& layout, F&& f) {
+#if defined(CAIRN_OD_WIDE_VECTORS)
+  if (od::internal::VectorLanes() >= 8) {
+    ForEachRayKeyInTurnAvx2(tree, origin, first, last, layout, f);
+    return;
+  }
+#endif
   constexpr int kLanes = 4;
   const std::size_t count = static_cast<std::size_t>(last - first);
   std::size_t next = 0;

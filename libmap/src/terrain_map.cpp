@@ -236,7 +236,7 @@ void CastFreeRays(const TerrainOcTree& tree, const octomap::point3d& sensor,
     }
   }
   // One ray per end voxel, in blocks of 1,024 rays to each worker, each worker into its own
-  // box of bits (four rays walked in turn, each key one or) or, where the box would be too
+  // box of bits (four or eight rays walked in turn, each key one or) or, where the box would be too
   // large, its own set; the boxes then go into free_keys. The union does not depend on the
   // split.
   constexpr std::size_t kBlock = 1024;

@@ -1,7 +1,8 @@
 // Internal: how many float lanes the detectors' vector loops test at once. The library is
 // built for x86-64's baseline (SSE2, four lanes); where the processor runs AVX2 (eight) or
 // AVX-512F (sixteen), the loops that gain from it take the wider path, chosen once per process
-// at run time: with AVX2 the exact search's hits, with AVX-512F also its box tests, its leaves'
+// at run time: with AVX2 the exact search's hits (and libmap's free-space rays, ray_keys.hpp,
+// eight under way in double), with AVX-512F also its box tests, its leaves'
 // ranks by height, the column baseline's neighbourhoods, whole columns and dense windows, and the
 // features' gathering of segment pixels, surface normals and slope angles (in double, bit for
 // bit). Capped to one lane, the searches run their scalar code (the level points are still

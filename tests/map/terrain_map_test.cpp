@@ -22,8 +22,9 @@
 #include "cairn/sim/scene.hpp"
 #include "ground_rise.hpp"  // libmap/src: the gravity step's ground seen twice
 #include "key_bricks.hpp"   // libmap/src: the free-space key set
-#include "ray_keys.hpp"    // libmap/src: the ray walk
+#include "ray_keys.hpp"     // libmap/src: the ray walk
 #include "sim_frames.hpp"
+#include "simd.hpp"  // libod/src: the vector width
 
 namespace cairn::map {
 namespace {
@@ -546,11 +547,17 @@ TEST(RayKeys, TheWalkVisitsTheKeysOfComputeRayKeysInOrder) {
   EXPECT_GT(keys_compared, 1000000);
 }
 
-// Four rays walked in turn visit what each walks alone: every ray's keys in its order,
-// numbered as packed keys and as a box of bits numbers them, for rays from origins on and off
-// voxel centres, of every length (within one voxel, along the axes and diagonals, 250 voxels), in
-// blocks that leave 1-3 rays for the lanes at the end; from an origin outside the tree no key.
-TEST(RayKeys, FourRaysInTurnVisitTheKeysOfEachRayInOrder) {
+// Rays walked in turn visit what each walks alone: every ray's keys in its order, numbered as
+// packed keys and as a box of bits numbers them, for rays from origins on and off voxel centres,
+// of every length (within one voxel, along the axes and diagonals, 250 voxels), in blocks that
+// leave lanes without rays at the start and at the end, four rays at a time (SSE2) and eight
+// (AVX2, where the processor has it); from an origin outside the tree no key.
+TEST(RayKeys, RaysInTurnVisitTheKeysOfEachRayInOrder) {
+  struct Uncap {
+    ~Uncap() { od::internal::CapVectorLanes(0); }
+  } uncap;
+  std::vector<int> widths = {4};
+  if (od::internal::VectorLanes() >= 8) widths.push_back(8);
   std::mt19937 rng(9);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   std::int64_t keys_compared = 0;
@@ -590,9 +597,13 @@ TEST(RayKeys, FourRaysInTurnVisitTheKeysOfEachRayInOrder) {
       internal::KeyBitBox box;
       ASSERT_TRUE(box.Reset(lo, hi));
       box.Layout(boxed.lo, boxed.stride);
-      for (const internal::KeyLayout& layout : {packed, boxed}) {
-        for (const std::size_t count : {ends.size(), std::size_t{1}, std::size_t{2}, std::size_t{3},
-                                        std::size_t{5}, std::size_t{7}}) {
+      for (const auto& [layout, lanes] :
+           {std::pair(packed, 4), std::pair(boxed, 4), std::pair(packed, widths.back()),
+            std::pair(boxed, widths.back())}) {
+        od::internal::CapVectorLanes(lanes);
+        for (const std::size_t count :
+             {ends.size(), std::size_t{1}, std::size_t{2}, std::size_t{3}, std::size_t{5},
+              std::size_t{7}, std::size_t{9}, std::size_t{13}}) {
           std::vector<std::vector<octomap::OcTreeKey>> in_turn(count);
           internal::ForEachRayKeyInTurn(tree, origin, ends.data(), ends.data() + count, layout,
                                         [&](std::size_t ray, std::int64_t n) {
@@ -603,8 +614,8 @@ TEST(RayKeys, FourRaysInTurnVisitTheKeysOfEachRayInOrder) {
                                               static_cast<octomap::key_type>(layout.Axis(n, 2)));
                                         });
           for (std::size_t e = 0; e < count; ++e) {
-            ASSERT_EQ(in_turn[e], alone[e])
-                << "ray " << e << " of " << count << " at " << resolution << " m";
+            ASSERT_EQ(in_turn[e], alone[e]) << "ray " << e << " of " << count << " at "
+                                            << resolution << " m, " << lanes << " lanes";
             keys_compared += static_cast<std::int64_t>(in_turn[e].size());
           }
         }
@@ -612,11 +623,14 @@ TEST(RayKeys, FourRaysInTurnVisitTheKeysOfEachRayInOrder) {
     }
     // From outside the tree: nothing.
     const octomap::OcTreeKey end = tree.coordToKey(0.0, 0.0, 0.0);
-    int called = 0;
-    internal::ForEachRayKeyInTurn(tree, octomap::point3d(1e7f, 0.0f, 0.0f), &end, &end + 1,
-                                  internal::KeyLayout{},
-                                  [&](std::size_t, std::int64_t) { ++called; });
-    EXPECT_EQ(called, 0);
+    for (const int lanes : widths) {
+      od::internal::CapVectorLanes(lanes);
+      int called = 0;
+      internal::ForEachRayKeyInTurn(tree, octomap::point3d(1e7f, 0.0f, 0.0f), &end, &end + 1,
+                                    internal::KeyLayout{},
+                                    [&](std::size_t, std::int64_t) { ++called; });
+      EXPECT_EQ(called, 0);
+    }
   }
   EXPECT_GT(keys_compared, 1000000);
 }
