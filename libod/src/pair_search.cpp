@@ -1,6 +1,7 @@
 #include "pair_search.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -176,6 +177,26 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
 namespace {
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
+// RanksAvx512 eight points at a time (AVX2; zs padded to a multiple of eight).
+__attribute__((target("avx2,popcnt"))) void RanksAvx2(const float* zs, int m, int* rank) {
+  const int chunks = (m + 7) / 8;
+  __m256 z[8];
+  for (int c = 0; c < chunks; ++c) z[c] = _mm256_loadu_ps(zs + 8 * c);
+  for (int k = 0; k < m; ++k) {
+    const __m256 zk = _mm256_set1_ps(zs[k]);
+    std::uint64_t below = 0, not_above = 0;
+    for (int c = 0; c < chunks; ++c) {
+      below |= static_cast<std::uint64_t>(_mm256_movemask_ps(_mm256_cmp_ps(z[c], zk, _CMP_LT_OQ)))
+               << (8 * c);
+      not_above |=
+          static_cast<std::uint64_t>(_mm256_movemask_ps(_mm256_cmp_ps(z[c], zk, _CMP_LE_OQ)))
+          << (8 * c);
+    }
+    const std::uint64_t before = (std::uint64_t{1} << k) - 1;
+    rank[k] = __builtin_popcountll(not_above & before) + __builtin_popcountll(below & ~before);
+  }
+}
+
 // Each point's rank among zs[0, m) by ascending height, ties in index order (m <= 64, zs
 // padded with +infinity to a multiple of sixteen): PointTree::Build's count, sixteen points
 // at a time (AVX-512F) as bit masks.
@@ -255,6 +276,9 @@ std::int32_t PointTree::Build(const LevelPoints& level, const std::vector<std::u
     if (VectorLanes() == 16) {
       for (int k = m; k < ((m + 15) & ~15); ++k) zs[k] = kInf;
       RanksAvx512(zs, m, ranks);
+    } else if (VectorLanes() == 8) {
+      for (int k = m; k < ((m + 7) & ~7); ++k) zs[k] = kInf;
+      RanksAvx2(zs, m, ranks);
     } else
 #endif
     {
@@ -395,6 +419,168 @@ __attribute__((target("avx2"))) std::uint64_t HitsAvx2(const float* qx, const fl
   }
   in_window = window_bits;
   return hits;
+}
+
+// The first n of eight lanes, all ones (none when n <= 0, all when n >= 8).
+__attribute__((target("avx2"))) inline __m256i FirstLanes8(int n) {
+  return _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+}
+
+// NotRejected for eight pairs of boxes (lower a, upper b), with Classify's float operations in
+// its order: the lanes it does not reject.
+__attribute__((target("avx2"))) inline __m256 NotRejected8(const __m256* a_lo, const __m256* a_hi,
+                                                           const __m256* b_lo, const __m256* b_hi,
+                                                           const PairTest& t) {
+  const __m256 ht = _mm256_set1_ps(t.min_height), hmax = _mm256_set1_ps(t.max_height);
+  const __m256 dz_hi = _mm256_sub_ps(b_hi[2], a_lo[2]), dz_lo = _mm256_sub_ps(b_lo[2], a_hi[2]);
+  const __m256 heights =
+      _mm256_and_ps(_mm256_cmp_ps(dz_hi, ht, _CMP_GT_OQ), _mm256_cmp_ps(dz_lo, hmax, _CMP_LT_OQ));
+  const __m256 dz_best = _mm256_min_ps(dz_hi, hmax);
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 gx = _mm256_max_ps(
+      _mm256_max_ps(_mm256_sub_ps(b_lo[0], a_hi[0]), _mm256_sub_ps(a_lo[0], b_hi[0])), zero);
+  const __m256 gy = _mm256_max_ps(
+      _mm256_max_ps(_mm256_sub_ps(b_lo[1], a_hi[1]), _mm256_sub_ps(a_lo[1], b_hi[1])), zero);
+  return _mm256_and_ps(
+      heights,
+      _mm256_cmp_ps(_mm256_mul_ps(dz_best, dz_best),
+                    _mm256_mul_ps(_mm256_set1_ps(t.tan2_theta),
+                                  _mm256_add_ps(_mm256_mul_ps(gx, gx), _mm256_mul_ps(gy, gy))),
+                    _CMP_GT_OQ));
+}
+
+// The least and the greatest of eight lanes.
+template <bool kMax>
+__attribute__((target("avx2"))) inline float Extreme8(__m256 v) {
+  const __m128 high = _mm256_extractf128_ps(v, 1);
+  __m128 w = kMax ? _mm_max_ps(_mm256_castps256_ps128(v), high)
+                  : _mm_min_ps(_mm256_castps256_ps128(v), high);
+  __m128 other = _mm_shuffle_ps(w, w, _MM_SHUFFLE(1, 0, 3, 2));
+  w = kMax ? _mm_max_ps(w, other) : _mm_min_ps(w, other);
+  other = _mm_shuffle_ps(w, w, _MM_SHUFFLE(2, 3, 0, 1));
+  w = kMax ? _mm_max_ps(w, other) : _mm_min_ps(w, other);
+  return _mm_cvtss_f32(w);
+}
+
+// NearAvx512 eight points at a time (AVX2).
+__attribute__((target("avx2"))) std::uint64_t NearAvx2(const float* x, const float* y,
+                                                       const float* z, int count, const float* a_lo,
+                                                       const float* a_hi, const PairTest& t,
+                                                       float* lo, float* hi) {
+  const __m256 box_lo[3] = {_mm256_set1_ps(a_lo[0]), _mm256_set1_ps(a_lo[1]),
+                            _mm256_set1_ps(a_lo[2])};
+  const __m256 box_hi[3] = {_mm256_set1_ps(a_hi[0]), _mm256_set1_ps(a_hi[1]),
+                            _mm256_set1_ps(a_hi[2])};
+  const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+  const __m256 minus_inf = _mm256_set1_ps(-std::numeric_limits<float>::infinity());
+  __m256 x_lo = inf, y_lo = inf, z_lo = inf, x_hi = minus_inf, y_hi = minus_inf, z_hi = minus_inf;
+  std::uint64_t near = 0;
+  for (int j = 0; j < count; j += 8) {
+    const __m256i in_leaf = FirstLanes8(count - j);
+    const __m256 q[3] = {_mm256_maskload_ps(x + j, in_leaf), _mm256_maskload_ps(y + j, in_leaf),
+                         _mm256_maskload_ps(z + j, in_leaf)};
+    const __m256 kept =
+        _mm256_and_ps(_mm256_castsi256_ps(in_leaf), NotRejected8(box_lo, box_hi, q, q, t));
+    near |= static_cast<std::uint64_t>(_mm256_movemask_ps(kept)) << j;
+    x_lo = _mm256_min_ps(x_lo, _mm256_blendv_ps(inf, q[0], kept));
+    y_lo = _mm256_min_ps(y_lo, _mm256_blendv_ps(inf, q[1], kept));
+    z_lo = _mm256_min_ps(z_lo, _mm256_blendv_ps(inf, q[2], kept));
+    x_hi = _mm256_max_ps(x_hi, _mm256_blendv_ps(minus_inf, q[0], kept));
+    y_hi = _mm256_max_ps(y_hi, _mm256_blendv_ps(minus_inf, q[1], kept));
+    z_hi = _mm256_max_ps(z_hi, _mm256_blendv_ps(minus_inf, q[2], kept));
+  }
+  lo[0] = Extreme8<false>(x_lo);
+  lo[1] = Extreme8<false>(y_lo);
+  lo[2] = Extreme8<false>(z_lo);
+  hi[0] = Extreme8<true>(x_hi);
+  hi[1] = Extreme8<true>(y_hi);
+  hi[2] = Extreme8<true>(z_hi);
+  return near;
+}
+
+// ClassifyAvx512 eight lower points at a time (AVX2).
+__attribute__((target("avx2"))) void ClassifyAvx2(const float* x, const float* y, const float* z,
+                                                  int count, const float* b_lo, const float* b_hi,
+                                                  const PairTest& t, std::uint64_t& keep,
+                                                  std::uint64_t& accept) {
+  const __m256 ht = _mm256_set1_ps(t.min_height), hmax = _mm256_set1_ps(t.max_height);
+  const __m256 tan2 = _mm256_set1_ps(t.tan2_theta);
+  const __m256 sign = _mm256_set1_ps(-0.0f);
+  const __m256 box_lo[3] = {_mm256_set1_ps(b_lo[0]), _mm256_set1_ps(b_lo[1]),
+                            _mm256_set1_ps(b_lo[2])};
+  const __m256 box_hi[3] = {_mm256_set1_ps(b_hi[0]), _mm256_set1_ps(b_hi[1]),
+                            _mm256_set1_ps(b_hi[2])};
+  for (int i = 0; i < count; i += 8) {
+    const __m256i valid = FirstLanes8(count - i);
+    const __m256 q[3] = {_mm256_maskload_ps(x + i, valid), _mm256_maskload_ps(y + i, valid),
+                         _mm256_maskload_ps(z + i, valid)};
+    const __m256 dz_hi = _mm256_sub_ps(box_hi[2], q[2]), dz_lo = _mm256_sub_ps(box_lo[2], q[2]);
+    const __m256 kept =
+        _mm256_and_ps(_mm256_castsi256_ps(valid), NotRejected8(q, q, box_lo, box_hi, t));
+    const __m256 inside =
+        _mm256_and_ps(_mm256_cmp_ps(dz_lo, ht, _CMP_GT_OQ), _mm256_cmp_ps(dz_hi, hmax, _CMP_LT_OQ));
+    const __m256 rx = _mm256_max_ps(_mm256_andnot_ps(sign, _mm256_sub_ps(box_hi[0], q[0])),
+                                    _mm256_andnot_ps(sign, _mm256_sub_ps(box_lo[0], q[0])));
+    const __m256 ry = _mm256_max_ps(_mm256_andnot_ps(sign, _mm256_sub_ps(box_hi[1], q[1])),
+                                    _mm256_andnot_ps(sign, _mm256_sub_ps(box_lo[1], q[1])));
+    const __m256 all = _mm256_cmp_ps(
+        _mm256_mul_ps(dz_lo, dz_lo),
+        _mm256_mul_ps(tan2, _mm256_add_ps(_mm256_mul_ps(rx, rx), _mm256_mul_ps(ry, ry))),
+        _CMP_GT_OQ);
+    keep |= static_cast<std::uint64_t>(_mm256_movemask_ps(kept)) << i;
+    accept |= static_cast<std::uint64_t>(
+                  _mm256_movemask_ps(_mm256_and_ps(kept, _mm256_and_ps(inside, all))))
+              << i;
+  }
+}
+
+// For each 8-bit mask, the lanes of its set bits from the lowest, four bits each: the
+// permutation that packs a register's chosen lanes to its front.
+constexpr std::array<std::uint32_t, 256> PackLanes8() {
+  std::array<std::uint32_t, 256> table{};
+  for (unsigned mask = 0; mask < 256; ++mask) {
+    std::uint32_t lanes = 0;
+    int k = 0;
+    for (unsigned lane = 0; lane < 8; ++lane) {
+      if (mask >> lane & 1u) lanes |= lane << (4 * k++);
+    }
+    table[mask] = lanes;
+  }
+  return table;
+}
+constexpr std::array<std::uint32_t, 256> kPackLanes8 = PackLanes8();
+
+// PackAvx512 eight points at a time (AVX2): each register's chosen lanes permuted to its front
+// and stored whole (the lanes after them are overwritten next); then padding up to a multiple
+// of sixteen. q* hold sixteen more than the points.
+__attribute__((target("avx2,popcnt"))) int PackAvx2(const float* x, const float* y, const float* z,
+                                                    const std::int32_t* pixel, int size,
+                                                    std::uint64_t near, float* qx, float* qy,
+                                                    float* qz, std::int32_t* qpixel) {
+  const __m256i shifts = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
+  int c = 0;
+  for (int j = 0; j < size; j += 8) {
+    const auto take = static_cast<unsigned>(near >> j) & 0xffu;
+    if (take == 0) continue;
+    const __m256i in = FirstLanes8(size - j);  // nothing read past the tree's points
+    const __m256i to_front =
+        _mm256_srlv_epi32(_mm256_set1_epi32(static_cast<int>(kPackLanes8[take])), shifts);
+    _mm256_storeu_ps(qx + c, _mm256_permutevar8x32_ps(_mm256_maskload_ps(x + j, in), to_front));
+    _mm256_storeu_ps(qy + c, _mm256_permutevar8x32_ps(_mm256_maskload_ps(y + j, in), to_front));
+    _mm256_storeu_ps(qz + c, _mm256_permutevar8x32_ps(_mm256_maskload_ps(z + j, in), to_front));
+    _mm256_storeu_si256(
+        reinterpret_cast<__m256i*>(qpixel + c),
+        _mm256_permutevar8x32_epi32(_mm256_maskload_epi32(pixel + j, in), to_front));
+    c += __builtin_popcount(take);
+  }
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+  for (int k = 0; k < 16; k += 8) {
+    _mm256_storeu_ps(qx + c + k, zero);
+    _mm256_storeu_ps(qy + c + k, zero);
+    _mm256_storeu_ps(qz + c + k, inf);
+  }
+  return c;
 }
 
 __attribute__((target("avx512f"))) std::uint64_t HitsAvx512(const float* qx, const float* qy,
@@ -571,6 +757,10 @@ void ClassifyByBox([[maybe_unused]] int lanes, const float* lx, const float* ly,
     ClassifyAvx512(lx, ly, lz, count, b_lo, b_hi, test, keep, accept);
     return;
   }
+  if (lanes == 8) {
+    ClassifyAvx2(lx, ly, lz, count, b_lo, b_hi, test, keep, accept);
+    return;
+  }
 #endif
 #if defined(__SSE2__)
   // Four at a time, with Classify's float operations in its order.
@@ -617,6 +807,7 @@ std::uint64_t NearBox([[maybe_unused]] int lanes, const float* ux, const float* 
   int j = 0;
 #if defined(CAIRN_OD_WIDE_VECTORS)
   if (lanes == 16) return NearAvx512(ux, uy, uz, count, a_lo, a_hi, test, lo, hi);
+  if (lanes == 8) return NearAvx2(ux, uy, uz, count, a_lo, a_hi, test, lo, hi);
 #endif
 #if defined(__SSE2__)
   if (lanes >= 4) {
@@ -914,7 +1105,8 @@ class alignas(64) Search {
     alignas(64) float x[PointTree::kMaxLeafPoints + 16];
     alignas(64) float y[PointTree::kMaxLeafPoints + 16];
     alignas(64) float z[PointTree::kMaxLeafPoints + 16];
-    std::int32_t pixel[PointTree::kMaxLeafPoints];  ///< the point's image index
+    std::int32_t pixel[PointTree::kMaxLeafPoints + 8];  ///< the point's image index (PackAvx2
+                                                        ///< stores eight at a time)
     int count = 0;
   };
   void Pack(const Node& B, std::uint64_t near, Packed& q) const {
@@ -923,6 +1115,11 @@ class alignas(64) Search {
       q.count =
           PackAvx512(up_.x.data() + B.begin, up_.y.data() + B.begin, up_.z.data() + B.begin,
                      up_.pixel.data() + B.begin, B.end - B.begin, near, q.x, q.y, q.z, q.pixel);
+      return;
+    }
+    if (lanes_ == 8) {
+      q.count = PackAvx2(up_.x.data() + B.begin, up_.y.data() + B.begin, up_.z.data() + B.begin,
+                         up_.pixel.data() + B.begin, B.end - B.begin, near, q.x, q.y, q.z, q.pixel);
       return;
     }
 #endif
