@@ -114,9 +114,10 @@ constexpr std::uint8_t kBitCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3
 // images) by windows.
 constexpr int kDirectPoints = 48;
 // Columns of at most this many points (a LiDAR column) are searched whole, unsorted, where the
-// processor has AVX-512F: each point with something more than HT above it meets every point of
-// the column, sixteen at a time, with no keys, sort or bins to pay for. (Four lanes test a whole
-// column slower than its bins: KITTI 5.1 -> 7.7 ms, BENCHMARKS.md.)
+// processor has AVX2 or AVX-512F: each point with something more than HT above it meets every
+// point of the column, eight or sixteen at a time, with no keys, sort or bins to pay for. (Four
+// lanes test a whole column slower than its bins: KITTI 5.1 -> 7.7 ms, BENCHMARKS.md; eight are
+// quicker than four by bins on AMD EPYC: KITTI 5.7 -> 4.4 ms, RELLIS 3.6 -> 2.4.)
 constexpr int kWholeColumn = 64;
 
 // Lanes k with bit k of `bits` set all ones, the others zero.
@@ -244,12 +245,53 @@ __attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
   tested += in_window;
   compatible += hit;
 }
+
+// WholeColumnAvx512 eight points at a time (AVX2): a whole column of m <= 8 kChunks points,
+// padded by the caller to 8 kChunks with points infinitely high, each chunk read from memory
+// (sixteen registers hold too few to keep the column).
+template <int kChunks>
+__attribute__((target("avx2,popcnt"))) void WholeColumnAvx2(
+    const float* cx, const float* cy, const float* cz, int m, float top, const PairTest& t,
+    std::uint64_t& lower, std::uint64_t& upper, std::int64_t& tested, std::int64_t& compatible) {
+  const __m256 vht = _mm256_set1_ps(t.min_height), vh = _mm256_set1_ps(t.max_height);
+  const __m256 vt = _mm256_set1_ps(t.tan2_theta);
+  std::uint64_t lo = 0, up = 0;
+  int in_window = 0, hit = 0;
+  for (int k = 0; k < m; ++k) {
+    if (!(top - cz[k] > t.min_height)) continue;  // nothing more than HT above it
+    const __m256 px = _mm256_set1_ps(cx[k]), py = _mm256_set1_ps(cy[k]);
+    const __m256 pz = _mm256_set1_ps(cz[k]);
+    std::uint64_t hits = 0;
+    for (int c = 0; c < kChunks; ++c) {
+      const __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(cz + 8 * c), pz);
+      const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(cx + 8 * c), px);
+      const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(cy + 8 * c), py);
+      const __m256 window =
+          _mm256_and_ps(_mm256_cmp_ps(dz, vht, _CMP_GT_OQ), _mm256_cmp_ps(dz, vh, _CMP_LT_OQ));
+      const __m256 bits = _mm256_and_ps(
+          window, _mm256_cmp_ps(_mm256_mul_ps(dz, dz),
+                                _mm256_mul_ps(vt, _mm256_add_ps(_mm256_mul_ps(dx, dx),
+                                                                _mm256_mul_ps(dy, dy))),
+                                _CMP_GT_OQ));
+      in_window += __builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(window)));
+      hits |= static_cast<std::uint64_t>(_mm256_movemask_ps(bits)) << (8 * c);
+    }
+    hit += __builtin_popcountll(hits);
+    up |= hits;
+    lo |= static_cast<std::uint64_t>(hits != 0) << k;
+  }
+  lower = lo;
+  upper = up;
+  tested += in_window;
+  compatible += hit;
+}
 #endif
 
-// The compatible pairs within each column, fast. Where the processor has AVX-512F (simd.hpp), a
-// column of at most kWholeColumn points (a LiDAR column) is searched whole, unsorted: each point
-// with something more than HT above it meets every point of the column, sixteen at a time, held
-// in registers, the window a mask, and every pair is found. Larger columns, and every column on
+// The compatible pairs within each column, fast. Where the processor has AVX2 or AVX-512F
+// (simd.hpp), a column of at most kWholeColumn points (a LiDAR column) is searched whole,
+// unsorted: each point with something more than HT above it meets every point of the column,
+// eight or sixteen at a time (sixteen held in registers), the window a mask, and every pair is
+// found. Larger columns, and every column on
 // narrower vectors, are cut into bins. A partner q of
 // a lower point p lies less than reach = Hmax / tan(theta) from it horizontally, so less than reach
 // along any horizontal direction: the column's points are put in bins of that width along the
@@ -375,7 +417,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     ColumnPoint* const column = gathered.data() + static_cast<std::size_t>(b) * height;
     const int m = gathered_count[b];
 #if defined(CAIRN_OD_WIDE_VECTORS)
-    if (lanes == 16 && m <= kWholeColumn) {
+    if (lanes >= 8 && m <= kWholeColumn) {
       // Few points (a LiDAR column): each meets every point of the column, unsorted and
       // without bins; only a point with nothing more than HT above it is passed over.
       double mx = 0.0, my = 0.0;
@@ -394,11 +436,23 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
         cz[k] = std::numeric_limits<float>::infinity();
       }
       std::uint64_t lower = 0, upper = 0;
-      const auto whole = m <= 16   ? WholeColumnAvx512<1>
-                         : m <= 32 ? WholeColumnAvx512<2>
-                         : m <= 48 ? WholeColumnAvx512<3>
-                                   : WholeColumnAvx512<4>;
-      whole(cx, cy, cz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
+      if (lanes == 16) {
+        const auto whole = m <= 16   ? WholeColumnAvx512<1>
+                           : m <= 32 ? WholeColumnAvx512<2>
+                           : m <= 48 ? WholeColumnAvx512<3>
+                                     : WholeColumnAvx512<4>;
+        whole(cx, cy, cz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
+      } else {
+        const auto whole = m <= 8    ? WholeColumnAvx2<1>
+                           : m <= 16 ? WholeColumnAvx2<2>
+                           : m <= 24 ? WholeColumnAvx2<3>
+                           : m <= 32 ? WholeColumnAvx2<4>
+                           : m <= 40 ? WholeColumnAvx2<5>
+                           : m <= 48 ? WholeColumnAvx2<6>
+                           : m <= 56 ? WholeColumnAvx2<7>
+                                     : WholeColumnAvx2<8>;
+        whole(cx, cy, cz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
+      }
       for (int k = 0; k < m; ++k) {
         column_marks[column[k].row] =
             static_cast<std::uint8_t>(3 * ((upper >> k) & 1) | ((lower >> k) & 1));

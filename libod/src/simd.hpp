@@ -2,11 +2,12 @@
 // built for x86-64's baseline (SSE2, four lanes); where the processor runs AVX2 (eight) or
 // AVX-512F (sixteen), the loops that gain from it take the wider path, chosen once per process
 // at run time: with AVX2 the exact search's hits, box tests, packing and its leaves' ranks by
-// height (and libmap's free-space rays, ray_keys.hpp, eight under way in double), with AVX-512F
-// the same sixteen at a time, and also the column baseline's neighbourhoods, whole columns and
-// dense windows, and the features' gathering of segment pixels, surface normals and slope
-// angles (in double, bit for bit). Capped to one lane, the searches run their scalar code (the
-// level points are still rotated four at a time, and the features' angles taken two at a time).
+// height, the column baseline's whole columns (and libmap's free-space rays, ray_keys.hpp, eight
+// under way in double), with AVX-512F the same sixteen at a time, and also the column
+// baseline's neighbourhoods and dense windows, and the features' gathering of segment pixels,
+// surface normals and slope angles (in double, bit for bit). Capped to one lane, the searches
+// run their scalar code (the level points are still rotated four at a time, and the features'
+// angles taken two at a time).
 // Every path does the pair test's float operations in the same order (no fused multiply-add:
 // the library is built with -ffp-contract=off), so every width gives the same obstacle points,
 // segments and features (the counts of pairs tested, and found where not every pair is sought,

@@ -27,10 +27,11 @@ struct ColumnConfig {
 /// Result in the cone detector's form: labels are the 8-connected blobs that survive the
 /// area rejection, numbered in row-major order of their first pixel; features, feet and
 /// stats follow the cone detector's definitions (detector.hpp). Cost: one pass over each
-/// column. Where the processor has AVX-512F, a column of at most 64 points (a LiDAR column) is
-/// tested whole: each point with something more than HT above it against every point of the
-/// column, 16 at a time, so stats.pairs_tested counts every pair HT..Hmax apart. A larger column
-/// (a camera's), and every column on narrower vectors, has its points sorted into bins, plus one
+/// column. Where the processor has AVX2 or AVX-512F, a column of at most 64 points (a LiDAR
+/// column) is tested whole: each point with something more than HT above it against every point
+/// of the column, 8 or 16 at a time, so stats.pairs_tested counts every pair HT..Hmax apart. A
+/// larger column (a camera's), and every column on narrower vectors, has its points sorted into
+/// bins, plus one
 /// test per candidate pair within HT..Hmax in the bins next to it (where those bins are dense, and
 /// on every column where the compiler has no SSE2 or the vector lanes are capped to one, only up to
 /// each point's first partner above and below, or the first four or sixteen points holding one, all
