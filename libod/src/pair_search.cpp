@@ -177,26 +177,42 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
 namespace {
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
-// RanksAvx512 eight points at a time (AVX2; zs padded to a multiple of eight).
+// RanksAvx512 eight points at a time (AVX2; zs padded to a multiple of eight). Each point's
+// count of points below it, summed in a register: without ties, these are the ranks (each
+// from 0 to m - 1 once); where two points tie they count the same, and the ranks are counted
+// again with ties in index order, as RanksAvx512 counts them.
 __attribute__((target("avx2,popcnt"))) void RanksAvx2(const float* zs, int m, int* rank) {
   const int chunks = (m + 7) / 8;
   __m256 z[8];
   for (int c = 0; c < chunks; ++c) z[c] = _mm256_loadu_ps(zs + 8 * c);
+  std::uint64_t seen = 0;
   for (int k = 0; k < m; ++k) {
     const __m256 zk = _mm256_set1_ps(zs[k]);
-    std::uint64_t below = 0, not_above = 0;
+    __m256i below = _mm256_setzero_si256();  // all ones (-1) for each point below
     for (int c = 0; c < chunks; ++c) {
-      below |= static_cast<std::uint64_t>(_mm256_movemask_ps(_mm256_cmp_ps(z[c], zk, _CMP_LT_OQ)))
+      below = _mm256_sub_epi32(below, _mm256_castps_si256(_mm256_cmp_ps(z[c], zk, _CMP_LT_OQ)));
+    }
+    __m128i sum = _mm_add_epi32(_mm256_castsi256_si128(below), _mm256_extracti128_si256(below, 1));
+    sum = _mm_add_epi32(sum, _mm_shuffle_epi32(sum, _MM_SHUFFLE(1, 0, 3, 2)));
+    sum = _mm_add_epi32(sum, _mm_shuffle_epi32(sum, _MM_SHUFFLE(2, 3, 0, 1)));
+    rank[k] = _mm_cvtsi128_si32(sum);
+    seen |= std::uint64_t{1} << rank[k];
+  }
+  if (seen == (m < 64 ? (std::uint64_t{1} << m) - 1 : ~std::uint64_t{0})) return;
+  for (int k = 0; k < m; ++k) {  // ties
+    const __m256 zk = _mm256_set1_ps(zs[k]);
+    std::uint64_t under = 0, not_above = 0;
+    for (int c = 0; c < chunks; ++c) {
+      under |= static_cast<std::uint64_t>(_mm256_movemask_ps(_mm256_cmp_ps(z[c], zk, _CMP_LT_OQ)))
                << (8 * c);
       not_above |=
           static_cast<std::uint64_t>(_mm256_movemask_ps(_mm256_cmp_ps(z[c], zk, _CMP_LE_OQ)))
           << (8 * c);
     }
     const std::uint64_t before = (std::uint64_t{1} << k) - 1;
-    rank[k] = __builtin_popcountll(not_above & before) + __builtin_popcountll(below & ~before);
+    rank[k] = __builtin_popcountll(not_above & before) + __builtin_popcountll(under & ~before);
   }
 }
-
 // Each point's rank among zs[0, m) by ascending height, ties in index order (m <= 64, zs
 // padded with +infinity to a multiple of sixteen): PointTree::Build's count, sixteen points
 // at a time (AVX-512F) as bit masks.
