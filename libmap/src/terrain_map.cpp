@@ -15,6 +15,10 @@
 #include "key_bricks.hpp"
 #include "ray_keys.hpp"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace cairn::map {
 namespace {
 
@@ -62,7 +66,8 @@ struct TerrainMap::Scratch {
   };
   std::vector<Slot> slots;
   std::vector<CellIndex> touched;  // cells stamped this frame
-  std::vector<Eigen::Vector3f> around;  // per cell that asked: the lowest returns within reach
+  // Per cell that asked: the lowest returns within reach, coordinate by coordinate.
+  std::vector<float> around_x, around_y, around_z;
   std::vector<std::uint8_t> point_class;
   std::vector<Eigen::Vector3d> world;  // per pixel: the return (or the clipped ray end)
   std::vector<CellIndex> point_cell;   // per pixel with a return: its cell
@@ -415,26 +420,58 @@ std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, 
   if (slot.around_stamp != stamp) {
     slot.around_stamp = stamp;
     slot.lowest_around = kInfinity;
-    slot.around_begin = static_cast<int>(sc.around.size());
+    slot.around_begin = static_cast<int>(sc.around_x.size());
     for (const CellIndex& d : sc.ground_disc) {
       const std::ptrdiff_t other = sc.frame_slots(c + d);
       if (other < 0) continue;
       const Scratch::Slot& o = sc.slots[static_cast<std::size_t>(other)];
       if (o.stamp != stamp) continue;
-      sc.around.push_back(o.lowest);
+      sc.around_x.push_back(o.lowest.x());
+      sc.around_y.push_back(o.lowest.y());
+      sc.around_z.push_back(o.lowest.z());
       slot.lowest_around = std::min(slot.lowest_around, o.lowest.z());
     }
-    slot.around_end = static_cast<int>(sc.around.size());
+    slot.around_end = static_cast<int>(sc.around_x.size());
   }
   if (pf.z() - slot.lowest_around < config_.obstacle_min_height_m) {
     return std::make_pair(pf.z() - slot.lowest_around, pf.z() - slot.lowest_around);
   }
-  for (int k = slot.around_begin; k < slot.around_end; ++k) {
-    const Eigen::Vector3f& q = sc.around[k];
-    const float dxy2 = (pf.head<2>() - q.head<2>()).squaredNorm();
+  const float* const qx = sc.around_x.data();
+  const float* const qy = sc.around_y.data();
+  const float* const qz = sc.around_z.data();
+  int k = slot.around_begin;
+#if defined(__SSE2__)
+  // Four at a time, in the scalar loop's float operations (no value is NaN and none -0, so the
+  // maxima do not depend on the order).
+  {
+    const __m128 px = _mm_set1_ps(pf.x()), py = _mm_set1_ps(pf.y()), pz = _mm_set1_ps(pf.z());
+    const __m128 vrise = _mm_set1_ps(rise), vreach2 = _mm_set1_ps(reach2);
+    const __m128 none = _mm_set1_ps(-kInfinity);
+    __m128 heights = none, plains = none;
+    for (; k + 4 <= slot.around_end; k += 4) {
+      const __m128 dx = _mm_sub_ps(px, _mm_loadu_ps(qx + k));
+      const __m128 dy = _mm_sub_ps(py, _mm_loadu_ps(qy + k));
+      const __m128 dxy2 = _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy));
+      const __m128 within = _mm_cmple_ps(dxy2, vreach2);
+      const __m128 dz = _mm_sub_ps(pz, _mm_loadu_ps(qz + k));
+      const __m128 h = _mm_sub_ps(dz, _mm_mul_ps(vrise, _mm_sqrt_ps(dxy2)));
+      heights = _mm_max_ps(heights, _mm_or_ps(_mm_and_ps(within, h), _mm_andnot_ps(within, none)));
+      plains = _mm_max_ps(plains, _mm_or_ps(_mm_and_ps(within, dz), _mm_andnot_ps(within, none)));
+    }
+    const auto most = [](__m128 v) {
+      v = _mm_max_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2)));
+      return _mm_cvtss_f32(_mm_max_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(2, 3, 0, 1))));
+    };
+    height = most(heights);
+    plain = most(plains);
+  }
+#endif
+  for (; k < slot.around_end; ++k) {
+    const float dx = pf.x() - qx[k], dy = pf.y() - qy[k];
+    const float dxy2 = dx * dx + dy * dy;
     if (dxy2 > reach2) continue;
-    height = std::max(height, pf.z() - q.z() - rise * std::sqrt(dxy2));
-    plain = std::max(plain, pf.z() - q.z());
+    height = std::max(height, pf.z() - qz[k] - rise * std::sqrt(dxy2));
+    plain = std::max(plain, pf.z() - qz[k]);
   }
   return std::make_pair(height, plain);
 }
@@ -445,7 +482,9 @@ std::vector<TerrainMap::FrameSegment> TerrainMap::ClassifyReturns(
     FrameSummary& summary) {
   FindLowestReturns(stamp, summary);
   Scratch& sc = *scratch_;
-  sc.around.clear();
+  sc.around_x.clear();
+  sc.around_y.clear();
+  sc.around_z.clear();
   const float rise = static_cast<float>(std::tan(config_.ground_max_slope_rad));
   const float reach2 = static_cast<float>(config_.ground_radius_m * config_.ground_radius_m);
   std::vector<FrameSegment> segments(detection.segments.size() + 1);

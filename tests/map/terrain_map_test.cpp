@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <memory>
 #include <random>
 #include <set>
@@ -115,6 +117,71 @@ TEST(TerrainMap, LethalCellsAreTheBoxFootprint) {
   EXPECT_EQ(o.frames, (std::vector<std::int64_t>{0, 1}));
   EXPECT_NEAR(o.footprint_min.x(), 3.4, 1e-9);
   EXPECT_NEAR(o.footprint_max.x(), 4.6, 1e-9);
+}
+
+// A frame's obstacle points are the points of kept segments that the definition names
+// (MapConfig::obstacle_min_height_m): some lowest in-range return q of a cell, within
+// ground_radius of p horizontally, lies below p by obstacle_min_height plus the rise of ground
+// at ground_max_slope over |p - q|_xy, in the map's float arithmetic; checked against every
+// cell's lowest return, on hills with poles and boxes (ground lower and higher around them),
+// one frame at a time into fresh maps.
+TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
+  sim::Scene scene(sim::Terrain::Hills(0.0, {sim::SineWave{0.4, 6.0, 0.3, 0.0}}));
+  const double poles[][2] = {{4, 1}, {6, -1.5}, {8, 0.5}, {10, -0.5}};
+  for (const auto& p : poles) scene.AddPole(p[0], p[1], 0.1, 1.2, true);
+  scene.AddBox(7.0, 2.0, {0.8, 0.8, 0.6}, 0.3, true);
+  scene.AddBox(5.0, -3.0, {0.8, 1.2, 0.7}, -0.2, true);
+  const od::io::DetectSettings settings = Settings();
+  const MapConfig config;
+  const float rise = static_cast<float>(std::tan(config.ground_max_slope_rad));
+  const float reach2 = static_cast<float>(config.ground_radius_m * config.ground_radius_m);
+  int frames = 0, obstacle_points = 0, foot_points = 0;
+  for (const double heading : {0.0, 20.0, -25.0}) {
+    const Expected<SimFrame> frame = test::CameraFrame(
+        scene, Camera(), CameraPose({0.0, 0.0, 1.5}, heading, 15.0), 0.0, 0, settings);
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    TerrainMap map = NewMap(config);
+    const Expected<FrameSummary> summary = frame->IntegrateInto(map);
+    ASSERT_TRUE(summary.ok()) << summary.error().message;
+    // The returns in range, in the world; each cell's lowest, as the map keeps it.
+    const TerrainGrid& grid = map.grid();
+    std::vector<Eigen::Vector3d> world(frame->image.size());
+    std::vector<bool> in_range(frame->image.size(), false);
+    std::map<std::pair<int, int>, Eigen::Vector3f> lowest;
+    for (int i = 0; i < frame->image.size(); ++i) {
+      if (!frame->image.valid(i)) continue;
+      const Eigen::Vector3d p = frame->image.point(i);
+      const double range = p.norm();
+      if (!(range > 0.0) || range > config.max_range_m) continue;
+      world[i] = frame->T_world_sensor * p;
+      in_range[i] = true;
+      const CellIndex c = grid.IndexOf(world[i].head<2>());
+      const auto [at, made] = lowest.emplace(std::pair(c.x(), c.y()), world[i].cast<float>());
+      if (!made && world[i].z() < at->second.z()) at->second = world[i].cast<float>();
+    }
+    int expected = 0, kept_points = 0;
+    for (int i = 0; i < frame->image.size(); ++i) {
+      const int label = frame->detection.labels[i];
+      if (!in_range[i] || label <= 0) continue;
+      if (frame->classification.verdicts[label - 1].cls != od::SegmentClass::kKept) continue;
+      ++kept_points;
+      const Eigen::Vector3f p = world[i].cast<float>();
+      float height = -std::numeric_limits<float>::infinity();
+      for (const auto& [cell, q] : lowest) {
+        const float dx = p.x() - q.x(), dy = p.y() - q.y();
+        const float dxy2 = dx * dx + dy * dy;
+        if (dxy2 <= reach2) height = std::max(height, p.z() - q.z() - rise * std::sqrt(dxy2));
+      }
+      expected += height >= static_cast<float>(config.obstacle_min_height_m);
+    }
+    EXPECT_EQ(summary->obstacle_points, expected) << "heading " << heading;
+    obstacle_points += expected;
+    foot_points += kept_points - expected;
+    ++frames;
+  }
+  EXPECT_EQ(frames, 3);
+  EXPECT_GT(obstacle_points, 300);  // the objects' points
+  EXPECT_GT(foot_points, 20);       // their feet
 }
 
 TEST(TerrainMap, EveryCostIsTheBruteForceInflationOfTheLethalCells) {
