@@ -162,7 +162,8 @@ TEST(LevelPoints, AreTheTiltedPointsOnAnyThreads) {
 
 // The features' slope angle: std::atan2 to 2e-10 rad over every octant piece, their
 // borders, ratios from 1e-12 to 1e12, zeros and infinities; the loop of them (eight at a
-// time with AVX-512F, two at a time in SSE2) gives the same bits as one at a time.
+// time with AVX-512F, four with AVX2, two at a time in SSE2) gives the same bits as one at a
+// time.
 TEST(Inclination, IsAtan2) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> angle(0.0, kPi / 2), exponent(-12.0, 12.0);
@@ -191,8 +192,8 @@ TEST(Inclination, IsAtan2) {
     check(h, v);
   }
   EXPECT_GT(worst, 0.0);  // a polynomial, not atan2 itself
-  // All but the last one or more (to a count of 3 modulo 8), so that with AVX-512F the last
-  // three go two through the SSE2 loop and one through the one-at-a-time tail; the zeros,
+  // All but the last one or more (to a count of 3 modulo 8), so that with AVX-512F or AVX2 the
+  // last three go two through the SSE2 loop and one through the one-at-a-time tail; the zeros,
   // infinities and borders, checked last above, are among them. At every vector width.
   struct Uncap {
     ~Uncap() { internal::CapVectorLanes(0); }
@@ -202,7 +203,7 @@ TEST(Inclination, IsAtan2) {
   ASSERT_EQ(n % 8, 3);
   ASSERT_GE(n, size - 7);
   std::vector<double> many(n);
-  for (const int lanes : {16, 4, 1}) {
+  for (const int lanes : {16, 8, 4, 1}) {
     internal::CapVectorLanes(lanes);
     internal::Inclinations(squares.data(), verticals.data(), many.data(), n);
     for (int j = 0; j < n; ++j) {

@@ -97,8 +97,8 @@ inline double Inclination(double horizontal, double vertical) {
 }
 
 /// out[j] = Inclination(sqrt(squares[j]), verticals[j]) for j < n, bit for bit: eight at a
-/// time with AVX-512F where the processor has it (simd.hpp), else two at a time in SSE2 (the
-/// same operations in the same order, the pieces chosen by masks).
+/// time with AVX-512F, four with AVX2 where the processor has them (simd.hpp), else two at a
+/// time in SSE2 (the same operations in the same order, the pieces chosen by masks).
 void Inclinations(const double* squares, const double* verticals, double* out, int n);
 
 /// Builds the Detection (its labels in `component`'s storage): `component[i]` is -1 when i is in no

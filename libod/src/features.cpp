@@ -324,6 +324,117 @@ __attribute__((target("avx512f,popcnt"))) int GatherMembersAvx512(std::int32_t* 
   count = c;
   return i;
 }
+
+// InclinationsAvx512 four at a time (AVX2), the pieces chosen by blends.
+__attribute__((target("avx2"))) int InclinationsAvx2(const double* squares, const double* verticals,
+                                                     double* out, int n) {
+  constexpr double kTanPi8 = 0.41421356237309503, kPi4 = 0.78539816339744831;
+  const __m256d tan_pi8 = _mm256_set1_pd(kTanPi8), sign = _mm256_set1_pd(-0.0);
+  int j = 0;
+  for (; j + 4 <= n; j += 4) {
+    const __m256d h = _mm256_sqrt_pd(_mm256_loadu_pd(squares + j));
+    const __m256d v = _mm256_loadu_pd(verticals + j);
+    const __m256d low = _mm256_cmp_pd(h, _mm256_mul_pd(v, tan_pi8), _CMP_LE_OQ);
+    const __m256d high =
+        _mm256_andnot_pd(low, _mm256_cmp_pd(v, _mm256_mul_pd(h, tan_pi8), _CMP_LE_OQ));
+    // low: h / v; high: -v / h; between: (h - v) / (h + v).
+    const __m256d num = _mm256_blendv_pd(
+        _mm256_blendv_pd(_mm256_sub_pd(h, v), _mm256_xor_pd(v, sign), high), h, low);
+    const __m256d den = _mm256_blendv_pd(_mm256_blendv_pd(_mm256_add_pd(h, v), h, high), v, low);
+    const __m256d offset = _mm256_blendv_pd(_mm256_andnot_pd(low, _mm256_set1_pd(kPi4)),
+                                            _mm256_set1_pd(2.0 * kPi4), high);
+    const __m256d t = _mm256_div_pd(num, den), z = _mm256_mul_pd(t, t);
+    __m256d p = _mm256_set1_pd(-0.058377893120734145);
+    for (const double next : {0.10480595274350676, -0.1422416064933773, 0.19997023132834191,
+                              -0.33333271105929246, 0.99999999627057046}) {
+      p = _mm256_add_pd(_mm256_mul_pd(p, z), _mm256_set1_pd(next));
+    }
+    _mm256_storeu_pd(out + j, _mm256_add_pd(offset, _mm256_mul_pd(t, p)));
+  }
+  return j;
+}
+
+// Four level points (of `lanes`, all ones in each 64-bit lane taken) as doubles; the others 0.
+__attribute__((target("avx2"))) inline __m256d Widen4(const float* at, __m256i lanes) {
+  // The low 32 bits of each 64-bit lane, as the four 32-bit lanes of a load.
+  const __m128i four = _mm256_castsi256_si128(
+      _mm256_permutevar8x32_epi32(lanes, _mm256_setr_epi32(0, 2, 4, 6, 0, 0, 0, 0)));
+  return _mm256_cvtps_pd(_mm_maskload_ps(at, four));
+}
+
+// InnerNormalsAvx512 for k <= 4 inner points four at a time (AVX2), the same double operations;
+// the kept normals moved to the front by a permutation and stored whole (`squares` and
+// `verticals` have room for four).
+__attribute__((target("avx2,popcnt"))) int InnerNormalsAvx2(
+    const float* x, const float* y, const float* z, const std::int32_t* labels, int i, int k,
+    int width, bool has_up, bool has_down, std::int32_t id, double* squares, double* verticals) {
+  const __m128i lanes32 = _mm_cmpgt_epi32(_mm_set1_epi32(k), _mm_setr_epi32(0, 1, 2, 3));
+  const __m128i vid = _mm_set1_epi32(id);
+  const auto in_segment = [&](int at) __attribute__((target("avx2"))) {
+    return _mm256_cvtepi32_epi64(
+        _mm_and_si128(lanes32, _mm_cmpeq_epi32(_mm_maskload_epi32(labels + at, lanes32), vid)));
+  };
+  const __m256i none = _mm256_setzero_si256();
+  const __m256i below = has_down ? in_segment(i + width) : none;
+  const __m256i above = has_up ? in_segment(i - width) : none;
+  const __m256i lanes = _mm256_cvtepi32_epi64(lanes32);
+  const __m256d px = Widen4(x + i, lanes), py = Widen4(y + i, lanes), pz = Widen4(z + i, lanes);
+  const __m256d ux = _mm256_sub_pd(Widen4(x + i + 1, lanes), Widen4(x + i - 1, lanes));
+  const __m256d uy = _mm256_sub_pd(Widen4(y + i + 1, lanes), Widen4(y + i - 1, lanes));
+  const __m256d uz = _mm256_sub_pd(Widen4(z + i + 1, lanes), Widen4(z + i - 1, lanes));
+  // (below ? the point below : p) - (above ? the point above : p).
+  const __m256d b = _mm256_castsi256_pd(below), a = _mm256_castsi256_pd(above);
+  const __m256d vx = _mm256_sub_pd(_mm256_blendv_pd(px, Widen4(x + i + width, below), b),
+                                   _mm256_blendv_pd(px, Widen4(x + i - width, above), a));
+  const __m256d vy = _mm256_sub_pd(_mm256_blendv_pd(py, Widen4(y + i + width, below), b),
+                                   _mm256_blendv_pd(py, Widen4(y + i - width, above), a));
+  const __m256d vz = _mm256_sub_pd(_mm256_blendv_pd(pz, Widen4(z + i + width, below), b),
+                                   _mm256_blendv_pd(pz, Widen4(z + i - width, above), a));
+  // Eigen's cross product, term for term.
+  const __m256d nx = _mm256_sub_pd(_mm256_mul_pd(uy, vz), _mm256_mul_pd(uz, vy));
+  const __m256d ny = _mm256_sub_pd(_mm256_mul_pd(uz, vx), _mm256_mul_pd(ux, vz));
+  const __m256d nz = _mm256_sub_pd(_mm256_mul_pd(ux, vy), _mm256_mul_pd(uy, vx));
+  const __m256d square = _mm256_add_pd(_mm256_mul_pd(nx, nx), _mm256_mul_pd(ny, ny));
+  const __m256d zero = _mm256_setzero_pd();
+  const auto kept = static_cast<unsigned>(_mm256_movemask_pd(
+      _mm256_and_pd(_mm256_or_pd(a, b), _mm256_or_pd(_mm256_cmp_pd(square, zero, _CMP_GT_OQ),
+                                                     _mm256_cmp_pd(nz, zero, _CMP_NEQ_UQ)))));
+  // Double lane l is 32-bit lanes 2l and 2l + 1.
+  unsigned pairs = 0;
+  for (unsigned l = 0; l < 4; ++l) pairs |= (kept >> l & 1u) * (3u << (2 * l));
+  const __m256i to_front = ToFront8(pairs);
+  _mm256_storeu_pd(squares,
+                   _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(square), to_front)));
+  _mm256_storeu_pd(verticals,
+                   _mm256_castps_pd(_mm256_permutevar8x32_ps(
+                       _mm256_castpd_ps(_mm256_andnot_pd(_mm256_set1_pd(-0.0), nz)), to_front)));
+  return __builtin_popcount(kept);
+}
+
+// GatherMembersAvx512 eight at a time (AVX2): the members' indices moved to the front by a
+// permutation and stored whole (the eight stored from `count` end before i + 8 - begin, within
+// `part`).
+__attribute__((target("avx2,popcnt"))) int GatherMembersAvx2(std::int32_t* labels, int begin,
+                                                             int end, std::int32_t* part,
+                                                             int& count) {
+  const __m256i zero = _mm256_setzero_si256(), minus_one = _mm256_set1_epi32(-1);
+  const __m256i eight = _mm256_set1_epi32(8);
+  __m256i index =
+      _mm256_add_epi32(_mm256_set1_epi32(begin), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+  int i = begin, c = count;
+  for (; i + 8 <= end; i += 8) {
+    const __m256i name = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(labels + i));
+    const auto member = static_cast<unsigned>(
+        _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(name, minus_one))));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(part + c),
+                        _mm256_permutevar8x32_epi32(index, ToFront8(member)));
+    c += __builtin_popcount(member);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(labels + i), _mm256_max_epi32(name, zero));
+    index = _mm256_add_epi32(index, eight);
+  }
+  count = c;
+  return i;
+}
 CAIRN_OD_AVX512_KERNELS_END
 #endif
 
@@ -333,6 +444,7 @@ void Inclinations(const double* squares, const double* verticals, double* out, i
   int j = 0;
 #if defined(CAIRN_OD_WIDE_VECTORS)
   if (VectorLanes() == 16) j = InclinationsAvx512(squares, verticals, out, n);
+  if (VectorLanes() == 8) j = InclinationsAvx2(squares, verticals, out, n);
 #endif
 #if defined(__SSE2__)
   constexpr double kTanPi8 = 0.41421356237309503, kPi4 = 0.78539816339744831;
@@ -417,7 +529,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
   std::int32_t* const labels = det.labels.data();
   det.stats = stats;
 
-  [[maybe_unused]] const bool wide = VectorLanes() == 16;
+  [[maybe_unused]] const int lanes = VectorLanes();
   // The segments' pixels, in row-major order (gathered in parts, joined in order): every
   // later pass visits only them.
   constexpr int kPixelParts = 8;
@@ -431,7 +543,8 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
         std::vector<std::int32_t> part(end - begin);  // count <= i - begin at each write
         int count = 0, i = begin;
 #if defined(CAIRN_OD_WIDE_VECTORS)
-        if (wide) i = GatherMembersAvx512(labels, begin, end, part.data(), count);
+        if (lanes == 16) i = GatherMembersAvx512(labels, begin, end, part.data(), count);
+        if (lanes == 8) i = GatherMembersAvx2(labels, begin, end, part.data(), count);
 #endif
         for (; i < end; ++i) {
           part[count] = i;
@@ -569,13 +682,23 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
           slope_at(0);
           int j = 1;
 #if defined(CAIRN_OD_WIDE_VECTORS)
-          if (wide) {  // the inner points eight at a time
+          if (lanes == 16) {  // the inner points eight at a time
             for (; j + 1 < len; j += 8) {
               if (pending + 8 > kChunk) add_slopes();
               const int kept =
                   InnerNormalsAvx512(level.x.data(), level.y.data(), level.z.data(), labels, i0 + j,
                                      std::min(8, len - 1 - j), width, has_up, has_down, id,
                                      squares + pending, verticals + pending);
+              std::fill(owners + pending, owners + pending + kept, &s);
+              pending += kept;
+            }
+          } else if (lanes == 8) {  // four at a time
+            for (; j + 1 < len; j += 4) {
+              if (pending + 4 > kChunk) add_slopes();
+              const int kept =
+                  InnerNormalsAvx2(level.x.data(), level.y.data(), level.z.data(), labels, i0 + j,
+                                   std::min(4, len - 1 - j), width, has_up, has_down, id,
+                                   squares + pending, verticals + pending);
               std::fill(owners + pending, owners + pending + kept, &s);
               pending += kept;
             }

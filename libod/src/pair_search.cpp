@@ -1,7 +1,6 @@
 #include "pair_search.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -437,11 +436,6 @@ __attribute__((target("avx2"))) std::uint64_t HitsAvx2(const float* qx, const fl
   return hits;
 }
 
-// The first n of eight lanes, all ones (none when n <= 0, all when n >= 8).
-__attribute__((target("avx2"))) inline __m256i FirstLanes8(int n) {
-  return _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-}
-
 // NotRejected for eight pairs of boxes (lower a, upper b), with Classify's float operations in
 // its order: the lanes it does not reject.
 __attribute__((target("avx2"))) inline __m256 NotRejected8(const __m256* a_lo, const __m256* a_hi,
@@ -550,37 +544,20 @@ __attribute__((target("avx2"))) void ClassifyAvx2(const float* x, const float* y
   }
 }
 
-// For each 8-bit mask, the lanes of its set bits from the lowest, four bits each: the
-// permutation that packs a register's chosen lanes to its front.
-constexpr std::array<std::uint32_t, 256> PackLanes8() {
-  std::array<std::uint32_t, 256> table{};
-  for (unsigned mask = 0; mask < 256; ++mask) {
-    std::uint32_t lanes = 0;
-    int k = 0;
-    for (unsigned lane = 0; lane < 8; ++lane) {
-      if (mask >> lane & 1u) lanes |= lane << (4 * k++);
-    }
-    table[mask] = lanes;
-  }
-  return table;
-}
-constexpr std::array<std::uint32_t, 256> kPackLanes8 = PackLanes8();
-
 // PackAvx512 eight points at a time (AVX2): each register's chosen lanes permuted to its front
-// and stored whole (the lanes after them are overwritten next); then padding up to a multiple
-// of sixteen. q* hold sixteen more than the points.
+// and stored whole (the lanes after them are overwritten next; a store at c <= j ends within
+// the leaf's 64 points); then sixteen padding points from c, which covers the multiple of
+// sixteen (q* hold sixteen more than the points, qpixel none).
 __attribute__((target("avx2,popcnt"))) int PackAvx2(const float* x, const float* y, const float* z,
                                                     const std::int32_t* pixel, int size,
                                                     std::uint64_t near, float* qx, float* qy,
                                                     float* qz, std::int32_t* qpixel) {
-  const __m256i shifts = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
   int c = 0;
   for (int j = 0; j < size; j += 8) {
     const auto take = static_cast<unsigned>(near >> j) & 0xffu;
     if (take == 0) continue;
     const __m256i in = FirstLanes8(size - j);  // nothing read past the tree's points
-    const __m256i to_front =
-        _mm256_srlv_epi32(_mm256_set1_epi32(static_cast<int>(kPackLanes8[take])), shifts);
+    const __m256i to_front = ToFront8(take);
     _mm256_storeu_ps(qx + c, _mm256_permutevar8x32_ps(_mm256_maskload_ps(x + j, in), to_front));
     _mm256_storeu_ps(qy + c, _mm256_permutevar8x32_ps(_mm256_maskload_ps(y + j, in), to_front));
     _mm256_storeu_ps(qz + c, _mm256_permutevar8x32_ps(_mm256_maskload_ps(z + j, in), to_front));
@@ -1121,8 +1098,7 @@ class alignas(64) Search {
     alignas(64) float x[PointTree::kMaxLeafPoints + 16];
     alignas(64) float y[PointTree::kMaxLeafPoints + 16];
     alignas(64) float z[PointTree::kMaxLeafPoints + 16];
-    std::int32_t pixel[PointTree::kMaxLeafPoints + 8];  ///< the point's image index (PackAvx2
-                                                        ///< stores eight at a time)
+    std::int32_t pixel[PointTree::kMaxLeafPoints];  ///< the point's image index
     int count = 0;
   };
   void Pack(const Node& B, std::uint64_t near, Packed& q) const {

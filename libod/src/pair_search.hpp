@@ -114,10 +114,10 @@ struct PairSearchResult {
   DetectionStats stats;
 };
 
-/// The leaves' box tests (3. above): sixteen points at a time with `lanes` 16 (AVX-512F), four
-/// with 4 or 8 (SSE2), else one at a time, every width with Classify's float operations in its
-/// order. `lanes` is at most VectorLanes() (a wider one may be an instruction the processor
-/// does not have). At most 64 points, read up to three past `count` (a tree's padding).
+/// The leaves' box tests (3. above): sixteen points at a time with `lanes` 16 (AVX-512F), eight
+/// with 8 (AVX2), four with 4 (SSE2), else one at a time, every width with Classify's float
+/// operations in its order. `lanes` is at most VectorLanes() (a wider one may be an instruction the
+/// processor does not have). At most 64 points, read up to three past `count` (a tree's padding).
 ///
 /// The lower points [0, count) of x, y, z against the box of upper points b_lo..b_hi: bit k of
 /// `keep` is set unless the box rejects point k (none of its points can be a partner), of

@@ -2,18 +2,21 @@
 // built for x86-64's baseline (SSE2, four lanes); where the processor runs AVX2 (eight) or
 // AVX-512F (sixteen), the loops that gain from it take the wider path, chosen once per process
 // at run time: with AVX2 the exact search's hits, box tests, packing and its leaves' ranks by
-// height, the column baseline's whole columns (and libmap's free-space rays, ray_keys.hpp, eight
-// under way in double), with AVX-512F the same sixteen at a time, and also the column
-// baseline's neighbourhoods and dense windows, and the features' gathering of segment pixels,
-// surface normals and slope angles (in double, bit for bit). Capped to one lane, the searches
-// run their scalar code (the level points are still rotated four at a time, and the features'
-// angles taken two at a time).
+// height, the column baseline's whole columns, the features' gathering of segment pixels,
+// surface normals and slope angles (four doubles at a time, bit for bit; and libmap's
+// free-space rays, ray_keys.hpp, eight under way), with AVX-512F the same sixteen (or eight
+// doubles) at a time, and also the column baseline's neighbourhoods and dense windows. Capped
+// to one lane, the searches run their scalar code (the level points are still rotated four at
+// a time, and the features' angles taken two at a time).
 // Every path does the pair test's float operations in the same order (no fused multiply-add:
 // the library is built with -ffp-contract=off), so every width gives the same obstacle points,
 // segments and features (the counts of pairs tested, and found where not every pair is sought,
 // differ); the tests run each width the processor has against the definition and against each
 // other.
 #pragma once
+
+#include <array>
+#include <cstdint>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 // The AVX2 and AVX-512F kernels, each function compiled for its instruction set alone.
@@ -39,6 +42,36 @@ namespace cairn::od::internal {
 /// 16 (AVX-512F), 8 (AVX2), 4 (SSE2) or 1 (one at a time): the widest the build and the
 /// processor have, at most the cap.
 int VectorLanes();
+
+/// For each 8-bit mask, the lanes of its set bits from the lowest, four bits each: the
+/// permutation that moves a register's chosen lanes to its front (AVX2 has no compress).
+constexpr std::array<std::uint32_t, 256> PackLanes8() {
+  std::array<std::uint32_t, 256> table{};
+  for (unsigned mask = 0; mask < 256; ++mask) {
+    std::uint32_t lanes = 0;
+    int k = 0;
+    for (unsigned lane = 0; lane < 8; ++lane) {
+      if (mask >> lane & 1u) lanes |= lane << (4 * k++);
+    }
+    table[mask] = lanes;
+  }
+  return table;
+}
+inline constexpr std::array<std::uint32_t, 256> kPackLanes8 = PackLanes8();
+
+#if defined(CAIRN_OD_WIDE_VECTORS)
+/// The first n of eight 32-bit lanes, all ones (none when n <= 0, all when n >= 8).
+__attribute__((target("avx2"))) inline __m256i FirstLanes8(int n) {
+  return _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+}
+
+/// The _mm256_permutevar8x32 indices that move the 32-bit lanes of `mask` (8 bits) to the
+/// front, in their order (the lanes after them are left over).
+__attribute__((target("avx2"))) inline __m256i ToFront8(unsigned mask) {
+  return _mm256_srlv_epi32(_mm256_set1_epi32(static_cast<int>(kPackLanes8[mask])),
+                           _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28));
+}
+#endif
 
 /// Tests: the vector loops use at most `lanes` (1, 4, 8 or 16) from now on, process-wide;
 /// 0 lifts the cap.
