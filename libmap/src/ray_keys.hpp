@@ -268,12 +268,11 @@ __attribute__((target("avx2"))) void ForEachRayKeyInTurnAvx2(const Tree& tree,
 
 /// ForEachRayKey from `origin` to the centre of each key in [first, last), four rays at a
 /// time, eight with AVX2 (each step of a walk waits on the one before; the steps of the rays
-/// under way overlap): calls
-/// f(ray, n) for every key of every ray, `ray` the end's index in [first, last) and n the
-/// key's number in `layout`, each ray's keys in its order (those of the rays under way
-/// interleave). Every key of a ray must have a number in `layout` (a box: the keys between
-/// the origin's and the end's, one more on each side). Rays that ForEachRayKey would not walk
-/// (the origin outside the tree) are skipped.
+/// under way overlap): calls f(ray, n) for every key of every ray, `ray` the end's index in
+/// [first, last) and n the key's number in `layout`, each ray's keys in its order (those of
+/// the rays under way interleave). Every key of a ray must have a number in `layout` (a box:
+/// the keys between the origin's and the end's, one more on each side). Rays that
+/// ForEachRayKey would not walk (the origin outside the tree) are skipped.
 template <typename Tree, typename F>
 void ForEachRayKeyInTurn(const Tree& tree, const octomap::point3d& origin,
                          const octomap::OcTreeKey* first, const octomap::OcTreeKey* last,

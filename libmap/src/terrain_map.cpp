@@ -441,8 +441,9 @@ std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, 
   const float* const qz = sc.around_z.data();
   int k = slot.around_begin;
 #if defined(__SSE2__)
-  // Four at a time, in the scalar loop's float operations (no value is NaN and none -0, so the
-  // maxima do not depend on the order).
+  // Four at a time, in the scalar loop's float operations. The four lanes' maxima are taken in
+  // another order than one by one, which could differ only in the sign of a zero maximum (the
+  // two compare equal).
   {
     const __m128 px = _mm_set1_ps(pf.x()), py = _mm_set1_ps(pf.y()), pz = _mm_set1_ps(pf.z());
     const __m128 vrise = _mm_set1_ps(rise), vreach2 = _mm_set1_ps(reach2);
@@ -452,11 +453,12 @@ std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, 
       const __m128 dx = _mm_sub_ps(px, _mm_loadu_ps(qx + k));
       const __m128 dy = _mm_sub_ps(py, _mm_loadu_ps(qy + k));
       const __m128 dxy2 = _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy));
-      const __m128 within = _mm_cmple_ps(dxy2, vreach2);
+      const __m128 within = _mm_cmpngt_ps(dxy2, vreach2);  // as !(dxy2 > reach2)
       const __m128 dz = _mm_sub_ps(pz, _mm_loadu_ps(qz + k));
       const __m128 h = _mm_sub_ps(dz, _mm_mul_ps(vrise, _mm_sqrt_ps(dxy2)));
-      heights = _mm_max_ps(heights, _mm_or_ps(_mm_and_ps(within, h), _mm_andnot_ps(within, none)));
-      plains = _mm_max_ps(plains, _mm_or_ps(_mm_and_ps(within, dz), _mm_andnot_ps(within, none)));
+      // max(candidate, so far): the earlier value where they are equal, as std::max keeps it.
+      heights = _mm_max_ps(_mm_or_ps(_mm_and_ps(within, h), _mm_andnot_ps(within, none)), heights);
+      plains = _mm_max_ps(_mm_or_ps(_mm_and_ps(within, dz), _mm_andnot_ps(within, none)), plains);
     }
     const auto most = [](__m128 v) {
       v = _mm_max_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2)));

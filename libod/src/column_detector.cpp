@@ -291,8 +291,7 @@ __attribute__((target("avx2,popcnt"))) void WholeColumnAvx2(
 // (simd.hpp), a column of at most kWholeColumn points (a LiDAR column) is searched whole,
 // unsorted: each point with something more than HT above it meets every point of the column,
 // eight or sixteen at a time (sixteen held in registers), the window a mask, and every pair is
-// found. Larger columns, and every column on
-// narrower vectors, are cut into bins. A partner q of
+// found. Larger columns, and every column on narrower vectors, are cut into bins. A partner q of
 // a lower point p lies less than reach = Hmax / tan(theta) from it horizontally, so less than reach
 // along any horizontal direction: the column's points are put in bins of that width along the
 // column's mean horizontal direction u, each bin sorted by height, and p meets the points of its

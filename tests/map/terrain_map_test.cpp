@@ -124,7 +124,7 @@ TEST(TerrainMap, LethalCellsAreTheBoxFootprint) {
 // ground_radius of p horizontally, lies below p by obstacle_min_height plus the rise of ground
 // at ground_max_slope over |p - q|_xy, in the map's float arithmetic; checked against every
 // cell's lowest return, on hills with poles and boxes (ground lower and higher around them),
-// one frame at a time into fresh maps.
+// one frame at a time into fresh maps: the frame's count and each cell's.
 TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
   sim::Scene scene(sim::Terrain::Hills(0.0, {sim::SineWave{0.4, 6.0, 0.3, 0.0}}));
   const double poles[][2] = {{4, 1}, {6, -1.5}, {8, 0.5}, {10, -0.5}};
@@ -160,6 +160,7 @@ TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
       if (!made && world[i].z() < at->second.z()) at->second = world[i].cast<float>();
     }
     int expected = 0, kept_points = 0;
+    std::map<std::pair<int, int>, std::uint32_t> expected_in_cell;
     for (int i = 0; i < frame->image.size(); ++i) {
       const int label = frame->detection.labels[i];
       if (!in_range[i] || label <= 0) continue;
@@ -172,9 +173,19 @@ TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
         const float dxy2 = dx * dx + dy * dy;
         if (dxy2 <= reach2) height = std::max(height, p.z() - q.z() - rise * std::sqrt(dxy2));
       }
-      expected += height >= static_cast<float>(config.obstacle_min_height_m);
+      if (height >= static_cast<float>(config.obstacle_min_height_m)) {
+        ++expected;
+        const CellIndex c = grid.IndexOf(world[i].head<2>());
+        ++expected_in_cell[{c.x(), c.y()}];
+      }
     }
     EXPECT_EQ(summary->obstacle_points, expected) << "heading " << heading;
+    int cells_differ = 0;
+    ForEachCell(grid, [&](const CellIndex& c, const Cell& cell) {
+      const auto it = expected_in_cell.find({c.x(), c.y()});
+      cells_differ += cell.obstacle_points != (it == expected_in_cell.end() ? 0u : it->second);
+    });
+    EXPECT_EQ(cells_differ, 0) << "heading " << heading;
     obstacle_points += expected;
     foot_points += kept_points - expected;
     ++frames;

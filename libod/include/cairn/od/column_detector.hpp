@@ -31,11 +31,10 @@ struct ColumnConfig {
 /// column) is tested whole: each point with something more than HT above it against every point
 /// of the column, 8 or 16 at a time, so stats.pairs_tested counts every pair HT..Hmax apart. A
 /// larger column (a camera's), and every column on narrower vectors, has its points sorted into
-/// bins, plus one
-/// test per candidate pair within HT..Hmax in the bins next to it (where those bins are dense, and
-/// on every column where the compiler has no SSE2 or the vector lanes are capped to one, only up to
-/// each point's first partner above and below, or the first four or sixteen points holding one, all
-/// of whose hits are marked: stats.pairs_compatible then counts the pairs found,
+/// bins, plus one test per candidate pair within HT..Hmax in the bins next to it (where those bins
+/// are dense, and on every column where the compiler has no SSE2 or the vector lanes are capped to
+/// one, only up to each point's first partner above and below, or the first four or sixteen points
+/// holding one, all of whose hits are marked: stats.pairs_compatible then counts the pairs found,
 /// at most as many as there are, and stats.pairs_tested may count a pair from each end), and blob
 /// colouring by runs.
 Expected<Detection> DetectColumns(const RangeImage& image, const ColumnConfig& config);
