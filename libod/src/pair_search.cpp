@@ -93,21 +93,27 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
           high.assign(cells, -kInf);
           low.assign(cells, kInf);
         }
+        // Locals, not the captures: the float stores may alias what a capture refers to, which
+        // would then be loaded again for every point.
         const float* x = level.x.data();
         const float* y = level.y.data();
         const float* z = level.z.data();
         std::int32_t* cells_of = cell.data();
         float* hi = high.data();
         float* lo = low.data();
+        const float x0 = x_lo, y0 = y_lo;
+        const double scale = per_m;
+        const int cols = nx, rows = ny;
         const int end = part_begin(k + 1);
         for (int i = part_begin(k); i < end; ++i) {
-          if (std::isnan(z[i])) continue;
-          const int cx = std::clamp(static_cast<int>((x[i] - x_lo) * per_m), 0, nx - 1);
-          const int cy = std::clamp(static_cast<int>((y[i] - y_lo) * per_m), 0, ny - 1);
-          const std::int32_t j = cy * nx + cx;
+          const float zi = z[i];
+          if (std::isnan(zi)) continue;
+          const int cx = std::clamp(static_cast<int>((x[i] - x0) * scale), 0, cols - 1);
+          const int cy = std::clamp(static_cast<int>((y[i] - y0) * scale), 0, rows - 1);
+          const std::int32_t j = cy * cols + cx;
           cells_of[i] = j;
-          hi[j] = std::max(hi[j], z[i]);
-          lo[j] = std::min(lo[j], z[i]);
+          hi[j] = std::max(hi[j], zi);
+          lo[j] = std::min(lo[j], zi);
         }
       },
       1);
