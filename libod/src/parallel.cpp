@@ -25,9 +25,12 @@ struct Team {
 // About how long a thread that waits for the pool spins before it sleeps. A sleeping thread
 // takes tens to hundreds of microseconds to wake (more on a virtual machine), as long as a
 // whole stage of the detector on one frame; its stages follow each other within
-// microseconds, and a longer spin only takes the core from threads with work (50 and 200 us
-// were as fast on the detector).
-constexpr std::chrono::microseconds kSpin{50};
+// microseconds, but a serial step between two (a tree's tasks, the segments' ids) can take
+// longer than 50 us. The spin yields, so a thread with work still gets the core. (50 and 200 us
+// were as fast on an Intel Xeon; on an AMD EPYC, 500 us against 50 took the detector on both
+// cores from 9.4 and 10.6 ms to 9.1 and 8.4 on KITTI, 5.4 and 5.7 to 4.9 and 5.1 on the demo
+// frame (two sets of six rounds), and left `cairn map` as it was: BENCHMARKS.md.)
+constexpr std::chrono::microseconds kSpin{500};
 
 // Spins until `ready()` or kSpin has passed; returns ready().
 template <class Ready>
