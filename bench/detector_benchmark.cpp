@@ -26,6 +26,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "cairn/od/column_detector.hpp"
@@ -524,6 +525,38 @@ void BM_Candidates(benchmark::State& state, const std::string& name) {
       static_cast<double>(kept) / static_cast<double>(std::max<std::int64_t>(1, valid));
 }
 
+// The exact detector's trees (od::internal::PointTree) of the lower and the upper candidates,
+// one thread, with Detect's leaves: checked to hold every candidate once.
+void BM_Trees(benchmark::State& state, const std::string& name) {
+  Frame* f = FrameOrSkip(state, name);
+  if (f == nullptr) return;
+  const od::DetectorConfig config = OneThread(*f);
+  const od::internal::LevelPoints level(f->image, 1, config.min_range_m);
+  const od::internal::Candidates candidates =
+      od::internal::FindCandidates(level, od::PairTest(config), 1);
+  const od::internal::LeafShape leaf = std::holds_alternative<od::SphericalModel>(f->image.model())
+                                           ? od::internal::kLidarLeaf
+                                           : od::internal::kCameraLeaf;
+  const int width = f->image.width(), height = f->image.height();
+  std::int64_t stored = 0;
+  for (auto _ : state) {
+    const od::internal::PointTree lower(level, candidates.lower, width, height, leaf.rows,
+                                        leaf.cols);
+    const od::internal::PointTree upper(level, candidates.upper, width, height, leaf.rows,
+                                        leaf.cols);
+    stored = lower.size() + upper.size();
+    benchmark::DoNotOptimize(stored);
+  }
+  const std::int64_t wanted = std::count(candidates.lower.begin(), candidates.lower.end(), 1) +
+                              std::count(candidates.upper.begin(), candidates.upper.end(), 1);
+  if (stored != wanted) {
+    g_differs = true;
+    state.SkipWithError((name + ": the trees do not hold every candidate").c_str());
+    return;
+  }
+  state.counters["points"] = static_cast<double>(stored);
+}
+
 // Growth of the cost: Hmax (range(0), cm) on a frame, one thread.
 void BM_DetectHmax(benchmark::State& state, const std::string& name) {
   Frame* f = FrameOrSkip(state, name);
@@ -555,6 +588,7 @@ void Register() {
         ->Arg(0);
     ms(benchmark::RegisterBenchmark(("Columns/" + name).c_str(), BM_Columns, name));
     ms(benchmark::RegisterBenchmark(("Candidates/" + name).c_str(), BM_Candidates, name));
+    ms(benchmark::RegisterBenchmark(("Trees/" + name).c_str(), BM_Trees, name));
     ms(benchmark::RegisterBenchmark(("Features/" + name).c_str(), BM_Features, name));
     ms(benchmark::RegisterBenchmark(("Rules/" + name).c_str(), BM_Rules, name));
     ms(benchmark::RegisterBenchmark(("PaperWindow/" + name).c_str(), BM_PaperWindow, name));

@@ -106,11 +106,9 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   // (and the image's ranges of segment points, which are none of them).
   const internal::LevelPoints level(image, threads, config.min_range_m);
   const PairTest test(config);
-  // Leaves of 2 x 32 pixels on a LiDAR scan, of 8 x 8 on camera images: the fastest of the
-  // shapes tried on the benchmark frames once a leaf's points are filtered by the other
-  // leaf's box (BENCHMARKS.md; 2 x 16 and 4 x 8 before, one ring of 16 one point at a time).
-  const bool lidar = std::holds_alternative<SphericalModel>(image.model());
-  const int leaf_rows = lidar ? 2 : 8, leaf_cols = lidar ? 32 : 8;
+  const internal::LeafShape leaf = std::holds_alternative<SphericalModel>(image.model())
+                                       ? internal::kLidarLeaf
+                                       : internal::kCameraLeaf;
   internal::PairSearchOptions options;
   options.threads = threads;
   const internal::Candidates candidates = internal::FindCandidates(level, test, threads);
@@ -122,7 +120,7 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
         const bool is_lower = tree == 0;
         (is_lower ? lower : upper)
             .emplace(level, is_lower ? candidates.lower : candidates.upper, image.width(),
-                     image.height(), leaf_rows, leaf_cols);
+                     image.height(), leaf.rows, leaf.cols);
       },
       1);
   internal::PairSearchResult found = internal::SearchPairs(*lower, *upper, n, test, options);

@@ -90,6 +90,14 @@ struct PointTree {
   std::int32_t stored_ = 0;  // points stored so far (Build)
 };
 
+/// Detect's leaves: 2 x 32 pixels on a LiDAR scan, 8 x 8 on camera images, the fastest of the
+/// shapes tried on the benchmark frames once a leaf's points are filtered by the other leaf's
+/// box (BENCHMARKS.md; 2 x 16 and 4 x 8 before, one ring of 16 one point at a time).
+struct LeafShape {
+  int rows, cols;
+};
+constexpr LeafShape kLidarLeaf{2, 32}, kCameraLeaf{8, 8};
+
 struct PairSearchOptions {
   /// Build the sets (the cone detector). Off (the mask alone) and the per-column trees were
   /// the column baseline's, which now has its own pass; no caller uses them. Taking them out
