@@ -184,8 +184,8 @@ namespace {
 #if defined(CAIRN_OD_WIDE_VECTORS)
 // RanksAvx512 eight points at a time (AVX2; zs padded to a multiple of eight). Each point's
 // count of points below it, summed in a register: without ties, these are the ranks (each
-// from 0 to m - 1 once); where two points tie they count the same, and the ranks are counted
-// again with ties in index order, as RanksAvx512 counts them.
+// from 0 to m - 1 once); where points tie they count the same, and take the next ranks in
+// index order, as RanksAvx512 counts them.
 __attribute__((target("avx2,popcnt"))) void RanksAvx2(const float* zs, int m, int* rank) {
   const int chunks = (m + 7) / 8;
   __m256 z[8];
@@ -204,19 +204,10 @@ __attribute__((target("avx2,popcnt"))) void RanksAvx2(const float* zs, int m, in
     seen |= std::uint64_t{1} << rank[k];
   }
   if (seen == (m < 64 ? (std::uint64_t{1} << m) - 1 : ~std::uint64_t{0})) return;
-  for (int k = 0; k < m; ++k) {  // ties
-    const __m256 zk = _mm256_set1_ps(zs[k]);
-    std::uint64_t under = 0, not_above = 0;
-    for (int c = 0; c < chunks; ++c) {
-      under |= static_cast<std::uint64_t>(_mm256_movemask_ps(_mm256_cmp_ps(z[c], zk, _CMP_LT_OQ)))
-               << (8 * c);
-      not_above |=
-          static_cast<std::uint64_t>(_mm256_movemask_ps(_mm256_cmp_ps(z[c], zk, _CMP_LE_OQ)))
-          << (8 * c);
-    }
-    const std::uint64_t before = (std::uint64_t{1} << k) - 1;
-    rank[k] = __builtin_popcountll(not_above & before) + __builtin_popcountll(under & ~before);
-  }
+  // Ties: the points of one height all counted the same b points below them (points of
+  // different heights count differently), and take b, b + 1, ... in index order.
+  std::uint8_t taken[PointTree::kMaxLeafPoints] = {};
+  for (int k = 0; k < m; ++k) rank[k] += taken[rank[k]]++;
 }
 // Each point's rank among zs[0, m) by ascending height, ties in index order (m <= 64, zs
 // padded with +infinity to a multiple of sixteen): PointTree::Build's count, sixteen points
