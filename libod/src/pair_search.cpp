@@ -93,8 +93,9 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
           high.assign(cells, -kInf);
           low.assign(cells, kInf);
         }
-        // Locals, not the captures: the float stores may alias what a capture refers to, which
-        // would then be loaded again for every point.
+        // Locals, not the captures: the stores (floats to the cells' bounds, integers to
+        // cells_of) may alias what a capture refers to, which would then be loaded again for
+        // every point.
         const float* x = level.x.data();
         const float* y = level.y.data();
         const float* z = level.z.data();
