@@ -222,7 +222,7 @@ CAIRN_OD_AVX512_KERNELS_BEGIN
 __attribute__((target("avx512f"))) int InclinationsAvx512(const double* squares,
                                                           const double* verticals, double* out,
                                                           int n) {
-  constexpr double kTanPi8 = 0.41421356237309503, kPi4 = 0.78539816339744831;
+  constexpr double kTanPi8 = kInclinationTanPi8, kPi4 = kInclinationPi4;
   const __m512d tan_pi8 = _mm512_set1_pd(kTanPi8);
   const __m512i sign = _mm512_set1_epi64(std::numeric_limits<std::int64_t>::min());
   const __m512d zero = _mm512_setzero_pd();
@@ -243,11 +243,9 @@ __attribute__((target("avx512f"))) int InclinationsAvx512(const double* squares,
     const __m512d offset = _mm512_mask_mov_pd(
         _mm512_mask_mov_pd(zero, high, _mm512_set1_pd(2.0 * kPi4)), mid, _mm512_set1_pd(kPi4));
     const __m512d t = _mm512_div_pd(num, den), z = _mm512_mul_pd(t, t);
-    __m512d p = _mm512_set1_pd(-0.058377893120734145);
-    for (const double next : {0.10480595274350676, -0.1422416064933773, 0.19997023132834191,
-                              -0.33333271105929246, 0.99999999627057046}) {
-      p = _mm512_add_pd(_mm512_mul_pd(p, z), _mm512_set1_pd(next));
-    }
+    __m512d p = _mm512_set1_pd(kInclinationPoly[0]);
+    for (int c = 1; c < 6; ++c)
+      p = _mm512_add_pd(_mm512_mul_pd(p, z), _mm512_set1_pd(kInclinationPoly[c]));
     _mm512_storeu_pd(out + j, _mm512_add_pd(offset, _mm512_mul_pd(t, p)));
   }
   return j;
@@ -328,7 +326,7 @@ __attribute__((target("avx512f,popcnt"))) int GatherMembersAvx512(std::int32_t* 
 // InclinationsAvx512 four at a time (AVX2), the pieces chosen by blends.
 __attribute__((target("avx2"))) int InclinationsAvx2(const double* squares, const double* verticals,
                                                      double* out, int n) {
-  constexpr double kTanPi8 = 0.41421356237309503, kPi4 = 0.78539816339744831;
+  constexpr double kTanPi8 = kInclinationTanPi8, kPi4 = kInclinationPi4;
   const __m256d tan_pi8 = _mm256_set1_pd(kTanPi8), sign = _mm256_set1_pd(-0.0);
   int j = 0;
   for (; j + 4 <= n; j += 4) {
@@ -344,11 +342,9 @@ __attribute__((target("avx2"))) int InclinationsAvx2(const double* squares, cons
     const __m256d offset = _mm256_blendv_pd(_mm256_andnot_pd(low, _mm256_set1_pd(kPi4)),
                                             _mm256_set1_pd(2.0 * kPi4), high);
     const __m256d t = _mm256_div_pd(num, den), z = _mm256_mul_pd(t, t);
-    __m256d p = _mm256_set1_pd(-0.058377893120734145);
-    for (const double next : {0.10480595274350676, -0.1422416064933773, 0.19997023132834191,
-                              -0.33333271105929246, 0.99999999627057046}) {
-      p = _mm256_add_pd(_mm256_mul_pd(p, z), _mm256_set1_pd(next));
-    }
+    __m256d p = _mm256_set1_pd(kInclinationPoly[0]);
+    for (int c = 1; c < 6; ++c)
+      p = _mm256_add_pd(_mm256_mul_pd(p, z), _mm256_set1_pd(kInclinationPoly[c]));
     _mm256_storeu_pd(out + j, _mm256_add_pd(offset, _mm256_mul_pd(t, p)));
   }
   return j;
@@ -447,12 +443,9 @@ void Inclinations(const double* squares, const double* verticals, double* out, i
   if (VectorLanes() == 8) j = InclinationsAvx2(squares, verticals, out, n);
 #endif
 #if defined(__SSE2__)
-  constexpr double kTanPi8 = 0.41421356237309503, kPi4 = 0.78539816339744831;
+  constexpr double kTanPi8 = kInclinationTanPi8, kPi4 = kInclinationPi4;
   const __m128d tan_pi8 = _mm_set1_pd(kTanPi8), sign = _mm_set1_pd(-0.0);
   const __m128d all = _mm_castsi128_pd(_mm_set1_epi32(-1));
-  const auto poly = [](__m128d z, __m128d c, double next) {
-    return _mm_add_pd(_mm_mul_pd(c, z), _mm_set1_pd(next));
-  };
   for (; j + 2 <= n; j += 2) {
     const __m128d h = _mm_sqrt_pd(_mm_loadu_pd(squares + j)), v = _mm_loadu_pd(verticals + j);
     const __m128d low = _mm_cmple_pd(h, _mm_mul_pd(v, tan_pi8));
@@ -466,11 +459,8 @@ void Inclinations(const double* squares, const double* verticals, double* out, i
     const __m128d offset =
         _mm_or_pd(_mm_and_pd(high, _mm_set1_pd(2.0 * kPi4)), _mm_and_pd(mid, _mm_set1_pd(kPi4)));
     const __m128d t = _mm_div_pd(num, den), z = _mm_mul_pd(t, t);
-    __m128d p = poly(z, _mm_set1_pd(-0.058377893120734145), 0.10480595274350676);
-    p = poly(z, p, -0.1422416064933773);
-    p = poly(z, p, 0.19997023132834191);
-    p = poly(z, p, -0.33333271105929246);
-    p = poly(z, p, 0.99999999627057046);
+    __m128d p = _mm_set1_pd(kInclinationPoly[0]);
+    for (int c = 1; c < 6; ++c) p = _mm_add_pd(_mm_mul_pd(p, z), _mm_set1_pd(kInclinationPoly[c]));
     _mm_storeu_pd(out + j, _mm_add_pd(offset, _mm_mul_pd(t, p)));
   }
 #endif
