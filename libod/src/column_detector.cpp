@@ -60,18 +60,17 @@ struct ColumnPairs {
   DetectionStats stats;
 };
 
-// One valid point of a column, with its sort key (set only where the column is binned): the bin
-// (see FindColumnPairs) in the high half and the height's bits, made to order as unsigned
-// integers, in the low half.
+// One valid point of a binned column: its sort key, the bin (see FindColumnPairs) in the high
+// half and the height's bits, made to order as unsigned integers, in the low half; and its
+// place among the column's points as gathered.
 struct ColumnPoint {
   std::uint64_t key;
-  float x, y, z;
-  std::int32_t row;
+  std::int32_t index;
 };
 
-// Columns are gathered and their marks stored this many at a time, row by row: a column
-// alone strides the image by its width, a power of two on LiDAR scans (2048), whose rows then
-// share a handful of cache sets and evict one another.
+// Columns are gathered this many at a time, row by row: a column alone strides the image by its
+// width, a power of two on LiDAR scans (2048), whose rows then share a handful of cache sets and
+// evict one another.
 constexpr int kBlockColumns = 16;
 
 std::uint64_t ColumnKey(std::int32_t bin, float z) {
@@ -79,6 +78,15 @@ std::uint64_t ColumnKey(std::int32_t bin, float z) {
   std::memcpy(&bits, &z, sizeof bits);
   bits ^= (bits >> 31) != 0 ? 0xffffffffu : 0x80000000u;  // negative floats reversed
   return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(bin) ^ 0x80000000u) << 32) | bits;
+}
+
+// The bin of the point (x, y) along the horizontal direction (ux, uy), bins 1 / per_width wide,
+// clamped to +-1e9 (FindColumnPairs).
+std::int32_t ColumnBin(float x, float y, double ux, double uy, double per_width) {
+  const double u = std::clamp((ux * x + uy * y) * per_width, -1e9, 1e9);
+  int bin = static_cast<int>(u);
+  bin -= static_cast<double>(bin) > u;  // floor
+  return bin;
 }
 
 // Sorts by key. A column gathered from its bottom row up comes nearly sorted (the ground
@@ -287,6 +295,128 @@ __attribute__((target("avx2,popcnt"))) void WholeColumnAvx2(
 }
 #endif
 
+#if defined(CAIRN_OD_WIDE_VECTORS)
+// The eight rows r[0..7] (eight columns each) as eight columns (eight rows each): out[c] holds
+// lane c of every r, r[0]'s first.
+__attribute__((target("avx2"))) inline void Transpose8(const __m256 r[8], __m256 out[8]) {
+  const __m256 a0 = _mm256_unpacklo_ps(r[0], r[1]), a1 = _mm256_unpackhi_ps(r[0], r[1]);
+  const __m256 a2 = _mm256_unpacklo_ps(r[2], r[3]), a3 = _mm256_unpackhi_ps(r[2], r[3]);
+  const __m256 a4 = _mm256_unpacklo_ps(r[4], r[5]), a5 = _mm256_unpackhi_ps(r[4], r[5]);
+  const __m256 a6 = _mm256_unpacklo_ps(r[6], r[7]), a7 = _mm256_unpackhi_ps(r[6], r[7]);
+  const __m256 b0 = _mm256_shuffle_ps(a0, a2, 0x44), b1 = _mm256_shuffle_ps(a0, a2, 0xee);
+  const __m256 b2 = _mm256_shuffle_ps(a1, a3, 0x44), b3 = _mm256_shuffle_ps(a1, a3, 0xee);
+  const __m256 b4 = _mm256_shuffle_ps(a4, a6, 0x44), b5 = _mm256_shuffle_ps(a4, a6, 0xee);
+  const __m256 b6 = _mm256_shuffle_ps(a5, a7, 0x44), b7 = _mm256_shuffle_ps(a5, a7, 0xee);
+  out[0] = _mm256_permute2f128_ps(b0, b4, 0x20);
+  out[1] = _mm256_permute2f128_ps(b1, b5, 0x20);
+  out[2] = _mm256_permute2f128_ps(b2, b6, 0x20);
+  out[3] = _mm256_permute2f128_ps(b3, b7, 0x20);
+  out[4] = _mm256_permute2f128_ps(b0, b4, 0x31);
+  out[5] = _mm256_permute2f128_ps(b1, b5, 0x31);
+  out[6] = _mm256_permute2f128_ps(b2, b6, 0x31);
+  out[7] = _mm256_permute2f128_ps(b3, b7, 0x31);
+}
+
+// FindColumnPairs' gathering of the columns [c0, c0 + 8 * kTiles), eight rows at a time (AVX2):
+// each eight columns' eight rows turned into the columns' eight points, bottom row first, and
+// each column's valid ones (z not NaN) moved to the front and stored after the column's points
+// so far. Column b's points go to g[b * stride + k] (x, y, z at gx, gy, gz, row at grow), and
+// count[b] counts them. The rows [0, rows % 8), at the top, are left to the caller; each column
+// needs room for 7 writes past its last point.
+template <int kTiles>
+__attribute__((target("avx2"))) void GatherColumnsAvx2(const float* x, const float* y,
+                                                       const float* z, int width, int rows, int c0,
+                                                       std::size_t stride, float* gx, float* gy,
+                                                       float* gz, std::int32_t* grow, int* count) {
+  for (int r = rows - 1; r >= 7; r -= 8) {
+    // Lane k of `row` is the row of each column's point k.
+    const __m256i row =
+        _mm256_sub_epi32(_mm256_set1_epi32(r), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    for (int t = 0; t < kTiles; ++t) {
+      __m256 in[8], cx[8], cy[8], cz[8];
+      const std::size_t first = static_cast<std::size_t>(r) * width + c0 + 8 * t;
+      for (int k = 0; k < 8; ++k)
+        in[k] = _mm256_loadu_ps(z + first - static_cast<std::size_t>(k) * width);
+      Transpose8(in, cz);
+      for (int k = 0; k < 8; ++k)
+        in[k] = _mm256_loadu_ps(x + first - static_cast<std::size_t>(k) * width);
+      Transpose8(in, cx);
+      for (int k = 0; k < 8; ++k)
+        in[k] = _mm256_loadu_ps(y + first - static_cast<std::size_t>(k) * width);
+      Transpose8(in, cy);
+      for (int b = 0; b < 8; ++b) {
+        const int column = 8 * t + b;
+        const auto valid =
+            static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(cz[b], cz[b], _CMP_ORD_Q)));
+        const __m256i front = internal::ToFront8(valid);
+        const std::size_t at = column * stride + count[column];
+        _mm256_storeu_ps(gx + at, _mm256_permutevar8x32_ps(cx[b], front));
+        _mm256_storeu_ps(gy + at, _mm256_permutevar8x32_ps(cy[b], front));
+        _mm256_storeu_ps(gz + at, _mm256_permutevar8x32_ps(cz[b], front));
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(grow + at),
+                            _mm256_permutevar8x32_epi32(row, front));
+        count[column] += __builtin_popcount(valid);
+      }
+    }
+  }
+}
+#endif
+
+#if defined(CAIRN_OD_WIDE_VECTORS)
+// FindColumnPairs' keys of a binned column's m points (x, y, z), four at a time in doubles
+// (AVX2), bit for bit as the scalar loop's: point k gets {key, k} in out[k]. Adds the points' x
+// and y to mx and my (in another order than one by one, which changes the next column's bins
+// but not what they find).
+__attribute__((target("avx2"))) void ColumnKeysAvx2(const float* x, const float* y, const float* z,
+                                                    int m, double ux, double uy, double per_width,
+                                                    ColumnPoint* out, double& mx, double& my) {
+  const __m256d vux = _mm256_set1_pd(ux), vuy = _mm256_set1_pd(uy);
+  const __m256d vper = _mm256_set1_pd(per_width);
+  const __m256d lo = _mm256_set1_pd(-1e9), hi = _mm256_set1_pd(1e9);
+  const __m128i sign = _mm_set1_epi32(static_cast<int>(0x80000000u));
+  __m256d sx = _mm256_setzero_pd(), sy = _mm256_setzero_pd();
+  int k = 0;
+  for (; k + 4 <= m; k += 4) {
+    const __m256d px = _mm256_cvtps_pd(_mm_loadu_ps(x + k));
+    const __m256d py = _mm256_cvtps_pd(_mm_loadu_ps(y + k));
+    sx = _mm256_add_pd(sx, px);
+    sy = _mm256_add_pd(sy, py);
+    // std::clamp's result for a number, then floor (exact in doubles within +-1e9).
+    const __m256d u = _mm256_min_pd(
+        _mm256_max_pd(
+            _mm256_mul_pd(_mm256_add_pd(_mm256_mul_pd(vux, px), _mm256_mul_pd(vuy, py)), vper), lo),
+        hi);
+    const __m128i bin = _mm_xor_si128(
+        _mm256_cvtpd_epi32(_mm256_round_pd(u, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC)), sign);
+    // The heights' bits, negative ones reversed (ColumnKey).
+    const __m128i bits = _mm_castps_si128(_mm_loadu_ps(z + k));
+    const __m128i height = _mm_xor_si128(bits, _mm_or_si128(_mm_srai_epi32(bits, 31), sign));
+    const __m128i index = _mm_setr_epi32(k, k + 1, k + 2, k + 3);
+    const __m128i keys_lo = _mm_unpacklo_epi32(height, bin),
+                  keys_hi = _mm_unpackhi_epi32(height, bin);
+    const __m128i index_lo = _mm_unpacklo_epi32(index, _mm_setzero_si128());
+    const __m128i index_hi = _mm_unpackhi_epi32(index, _mm_setzero_si128());
+    auto* const to = reinterpret_cast<__m128i*>(out + k);
+    _mm_storeu_si128(to, _mm_unpacklo_epi64(keys_lo, index_lo));
+    _mm_storeu_si128(to + 1, _mm_unpackhi_epi64(keys_lo, index_lo));
+    _mm_storeu_si128(to + 2, _mm_unpacklo_epi64(keys_hi, index_hi));
+    _mm_storeu_si128(to + 3, _mm_unpackhi_epi64(keys_hi, index_hi));
+  }
+  alignas(32) double lanes_x[4], lanes_y[4];
+  _mm256_store_pd(lanes_x, sx);
+  _mm256_store_pd(lanes_y, sy);
+  for (int l = 0; l < 4; ++l) {
+    mx += lanes_x[l];
+    my += lanes_y[l];
+  }
+  for (; k < m; ++k) {
+    out[k] = {ColumnKey(ColumnBin(x[k], y[k], ux, uy, per_width), z[k]), k};
+    mx += x[k];
+    my += y[k];
+  }
+}
+#endif
+
 // The compatible pairs within each column, fast. Where the processor has AVX2 or AVX-512F
 // (simd.hpp), a column of at most kWholeColumn points (a LiDAR column) is searched whole,
 // unsorted: each point with something more than HT above it meets every point of the column,
@@ -304,8 +434,8 @@ __attribute__((target("avx2,popcnt"))) void WholeColumnAvx2(
 // (four points at a time, sixteen with AVX-512F, every hit among them marked), and then each point
 // not yet marked as an upper point searches the window below it, nearest first, up to its first
 // hit. The points of a bin stop at the first with no point of those bins more than HT above it. The
-// columns are gathered kBlockColumns at a time, row by row, bottom row first, into reused buffers,
-// and their marks stored row by row once the block is done.
+// columns are gathered kBlockColumns at a time, row by row, bottom row first, into reused buffers
+// (with AVX2, eight rows of eight columns at a time), and only their points in a pair are marked.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
                             int height) {
   const int n = width * height;
@@ -321,40 +451,52 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     bool searched;   // its lower points searched up to their first hit only
   };
   std::vector<Bin> bins;
-  // A block of columns: per column its valid points, bottom row first (their keys set when
-  // the column's turn comes), and its marks per row (bit 0 obstacle, bit 1 raised).
-  std::vector<ColumnPoint> gathered(static_cast<std::size_t>(kBlockColumns) * height);
+  // A block of columns: per column its valid points, bottom row first, side by side (x, y, z
+  // and row), with room past the last for the whole-column search's padding. Each pixel is
+  // written where the column's next valid point goes, and counted only when valid: holes
+  // (four in ten pixels of an OS1 scan) cost no branch.
+  [[maybe_unused]] const int lanes = internal::VectorLanes();
+  constexpr int kPad = 16;
+  const std::size_t block_stride = static_cast<std::size_t>(height) + kPad;
+  std::vector<float> block_xyz(3 * kBlockColumns * block_stride);
+  std::vector<std::int32_t> block_row(kBlockColumns * block_stride);
   std::array<int, kBlockColumns> gathered_count{};
-  std::vector<std::uint8_t> block_marks(static_cast<std::size_t>(kBlockColumns) * height);
   const auto gather_block = [&](int c0) {
     const int block = std::min(kBlockColumns, width - c0);
     gathered_count.fill(0);
-    for (int r = height - 1; r >= 0; --r) {
+    float* const gx = block_xyz.data();
+    float* const gy = gx + kBlockColumns * block_stride;
+    float* const gz = gy + kBlockColumns * block_stride;
+    std::int32_t* const grow = block_row.data();
+    int rows = height;  // the rows [0, rows) left to gather one pixel at a time
+#if defined(CAIRN_OD_WIDE_VECTORS)
+    if (lanes >= 8 && block == kBlockColumns) {
+      GatherColumnsAvx2<kBlockColumns / 8>(level.x.data(), level.y.data(), level.z.data(), width,
+                                           height, c0, block_stride, gx, gy, gz, grow,
+                                           gathered_count.data());
+      rows = height % 8;
+    }
+#endif
+    for (int r = rows - 1; r >= 0; --r) {
+      const int row_first = r * width + c0;
       for (int b = 0; b < block; ++b) {
-        const int i = r * width + c0 + b;
+        const int i = row_first + b;
         const float z = level.z[i];
-        if (std::isnan(z)) continue;
-        gathered[static_cast<std::size_t>(b) * height + gathered_count[b]++] = {0, level.x[i],
-                                                                                level.y[i], z, r};
-      }
-    }
-    std::fill(block_marks.begin(), block_marks.end(), std::uint8_t{0});
-  };
-  const auto store_block = [&](int c0) {
-    const int block = std::min(kBlockColumns, width - c0);
-    for (int r = 0; r < height; ++r) {
-      for (int b = 0; b < block; ++b) {
-        const std::uint8_t v = block_marks[static_cast<std::size_t>(b) * height + r];
-        obstacle[r * width + c0 + b] = v & 1;
-        raised[r * width + c0 + b] = v >> 1;
+        const std::size_t k = b * block_stride + gathered_count[b];
+        gx[k] = level.x[i];
+        gy[k] = level.y[i];
+        gz[k] = z;
+        grow[k] = r;
+        gathered_count[b] += !std::isnan(z);
       }
     }
   };
+  // A binned column's points with their keys, sorted.
+  std::vector<ColumnPoint> column(static_cast<std::size_t>(height));
   // The column's points side by side (x, y, z), in sorted order where it is binned, with room for
   // reading sixteen from any point and four from three before the first; and per point whether it
   // is the upper point of a pair found (all ones) or the lower one (unused by a whole column, whose
   // marks are bits).
-  constexpr int kPad = 16;
   const std::size_t stride = static_cast<std::size_t>(height) + 2 * kPad;
   std::vector<float> xyz(3 * stride, 0.0f);
   float* const cx = xyz.data() + kPad;
@@ -370,7 +512,6 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
                                  LaneMask(12), LaneMask(13), LaneMask(14), LaneMask(15)};
 #endif
   const float ht = test.min_height, hmax = test.max_height, tan2 = test.tan2_theta;
-  [[maybe_unused]] const int lanes = internal::VectorLanes();
   // The bins are wider than the reach by a margin covering the rounding of u. Bin numbers
   // are clamped to +-1e9: a bin that far out holds nothing within reach of the others.
   const double bin_width =
@@ -408,31 +549,28 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
   bool nearly_sorted = true;  // the last column sorted was sorted by insertion within its budget
   for (int c = 0; c < width; ++c) {
     const int b = c % kBlockColumns;
-    if (b == 0) {
-      if (c > 0) store_block(c - kBlockColumns);
-      gather_block(c);
-    }
-    std::uint8_t* const column_marks = block_marks.data() + static_cast<std::size_t>(b) * height;
-    ColumnPoint* const column = gathered.data() + static_cast<std::size_t>(b) * height;
+    if (b == 0) gather_block(c);
     const int m = gathered_count[b];
+    float* const gx = block_xyz.data() + b * block_stride;
+    float* const gy = gx + kBlockColumns * block_stride;
+    float* const gz = gy + kBlockColumns * block_stride;
+    const std::int32_t* const grow = block_row.data() + b * block_stride;
 #if defined(CAIRN_OD_WIDE_VECTORS)
     if (lanes >= 8 && m <= kWholeColumn) {
       // Few points (a LiDAR column): each meets every point of the column, unsorted and
-      // without bins; only a point with nothing more than HT above it is passed over.
+      // without bins, where it was gathered; only a point with nothing more than HT above it
+      // is passed over.
       double mx = 0.0, my = 0.0;
       float top = -std::numeric_limits<float>::infinity();
       for (int k = 0; k < m; ++k) {
-        cx[k] = column[k].x;
-        cy[k] = column[k].y;
-        cz[k] = column[k].z;
-        top = std::max(top, cz[k]);
-        mx += cx[k];
-        my += cy[k];
+        top = std::max(top, gz[k]);
+        mx += gx[k];
+        my += gy[k];
       }
       direction(mx, my);
       for (int k = m; k < ((m + 15) & ~15); ++k) {
-        cx[k] = cy[k] = 0.0f;
-        cz[k] = std::numeric_limits<float>::infinity();
+        gx[k] = gy[k] = 0.0f;
+        gz[k] = std::numeric_limits<float>::infinity();
       }
       std::uint64_t lower = 0, upper = 0;
       if (lanes == 16) {
@@ -440,7 +578,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
                            : m <= 32 ? WholeColumnAvx512<2>
                            : m <= 48 ? WholeColumnAvx512<3>
                                      : WholeColumnAvx512<4>;
-        whole(cx, cy, cz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
+        whole(gx, gy, gz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
       } else {
         const auto whole = m <= 8    ? WholeColumnAvx2<1>
                            : m <= 16 ? WholeColumnAvx2<2>
@@ -450,39 +588,47 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
                            : m <= 48 ? WholeColumnAvx2<6>
                            : m <= 56 ? WholeColumnAvx2<7>
                                      : WholeColumnAvx2<8>;
-        whole(cx, cy, cz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
+        whole(gx, gy, gz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
       }
-      for (int k = 0; k < m; ++k) {
-        column_marks[column[k].row] =
-            static_cast<std::uint8_t>(3 * ((upper >> k) & 1) | ((lower >> k) & 1));
+      for (std::uint64_t any = lower | upper; any != 0; any &= any - 1) {
+        const int k = __builtin_ctzll(any);
+        const int i = grow[k] * width + c;
+        obstacle[i] = 1;
+        raised[i] = static_cast<std::uint8_t>((upper >> k) & 1);
       }
       continue;
     }
 #endif
     double mx = 0.0, my = 0.0;
-    for (int k = 0; k < m; ++k) {
-      const float x = column[k].x, y = column[k].y;
-      const double u = std::clamp((ux * x + uy * y) * per_width, -1e9, 1e9);
-      int bin = static_cast<int>(u);
-      bin -= static_cast<double>(bin) > u;  // floor
-      column[k].key = ColumnKey(bin, column[k].z);
-      mx += x;
-      my += y;
+#if defined(CAIRN_OD_WIDE_VECTORS)
+    if (lanes >= 8) {
+      ColumnKeysAvx2(gx, gy, gz, m, ux, uy, per_width, column.data(), mx, my);
+    } else
+#endif
+    {
+      for (int k = 0; k < m; ++k) {
+        column[k] = {ColumnKey(ColumnBin(gx[k], gy[k], ux, uy, per_width), gz[k]), k};
+        mx += gx[k];
+        my += gy[k];
+      }
     }
     direction(mx, my);
     if (m < 2) continue;
     // After a column that overflowed, every kBlockColumns-th column tries again.
-    nearly_sorted = SortColumn(column, m, nearly_sorted || b == 0);
+    nearly_sorted = SortColumn(column.data(), m, nearly_sorted || b == 0);
+    for (int k = 0; k < m; ++k) {
+      const int j = column[k].index;
+      cx[k] = gx[j];
+      cy[k] = gy[j];
+      cz[k] = gz[j];
+    }
+    std::fill_n(upper_hit, m, 0);
+    std::fill_n(lower_hit, m, 0);
     bins.clear();
     for (int k = 0; k < m; ++k) {
       const auto bin = static_cast<std::int32_t>((column[k].key >> 32) ^ 0x80000000u);
       if (bins.empty() || bins.back().bin != bin) bins.push_back({bin, k, k, false});
       bins.back().end = k + 1;
-      cx[k] = column[k].x;
-      cy[k] = column[k].y;
-      cz[k] = column[k].z;
-      upper_hit[k] = 0;
-      lower_hit[k] = 0;
     }
     const int nb = static_cast<int>(bins.size());
     // The bins within one of g's: consecutive in the column (sorted by bin), [near_begin,
@@ -692,11 +838,12 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       }
     }
     for (int k = 0; k < m; ++k) {
-      const int up = upper_hit[k] != 0;
-      column_marks[column[k].row] = static_cast<std::uint8_t>(3 * up | (lower_hit[k] != 0));
+      if ((upper_hit[k] | lower_hit[k]) == 0) continue;
+      const int i = grow[column[k].index] * width + c;
+      obstacle[i] = 1;
+      raised[i] = upper_hit[k] != 0;
     }
   }
-  if (width > 0) store_block((width - 1) / kBlockColumns * kBlockColumns);
   out.stats.pairs_compatible = pairs_compatible;
   out.stats.pairs_tested = pairs_tested;
   return out;
