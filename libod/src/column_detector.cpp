@@ -256,21 +256,44 @@ __attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
 
 // WholeColumnAvx512 eight points at a time (AVX2): a whole column of m <= 8 kChunks points,
 // padded by the caller to 8 kChunks with points infinitely high, each chunk read from memory
-// (sixteen registers hold too few to keep the column).
+// (sixteen registers hold too few to keep the column). A point meets only the chunks whose
+// heights' bounds leave room for a window: where the highest is HT or less above it, or the
+// lowest Hmax or more, no point of the chunk is in its window (the difference is rounded
+// monotonically), so the counts are as if every chunk were tested.
 template <int kChunks>
 __attribute__((target("avx2,popcnt"))) void WholeColumnAvx2(
     const float* cx, const float* cy, const float* cz, int m, float top, const PairTest& t,
     std::uint64_t& lower, std::uint64_t& upper, std::int64_t& tested, std::int64_t& compatible) {
+  static_assert(kChunks <= 8);
   const __m256 vht = _mm256_set1_ps(t.min_height), vh = _mm256_set1_ps(t.max_height);
   const __m256 vt = _mm256_set1_ps(t.tan2_theta);
+  // Lane c: the lowest and highest of chunk c (the padding's infinity included; chunks past
+  // the last are +inf and -inf, and never met).
+  alignas(32) float chunk_lo[8], chunk_hi[8];
+  for (int c = 0; c < 8; ++c) {
+    chunk_lo[c] = std::numeric_limits<float>::infinity();
+    chunk_hi[c] = -std::numeric_limits<float>::infinity();
+  }
+  for (int c = 0; c < kChunks; ++c) {
+    for (int l = 0; l < 8; ++l) {
+      chunk_lo[c] = std::min(chunk_lo[c], cz[8 * c + l]);
+      chunk_hi[c] = std::max(chunk_hi[c], cz[8 * c + l]);
+    }
+  }
+  const __m256 lo_z = _mm256_load_ps(chunk_lo), hi_z = _mm256_load_ps(chunk_hi);
   std::uint64_t lo = 0, up = 0;
   int in_window = 0, hit = 0;
   for (int k = 0; k < m; ++k) {
     if (!(top - cz[k] > t.min_height)) continue;  // nothing more than HT above it
-    const __m256 px = _mm256_set1_ps(cx[k]), py = _mm256_set1_ps(cy[k]);
     const __m256 pz = _mm256_set1_ps(cz[k]);
+    auto chunks = static_cast<unsigned>(
+        _mm256_movemask_ps(_mm256_and_ps(_mm256_cmp_ps(_mm256_sub_ps(hi_z, pz), vht, _CMP_GT_OQ),
+                                         _mm256_cmp_ps(_mm256_sub_ps(lo_z, pz), vh, _CMP_LT_OQ))));
+    if (chunks == 0) continue;
+    const __m256 px = _mm256_set1_ps(cx[k]), py = _mm256_set1_ps(cy[k]);
     std::uint64_t hits = 0;
-    for (int c = 0; c < kChunks; ++c) {
+    for (; chunks != 0; chunks &= chunks - 1) {
+      const int c = __builtin_ctz(chunks);
       const __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(cz + 8 * c), pz);
       const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(cx + 8 * c), px);
       const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(cy + 8 * c), py);
