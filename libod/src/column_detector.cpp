@@ -256,29 +256,35 @@ __attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
 
 // WholeColumnAvx512 eight points at a time (AVX2): a whole column of m <= 8 kChunks points,
 // padded by the caller to 8 kChunks with points infinitely high, each chunk read from memory
-// (sixteen registers hold too few to keep the column). A point meets only the chunks whose
+// (sixteen registers hold too few to keep the column), the column's top found here. A point
+// meets only the chunks whose
 // heights' bounds leave room for a window: where the highest is HT or less above it, or the
 // lowest Hmax or more, no point of the chunk is in its window (the difference is rounded
 // monotonically), so the counts are as if every chunk were tested.
 template <int kChunks>
 __attribute__((target("avx2,popcnt"))) void WholeColumnAvx2(
-    const float* cx, const float* cy, const float* cz, int m, float top, const PairTest& t,
+    const float* cx, const float* cy, const float* cz, int m, const PairTest& t,
     std::uint64_t& lower, std::uint64_t& upper, std::int64_t& tested, std::int64_t& compatible) {
   static_assert(kChunks <= 8);
   const __m256 vht = _mm256_set1_ps(t.min_height), vh = _mm256_set1_ps(t.max_height);
   const __m256 vt = _mm256_set1_ps(t.tan2_theta);
-  // Lane c: the lowest and highest of chunk c (the padding's infinity included; chunks past
-  // the last are +inf and -inf, and never met).
+  // Lane c: the lowest and highest point of chunk c (the padding left out: it is in no window;
+  // chunks past the last are +inf and -inf, and never met); and the column's top.
   alignas(32) float chunk_lo[8], chunk_hi[8];
   for (int c = 0; c < 8; ++c) {
     chunk_lo[c] = std::numeric_limits<float>::infinity();
     chunk_hi[c] = -std::numeric_limits<float>::infinity();
   }
+  float top = -std::numeric_limits<float>::infinity();
   for (int c = 0; c < kChunks; ++c) {
-    for (int l = 0; l < 8; ++l) {
-      chunk_lo[c] = std::min(chunk_lo[c], cz[8 * c + l]);
-      chunk_hi[c] = std::max(chunk_hi[c], cz[8 * c + l]);
+    float lo = cz[8 * c], hi = lo;
+    for (int k = 8 * c + 1; k < std::min(8 * c + 8, m); ++k) {
+      lo = std::min(lo, cz[k]);
+      hi = std::max(hi, cz[k]);
     }
+    chunk_lo[c] = lo;
+    chunk_hi[c] = hi;
+    top = std::max(top, hi);
   }
   const __m256 lo_z = _mm256_load_ps(chunk_lo), hi_z = _mm256_load_ps(chunk_hi);
   std::uint64_t lo = 0, up = 0;
@@ -479,6 +485,11 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
   // written where the column's next valid point goes, and counted only when valid: holes
   // (four in ten pixels of an OS1 scan) cost no branch.
   [[maybe_unused]] const int lanes = internal::VectorLanes();
+#if defined(CAIRN_OD_WIDE_VECTORS)
+  // Every column is searched whole (a LiDAR scan of at most kWholeColumn rows): no bins, so no
+  // direction to follow.
+  const bool all_whole = lanes >= 8 && height <= kWholeColumn;
+#endif
   constexpr int kPad = 16;
   const std::size_t block_stride = static_cast<std::size_t>(height) + kPad;
   std::vector<float> block_xyz(3 * kBlockColumns * block_stride);
@@ -583,26 +594,29 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       // Few points (a LiDAR column): each meets every point of the column, unsorted and
       // without bins, where it was gathered; only a point with nothing more than HT above it
       // is passed over.
-      double mx = 0.0, my = 0.0;
-      float top = -std::numeric_limits<float>::infinity();
-      for (int k = 0; k < m; ++k) {
-        top = std::max(top, gz[k]);
-        mx += gx[k];
-        my += gy[k];
+      if (!all_whole) {
+        // The next column may be binned: its bins follow this column's direction.
+        double mx = 0.0, my = 0.0;
+        for (int k = 0; k < m; ++k) {
+          mx += gx[k];
+          my += gy[k];
+        }
+        direction(mx, my);
       }
-      direction(mx, my);
       for (int k = m; k < ((m + 15) & ~15); ++k) {
         gx[k] = gy[k] = 0.0f;
         gz[k] = std::numeric_limits<float>::infinity();
       }
       std::uint64_t lower = 0, upper = 0;
       if (lanes == 16) {
+        float top = -std::numeric_limits<float>::infinity();
+        for (int k = 0; k < m; ++k) top = std::max(top, gz[k]);
         const auto whole = m <= 16   ? WholeColumnAvx512<1>
                            : m <= 32 ? WholeColumnAvx512<2>
                            : m <= 48 ? WholeColumnAvx512<3>
                                      : WholeColumnAvx512<4>;
         whole(gx, gy, gz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
-      } else {
+      } else {  // the top taken from the chunks' bounds
         const auto whole = m <= 8    ? WholeColumnAvx2<1>
                            : m <= 16 ? WholeColumnAvx2<2>
                            : m <= 24 ? WholeColumnAvx2<3>
@@ -611,7 +625,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
                            : m <= 48 ? WholeColumnAvx2<6>
                            : m <= 56 ? WholeColumnAvx2<7>
                                      : WholeColumnAvx2<8>;
-        whole(gx, gy, gz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
+        whole(gx, gy, gz, m, test, lower, upper, pairs_tested, pairs_compatible);
       }
       for (std::uint64_t any = lower | upper; any != 0; any &= any - 1) {
         const int k = __builtin_ctzll(any);
