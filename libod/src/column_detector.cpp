@@ -257,10 +257,9 @@ __attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
 // WholeColumnAvx512 eight points at a time (AVX2): a whole column of m <= 8 kChunks points,
 // padded by the caller to 8 kChunks with points infinitely high, each chunk read from memory
 // (sixteen registers hold too few to keep the column), the column's top found here. A point
-// meets only the chunks whose
-// heights' bounds leave room for a window: where the highest is HT or less above it, or the
-// lowest Hmax or more, no point of the chunk is in its window (the difference is rounded
-// monotonically), so the counts are as if every chunk were tested.
+// meets only the chunks whose heights' bounds leave room for a window: where the highest is HT
+// or less above it, or the lowest Hmax or more, no point of the chunk is in its window (the
+// difference is rounded monotonically), so the counts are as if every chunk were tested.
 template <int kChunks>
 __attribute__((target("avx2,popcnt"))) void WholeColumnAvx2(
     const float* cx, const float* cy, const float* cz, int m, const PairTest& t,
