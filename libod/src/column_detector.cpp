@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -67,6 +68,8 @@ struct ColumnPoint {
   std::uint64_t key;
   std::int32_t index;
 };
+// ColumnKeysAvx2 stores them sixteen bytes at a time.
+static_assert(sizeof(ColumnPoint) == 16 && offsetof(ColumnPoint, index) == 8);
 
 // Columns are gathered this many at a time, row by row: a column alone strides the image by its
 // width, a power of two on LiDAR scans (2048), whose rows then share a handful of cache sets and
@@ -352,10 +355,11 @@ __attribute__((target("avx2"))) inline void Transpose8(const __m256 r[8], __m256
 // count[b] counts them. The rows [0, rows % 8), at the top, are left to the caller; each column
 // needs room for 7 writes past its last point.
 template <int kTiles>
-__attribute__((target("avx2"))) void GatherColumnsAvx2(const float* x, const float* y,
-                                                       const float* z, int width, int rows, int c0,
-                                                       std::size_t stride, float* gx, float* gy,
-                                                       float* gz, std::int32_t* grow, int* count) {
+__attribute__((target("avx2,popcnt"))) void GatherColumnsAvx2(const float* x, const float* y,
+                                                              const float* z, int width, int rows,
+                                                              int c0, std::size_t stride, float* gx,
+                                                              float* gy, float* gz,
+                                                              std::int32_t* grow, int* count) {
   for (int r = rows - 1; r >= 7; r -= 8) {
     // Lane k of `row` is the row of each column's point k.
     const __m256i row =
@@ -392,9 +396,10 @@ __attribute__((target("avx2"))) void GatherColumnsAvx2(const float* x, const flo
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
 // FindColumnPairs' keys of a binned column's m points (x, y, z), four at a time in doubles
-// (AVX2), bit for bit as the scalar loop's: point k gets {key, k} in out[k]. Adds the points' x
-// and y to mx and my (in another order than one by one, which changes the next column's bins
-// but not what they find).
+// (AVX2), with the scalar loop's double operations in its order: for a finite u (every level
+// point's) the same key. Point k gets {key, k} in out[k]. Adds the points' x and y to mx and my
+// (in another order than one by one, which changes the next column's bins but not what they
+// find).
 __attribute__((target("avx2"))) void ColumnKeysAvx2(const float* x, const float* y, const float* z,
                                                     int m, double ux, double uy, double per_width,
                                                     ColumnPoint* out, double& mx, double& my) {
@@ -526,10 +531,10 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
   };
   // A binned column's points with their keys, sorted.
   std::vector<ColumnPoint> column(static_cast<std::size_t>(height));
-  // The column's points side by side (x, y, z), in sorted order where it is binned, with room for
-  // reading sixteen from any point and four from three before the first; and per point whether it
-  // is the upper point of a pair found (all ones) or the lower one (unused by a whole column, whose
-  // marks are bits).
+  // A binned column's points side by side (x, y, z), in sorted order, with room for reading
+  // sixteen from any point and four from three before the first; and per point whether it is the
+  // upper point of a pair found (all ones) or the lower one. (A whole column is searched where it
+  // was gathered, its marks as bits.)
   const std::size_t stride = static_cast<std::size_t>(height) + 2 * kPad;
   std::vector<float> xyz(3 * stride, 0.0f);
   float* const cx = xyz.data() + kPad;
@@ -593,6 +598,7 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
       // Few points (a LiDAR column): each meets every point of the column, unsorted and
       // without bins, where it was gathered; only a point with nothing more than HT above it
       // is passed over.
+      if (m == 0) continue;  // no point, no direction
       if (!all_whole) {
         // The next column may be binned: its bins follow this column's direction.
         double mx = 0.0, my = 0.0;
