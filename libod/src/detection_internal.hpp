@@ -68,6 +68,13 @@ class UnionFind {
   std::vector<std::int32_t> parent_;
 };
 
+/// Inclination's constants, shared by its vector versions (features.cpp): tan(pi/8), pi/4, and
+/// the odd polynomial's coefficients in z = t^2, the highest power first (Horner's order).
+constexpr double kInclinationTanPi8 = 0.41421356237309503, kInclinationPi4 = 0.78539816339744831;
+constexpr double kInclinationPoly[6] = {-0.058377893120734145, 0.10480595274350676,
+                                        -0.1422416064933773,   0.19997023132834191,
+                                        -0.33333271105929246,  0.99999999627057046};
+
 /// atan2(horizontal, vertical) for horizontal, vertical >= 0, not both 0: the angle from
 /// the vertical axis in [0, pi/2]. Each of the three pieces [0, pi/8], [pi/8, 3pi/8] and
 /// [3pi/8, pi/2] takes one division and an odd polynomial of degree 11 in t with |t| <=
@@ -76,13 +83,6 @@ class UnionFind {
 /// 1.2e-10 rad): within 2e-10 rad of std::atan2
 /// (`Inclination.IsAtan2` in tests/search_region_test.cpp) at a fraction of its cost,
 /// which was a sixth of the column baseline's time.
-/// Inclination's constants, shared by its vector versions (features.cpp): tan(pi/8), pi/4, and
-/// the odd polynomial's coefficients in z = t^2, the highest power first (Horner's order).
-constexpr double kInclinationTanPi8 = 0.41421356237309503, kInclinationPi4 = 0.78539816339744831;
-constexpr double kInclinationPoly[6] = {-0.058377893120734145, 0.10480595274350676,
-                                        -0.1422416064933773,   0.19997023132834191,
-                                        -0.33333271105929246,  0.99999999627057046};
-
 inline double Inclination(double horizontal, double vertical) {
   constexpr double kTanPi8 = kInclinationTanPi8, kPi4 = kInclinationPi4;
   // Selects rather than branches, so that a loop of them runs two at a time in SSE2.
