@@ -240,6 +240,71 @@ TEST(TerrainMap, EveryCostIsTheBruteForceInflationOfTheLethalCells) {
   EXPECT_EQ(map.CostAt({2.1, 0.1}), 16);              // 1.4 m: 252 exp(-3 * 0.9) = 16.9
 }
 
+// Slope, roughness and terrain cost of every cell against the plane fitted directly, by QR on
+// the rows (1, dx, dy) of its neighbours with an elevation: on hills, with a rock hiding
+// ground behind it, so that many fits have every neighbour and many only some (the edges of
+// what was seen, of the shadow and of the rock's cells).
+TEST(TerrainMap, EverySlopeIsThePlaneFittedToTheNeighboursElevations) {
+  sim::Scene scene(sim::Terrain::Hills(0.0, {{0.4, 6.0, 0.3, 0.0}, {0.15, 2.5, 2.0, 1.0}}));
+  scene.AddRock(4.0, 0.5, {0.5, 0.4, 0.4}, 0.5, 0.3, true, "rock");
+  const od::io::DetectSettings settings = Settings();
+  MapConfig config;
+  TerrainMap map = NewMap(config);
+  int id = 0;
+  for (const Eigen::Isometry3d& T :
+       {CameraPose({1.0, 0.0, 2.0}, 0.0, 25.0), CameraPose({1.5, 2.0, 2.0}, -30.0, 25.0)}) {
+    Expected<SimFrame> f = test::CameraFrame(scene, Camera(), T, 0.1 * id, id, settings);
+    ASSERT_TRUE(f.ok()) << f.error().message;
+    Integrate(map, *f);
+    ++id;
+  }
+  const double s = config.cell_size_m, radius = config.plane_fit_radius_m;
+  const int reach = static_cast<int>(std::floor(radius / s));
+  int whole = 0, part = 0, too_few = 0;
+  ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
+    if (!cell.has_elevation()) return;
+    std::vector<Eigen::Vector3d> rows;
+    std::vector<double> z;
+    int disc = 0;
+    for (int dy = -reach; dy <= reach; ++dy) {
+      for (int dx = -reach; dx <= reach; ++dx) {
+        if (std::hypot(dx, dy) * s > radius + 1e-9) continue;
+        ++disc;
+        const Cell* other = map.grid().Find(c + CellIndex(dx, dy));
+        if (other == nullptr || !other->has_elevation()) continue;
+        rows.emplace_back(1.0, dx * s, dy * s);
+        z.push_back(other->elevation_mean_m);
+      }
+    }
+    const int n = static_cast<int>(rows.size());
+    if (n < 3) {
+      EXPECT_TRUE(std::isnan(cell.slope_rad)) << c.transpose();
+      ++too_few;
+      return;
+    }
+    Eigen::MatrixXd A(n, 3);
+    Eigen::VectorXd b(n);
+    for (int k = 0; k < n; ++k) {
+      A.row(k) = rows[k].transpose();
+      b(k) = z[k];
+    }
+    if (std::abs((A.transpose() * A).determinant()) < 1e-6 * s * s * s * s) return;  // collinear
+    const Eigen::Vector3d plane = A.colPivHouseholderQr().solve(b);
+    const double slope = std::atan(std::hypot(plane.y(), plane.z()));
+    const double roughness = std::sqrt((A * plane - b).squaredNorm() / n);
+    ASSERT_NEAR(cell.slope_rad, slope, 1e-5) << c.transpose() << ", " << n << " neighbours";
+    ASSERT_NEAR(cell.roughness_m, roughness, 1e-5) << c.transpose() << ", " << n << " neighbours";
+    const double level =
+        std::max(slope / config.slope_cost_max_rad, roughness / config.roughness_cost_max_m);
+    EXPECT_NEAR(cell.terrain_cost, 252.0 * std::clamp(level, 0.0, 1.0), 0.5 + 1e-3)
+        << c.transpose();
+    (n == disc ? whole : part) += 1;
+  });
+  EXPECT_GT(whole, 1000);
+  EXPECT_GT(part, 100);
+  EXPECT_GT(too_few, 0);
+}
+
 // A pole seen in one frame only (a false obstacle, or an object that went away) is cleared
 // by the frames that follow: its cells by ground seen where it stood, its voxels by the rays
 // that now pass through them.
