@@ -779,7 +779,10 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
         const double r = z - (plane.x() + plane.y() * d.x() * s + plane.z() * d.y() * s);
         residual2 += r * r;
       }
-      cell.slope_rad = static_cast<float>(std::atan(std::hypot(plane.y(), plane.z())));
+      // The gradient's norm without std::hypot's care for overflow (a gradient is far from
+      // it), which took a third of the fits' time.
+      const double gradient = std::sqrt(plane.y() * plane.y() + plane.z() * plane.z());
+      cell.slope_rad = static_cast<float>(std::atan(gradient));
       cell.roughness_m = static_cast<float>(std::sqrt(residual2 / static_cast<double>(count)));
       const double level = std::max(cell.slope_rad / config_.slope_cost_max_rad,
                                     cell.roughness_m / config_.roughness_cost_max_m);
