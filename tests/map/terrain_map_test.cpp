@@ -161,6 +161,9 @@ TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
     }
     int expected = 0, kept_points = 0;
     std::map<std::pair<int, int>, std::uint32_t> expected_in_cell;
+    // Per segment, the most any of its obstacle points stands above a lowest return within
+    // reach (its plain height): a persistent obstacle's height is one segment's.
+    std::map<int, double> segment_height;
     for (int i = 0; i < frame->image.size(); ++i) {
       const int label = frame->detection.labels[i];
       if (!in_range[i] || label <= 0) continue;
@@ -168,13 +171,18 @@ TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
       ++kept_points;
       const Eigen::Vector3f p = world[i].cast<float>();
       float height = -std::numeric_limits<float>::infinity();
+      float plain = -std::numeric_limits<float>::infinity();
       for (const auto& [cell, q] : lowest) {
         const float dx = p.x() - q.x(), dy = p.y() - q.y();
         const float dxy2 = dx * dx + dy * dy;
-        if (dxy2 <= reach2) height = std::max(height, p.z() - q.z() - rise * std::sqrt(dxy2));
+        if (dxy2 > reach2) continue;
+        height = std::max(height, p.z() - q.z() - rise * std::sqrt(dxy2));
+        plain = std::max(plain, p.z() - q.z());
       }
       if (height >= static_cast<float>(config.obstacle_min_height_m)) {
         ++expected;
+        double& most = segment_height.emplace(label, 0.0).first->second;
+        most = std::max(most, static_cast<double>(plain));
         const CellIndex c = grid.IndexOf(world[i].head<2>());
         ++expected_in_cell[{c.x(), c.y()}];
       }
@@ -186,6 +194,16 @@ TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
       cells_differ += cell.obstacle_points != (it == expected_in_cell.end() ? 0u : it->second);
     });
     EXPECT_EQ(cells_differ, 0) << "heading " << heading;
+    double tallest = 0.0, expected_tallest = 0.0;
+    for (const auto& [label, h] : segment_height) expected_tallest = std::max(expected_tallest, h);
+    for (const Obstacle& o : map.obstacles()) {
+      tallest = std::max(tallest, o.height_m);
+      EXPECT_TRUE(std::any_of(segment_height.begin(), segment_height.end(),
+                              [&](const auto& s) { return s.second == o.height_m; }))
+          << "heading " << heading << ": obstacle " << o.id << " " << o.height_m << " m tall";
+    }
+    EXPECT_FALSE(map.obstacles().empty()) << "heading " << heading;
+    EXPECT_EQ(tallest, expected_tallest) << "heading " << heading;
     obstacle_points += expected;
     foot_points += kept_points - expected;
     ++frames;
