@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -42,11 +43,22 @@ std::vector<CellIndex> DiscOffsets(double radius_m, double cell_size_m) {
 
 CellIndex Grow(const CellIndex& index, int cells) { return index + CellIndex::Constant(cells); }
 
-// Whether a cell's plane fit, with normal matrix `normal` factored as `ldlt`, has a solution:
-// collinear cells (a singular matrix, for cells s metres apart) leave the plane undetermined.
-bool PlaneSolvable(const Eigen::LDLT<Eigen::Matrix3d>& ldlt, const Eigen::Matrix3d& normal,
-                   double s) {
-  return !(ldlt.info() != Eigen::Success || std::abs(normal.determinant()) < 1e-9 * s * s * s * s);
+// The plane (a, b, c) of a cell's fit from its normal matrix N (symmetric) and right-hand side,
+// by N's adjugate over its determinant (a few dozen operations, in place of an LDLT
+// factorisation and solve per cell). False when the cells are collinear (|det N| < 1e-9 s^4 for
+// cells s metres apart): the plane is then undetermined.
+bool SolvePlane(const Eigen::Matrix3d& n, const Eigen::Vector3d& rhs, double s,
+                Eigen::Vector3d& plane) {
+  const double a = n(0, 0), b = n(0, 1), c = n(0, 2), d = n(1, 1), e = n(1, 2), f = n(2, 2);
+  const double a00 = d * f - e * e, a01 = c * e - b * f, a02 = b * e - c * d;
+  const double det = a * a00 + b * a01 + c * a02;
+  if (!(std::abs(det) >= 1e-9 * s * s * s * s)) return false;
+  const double a11 = a * f - c * c, a12 = b * c - a * e, a22 = a * d - b * b;
+  plane = Eigen::Vector3d(a00 * rhs.x() + a01 * rhs.y() + a02 * rhs.z(),
+                          a01 * rhs.x() + a11 * rhs.y() + a12 * rhs.z(),
+                          a02 * rhs.x() + a12 * rhs.y() + a22 * rhs.z()) /
+          det;
+  return true;
 }
 
 // What one return is, for this frame.
@@ -92,13 +104,10 @@ struct TerrainMap::Scratch {
   TerrainGrid::SlotTable slot_table;                  // UpdateTerrain's, kept from frame to frame
   std::vector<CellIndex> ground_disc;  // cells that may hold a return within ground_radius
   std::vector<CellIndex> fit_disc;     // offsets within plane_fit_radius
-  std::vector<Eigen::Vector3d> fit_rows;     // per offset: (1, dx, dy) [m], the fit's row
-  std::vector<Eigen::Matrix3d> fit_normals;  // and its outer product
-  // The fit of a cell whose every neighbour has an elevation: its normal matrix (summed in
-  // the disc's order, as UpdateTerrain sums it), factored once, and whether it is solvable.
-  Eigen::LDLT<Eigen::Matrix3d> fit_whole;
-  bool fit_whole_solvable = false;
-  std::vector<double> fit_elevations;       // UpdateTerrain's box, row by row (NaN: none)
+  std::vector<Eigen::Vector3d> fit_rows;         // per offset: (1, dx, dy) [m], the fit's row
+  std::vector<std::array<double, 6>> fit_upper;  // and its outer product's upper triangle
+  std::vector<double> fit_elevations;            // UpdateTerrain's box, row by row (0 where none)
+  std::vector<double> fit_weights;          // and 1 where the cell has an elevation, 0 where not
   std::vector<std::ptrdiff_t> fit_offsets;  // fit_disc's offsets in that box
   std::vector<CellIndex> merge_disc;   // offsets within merge_distance
   int inflation_cells = 0;             // r: the inflation reaches r cells along x or y
@@ -169,12 +178,9 @@ TerrainMap::TerrainMap(const MapConfig& config)
   for (const CellIndex& d : scratch_->fit_disc) {
     const Eigen::Vector3d row(1.0, d.x() * s, d.y() * s);
     scratch_->fit_rows.push_back(row);
-    scratch_->fit_normals.push_back(row * row.transpose());
+    const Eigen::Matrix3d n = row * row.transpose();
+    scratch_->fit_upper.push_back({n(0, 0), n(0, 1), n(0, 2), n(1, 1), n(1, 2), n(2, 2)});
   }
-  Eigen::Matrix3d whole = Eigen::Matrix3d::Zero();
-  for (const Eigen::Matrix3d& normal : scratch_->fit_normals) whole += normal;
-  scratch_->fit_whole.compute(whole);
-  scratch_->fit_whole_solvable = PlaneSolvable(scratch_->fit_whole, whole, s);
   scratch_->merge_disc = DiscOffsets(config.merge_distance_m, s);
   const int r = static_cast<int>(std::floor(config.inflation_radius_m / s));
   scratch_->inflation_cells = r;
@@ -717,14 +723,15 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
   TerrainGrid::SlotTable& slots = sc.slot_table;
   slots.Reset(grid_, box_lo, box_hi);
   sc.fit_elevations.resize(static_cast<std::size_t>(box_width) * box_height);
+  sc.fit_weights.resize(sc.fit_elevations.size());
   for (int j = 0; j < box_height; ++j) {
-    double* const row = sc.fit_elevations.data() + static_cast<std::size_t>(j) * box_width;
+    const std::size_t row = static_cast<std::size_t>(j) * box_width;
     for (int i = 0; i < box_width; ++i) {
       const std::ptrdiff_t slot = slots(box_lo + CellIndex(i, j));
       const Cell* const cell = slot < 0 ? nullptr : &grid_.AtSlot(static_cast<std::size_t>(slot));
-      row[i] = cell != nullptr && cell->has_elevation()
-                   ? static_cast<double>(cell->elevation_mean_m)
-                   : std::numeric_limits<double>::quiet_NaN();
+      const bool there = cell != nullptr && cell->has_elevation();
+      sc.fit_elevations[row + i] = there ? static_cast<double>(cell->elevation_mean_m) : 0.0;
+      sc.fit_weights[row + i] = there ? 1.0 : 0.0;
     }
   }
   sc.fit_offsets.clear();
@@ -736,54 +743,45 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
   // map.threads threads.
   const auto fit_row = [&](int k) {
     const int j = from.y() + k;
-    const double* const centres =
-        sc.fit_elevations.data() + static_cast<std::size_t>(k + fit) * box_width + fit;
+    const std::size_t first = static_cast<std::size_t>(k + fit) * box_width + fit;
+    const double* const elevations = sc.fit_elevations.data() + first;
+    const double* const weights = sc.fit_weights.data() + first;
     for (int i = from.x(); i <= to.x(); ++i) {
       Cell& cell = grid_.AtSlot(static_cast<std::size_t>(slots({i, j})));
       cell.slope_rad = cell.roughness_m = kNaN;
       cell.terrain_cost = kFreeCost;
       if (!cell.has_elevation()) continue;
       // Least squares z = a + b dx + c dy over the neighbours with an elevation, in metres
-      // from this cell's centre (well conditioned whatever the world coordinates).
-      const double* const centre = centres + (i - from.x());
+      // from this cell's centre (well conditioned whatever the world coordinates). Every
+      // neighbour is added, weighted 1 or 0, without a branch to mispredict at the edges of
+      // what was seen: a weight 0 and an elevation 0 add nothing.
+      const double* const z = elevations + (i - from.x());
+      const double* const w = weights + (i - from.x());
       Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-      std::size_t count = 0;
+      double n[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
       for (std::size_t o = 0; o < disc_size; ++o) {
-        const double z = centre[sc.fit_offsets[o]];
-        if (std::isnan(z)) continue;
-        rhs += sc.fit_rows[o] * z;
-        ++count;
+        const std::ptrdiff_t at = sc.fit_offsets[o];
+        rhs += sc.fit_rows[o] * z[at];
+        for (int e = 0; e < 6; ++e) n[e] += w[at] * sc.fit_upper[o][e];
       }
-      if (count < 3) continue;
-      // Every neighbour there (all but the edges of what was seen): the normal matrix is the
-      // whole disc's, factored once; else summed over those there, in the same order.
-      const Eigen::LDLT<Eigen::Matrix3d>* ldlt = &sc.fit_whole;
-      bool solvable = sc.fit_whole_solvable;
-      Eigen::LDLT<Eigen::Matrix3d> part;
-      if (count < disc_size) {
-        Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
-        for (std::size_t o = 0; o < disc_size; ++o) {
-          if (!std::isnan(centre[sc.fit_offsets[o]])) normal += sc.fit_normals[o];
-        }
-        part.compute(normal);
-        solvable = PlaneSolvable(part, normal, s);
-        ldlt = &part;
-      }
-      if (!solvable) continue;  // collinear cells: skip rather than invent a slope
-      const Eigen::Vector3d plane = ldlt->solve(rhs);
+      const double count = n[0];  // the neighbours with an elevation (the sum of 1 * 1)
+      if (count < 3.0) continue;
+      Eigen::Matrix3d normal;
+      normal << n[0], n[1], n[2], n[1], n[3], n[4], n[2], n[4], n[5];
+      Eigen::Vector3d plane;
+      if (!SolvePlane(normal, rhs, s, plane)) continue;
       double residual2 = 0.0;
       for (std::size_t o = 0; o < disc_size; ++o) {
-        const double z = centre[sc.fit_offsets[o]];
-        if (std::isnan(z)) continue;
+        const std::ptrdiff_t at = sc.fit_offsets[o];
         const CellIndex& d = sc.fit_disc[o];
-        const double r = z - (plane.x() + plane.y() * d.x() * s + plane.z() * d.y() * s);
-        residual2 += r * r;
+        const double r = z[at] - (plane.x() + plane.y() * d.x() * s + plane.z() * d.y() * s);
+        residual2 += w[at] * (r * r);
       }
       // The gradient's norm without std::hypot's care for overflow (a gradient is far from
       // it), which took a third of the fits' time.
       const double gradient = std::sqrt(plane.y() * plane.y() + plane.z() * plane.z());
       cell.slope_rad = static_cast<float>(std::atan(gradient));
-      cell.roughness_m = static_cast<float>(std::sqrt(residual2 / static_cast<double>(count)));
+      cell.roughness_m = static_cast<float>(std::sqrt(residual2 / count));
       const double level = std::max(cell.slope_rad / config_.slope_cost_max_rad,
                                     cell.roughness_m / config_.roughness_cost_max_m);
       cell.terrain_cost =
