@@ -43,6 +43,52 @@ std::vector<CellIndex> DiscOffsets(double radius_m, double cell_size_m) {
 
 CellIndex Grow(const CellIndex& index, int cells) { return index + CellIndex::Constant(cells); }
 
+#if defined(CAIRN_OD_WIDE_VECTORS)
+// UpdateTerrain's sums for the four cells of a row from the one whose elevation and weight
+// `z` and `w` point at, a cell to a lane, each lane with the one-cell loop's operations in its
+// order: the right-hand side into rhs[k][lane], the normal matrix's upper triangle into
+// n[e][lane] (AVX2).
+__attribute__((target("avx2"))) void FitSumsAvx2(const double* z, const double* w,
+                                                 const std::ptrdiff_t* offsets,
+                                                 const Eigen::Vector3d* rows,
+                                                 const std::array<double, 6>* upper,
+                                                 std::size_t disc_size, double (&rhs)[3][4],
+                                                 double (&n)[6][4]) {
+  __m256d r[3], u[6];
+  for (__m256d& v : r) v = _mm256_setzero_pd();
+  for (__m256d& v : u) v = _mm256_setzero_pd();
+  for (std::size_t o = 0; o < disc_size; ++o) {
+    const __m256d zo = _mm256_loadu_pd(z + offsets[o]), wo = _mm256_loadu_pd(w + offsets[o]);
+    for (int k = 0; k < 3; ++k)
+      r[k] = _mm256_add_pd(r[k], _mm256_mul_pd(_mm256_set1_pd(rows[o](k)), zo));
+    for (int e = 0; e < 6; ++e)
+      u[e] = _mm256_add_pd(u[e], _mm256_mul_pd(wo, _mm256_set1_pd(upper[o][e])));
+  }
+  for (int k = 0; k < 3; ++k) _mm256_storeu_pd(rhs[k], r[k]);
+  for (int e = 0; e < 6; ++e) _mm256_storeu_pd(n[e], u[e]);
+}
+
+// UpdateTerrain's sums of squared residuals for four cells of a row, planes (a, b, c) a lane each,
+// as FitSumsAvx2.
+__attribute__((target("avx2"))) void FitResidualsAvx2(const double* z, const double* w,
+                                                      const std::ptrdiff_t* offsets,
+                                                      const CellIndex* disc, std::size_t disc_size,
+                                                      double s, const double (&plane)[3][4],
+                                                      double (&residual2)[4]) {
+  const __m256d a = _mm256_loadu_pd(plane[0]), b = _mm256_loadu_pd(plane[1]);
+  const __m256d c = _mm256_loadu_pd(plane[2]), vs = _mm256_set1_pd(s);
+  __m256d sum = _mm256_setzero_pd();
+  for (std::size_t o = 0; o < disc_size; ++o) {
+    const __m256d dx = _mm256_set1_pd(disc[o].x()), dy = _mm256_set1_pd(disc[o].y());
+    const __m256d at = _mm256_add_pd(_mm256_add_pd(a, _mm256_mul_pd(_mm256_mul_pd(b, dx), vs)),
+                                     _mm256_mul_pd(_mm256_mul_pd(c, dy), vs));
+    const __m256d r = _mm256_sub_pd(_mm256_loadu_pd(z + offsets[o]), at);
+    sum = _mm256_add_pd(sum, _mm256_mul_pd(_mm256_loadu_pd(w + offsets[o]), _mm256_mul_pd(r, r)));
+  }
+  _mm256_storeu_pd(residual2, sum);
+}
+#endif
+
 // The plane (a, b, c) of a cell's fit from its normal matrix N (symmetric) and right-hand side,
 // by N's adjugate over its determinant (a few dozen operations, in place of an LDLT
 // factorisation and solve per cell). False when the cells are collinear (|det N| < 1e-9 s^4 for
@@ -739,6 +785,28 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
     sc.fit_offsets.push_back(static_cast<std::ptrdiff_t>(d.y()) * box_width + d.x());
   }
   const std::size_t disc_size = sc.fit_disc.size();
+  // A cell's slope, roughness and terrain cost from its plane, its sum of squared residuals and
+  // its neighbours with an elevation.
+  const auto finish = [&](Cell& cell, const Eigen::Vector3d& plane, double residual2,
+                          double count) {
+    // The gradient's norm without std::hypot's care for overflow (a gradient is far from
+    // it), which took a third of the fits' time.
+    const double gradient = std::sqrt(plane.y() * plane.y() + plane.z() * plane.z());
+    cell.slope_rad = static_cast<float>(std::atan(gradient));
+    cell.roughness_m = static_cast<float>(std::sqrt(residual2 / count));
+    const double level = std::max(cell.slope_rad / config_.slope_cost_max_rad,
+                                  cell.roughness_m / config_.roughness_cost_max_m);
+    cell.terrain_cost =
+        static_cast<Cost>(std::lround(kMaxTerrainCost * std::clamp(level, 0.0, 1.0)));
+  };
+  // The plane of a cell from its sums, if it has one.
+  const auto solve = [&](const Eigen::Vector3d& rhs, const double(&n)[6], Eigen::Vector3d& plane) {
+    if (n[0] < 3.0) return false;  // n[0]: the neighbours with an elevation (the sum of 1 * 1)
+    Eigen::Matrix3d normal;
+    normal << n[0], n[1], n[2], n[1], n[3], n[4], n[2], n[4], n[5];
+    return SolvePlane(normal, rhs, s, plane);
+  };
+  [[maybe_unused]] const int lanes = od::internal::VectorLanes();
   // Each cell's fit writes the cell alone and reads only the elevations above: rows go to
   // map.threads threads.
   const auto fit_row = [&](int k) {
@@ -746,10 +814,43 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
     const std::size_t first = static_cast<std::size_t>(k + fit) * box_width + fit;
     const double* const elevations = sc.fit_elevations.data() + first;
     const double* const weights = sc.fit_weights.data() + first;
-    for (int i = from.x(); i <= to.x(); ++i) {
+    const auto cell_at = [&](int i) -> Cell& {
       Cell& cell = grid_.AtSlot(static_cast<std::size_t>(slots({i, j})));
       cell.slope_rad = cell.roughness_m = kNaN;
       cell.terrain_cost = kFreeCost;
+      return cell;
+    };
+    int i = from.x();
+#if defined(CAIRN_OD_WIDE_VECTORS)
+    // Four cells at a time, each as one alone.
+    for (; lanes >= 8 && i + 3 <= to.x(); i += 4) {
+      const double* const z = elevations + (i - from.x());
+      const double* const w = weights + (i - from.x());
+      double rhs[3][4], n[6][4], plane[3][4] = {}, residual2[4];
+      FitSumsAvx2(z, w, sc.fit_offsets.data(), sc.fit_rows.data(), sc.fit_upper.data(), disc_size,
+                  rhs, n);
+      bool fitted[4];
+      for (int l = 0; l < 4; ++l) {
+        Cell& cell = cell_at(i + l);
+        const double sums[6] = {n[0][l], n[1][l], n[2][l], n[3][l], n[4][l], n[5][l]};
+        Eigen::Vector3d p;
+        fitted[l] = cell.has_elevation() &&
+                    solve(Eigen::Vector3d(rhs[0][l], rhs[1][l], rhs[2][l]), sums, p);
+        if (!fitted[l]) continue;
+        for (int e = 0; e < 3; ++e) plane[e][l] = p(e);
+      }
+      if (!(fitted[0] || fitted[1] || fitted[2] || fitted[3])) continue;
+      FitResidualsAvx2(z, w, sc.fit_offsets.data(), sc.fit_disc.data(), disc_size, s, plane,
+                       residual2);
+      for (int l = 0; l < 4; ++l) {
+        if (!fitted[l]) continue;
+        finish(grid_.AtSlot(static_cast<std::size_t>(slots({i + l, j}))),
+               Eigen::Vector3d(plane[0][l], plane[1][l], plane[2][l]), residual2[l], n[0][l]);
+      }
+    }
+#endif
+    for (; i <= to.x(); ++i) {
+      Cell& cell = cell_at(i);
       if (!cell.has_elevation()) continue;
       // Least squares z = a + b dx + c dy over the neighbours with an elevation, in metres
       // from this cell's centre (well conditioned whatever the world coordinates). Every
@@ -764,12 +865,8 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
         rhs += sc.fit_rows[o] * z[at];
         for (int e = 0; e < 6; ++e) n[e] += w[at] * sc.fit_upper[o][e];
       }
-      const double count = n[0];  // the neighbours with an elevation (the sum of 1 * 1)
-      if (count < 3.0) continue;
-      Eigen::Matrix3d normal;
-      normal << n[0], n[1], n[2], n[1], n[3], n[4], n[2], n[4], n[5];
       Eigen::Vector3d plane;
-      if (!SolvePlane(normal, rhs, s, plane)) continue;
+      if (!solve(rhs, n, plane)) continue;
       double residual2 = 0.0;
       for (std::size_t o = 0; o < disc_size; ++o) {
         const std::ptrdiff_t at = sc.fit_offsets[o];
@@ -777,15 +874,7 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
         const double r = z[at] - (plane.x() + plane.y() * d.x() * s + plane.z() * d.y() * s);
         residual2 += w[at] * (r * r);
       }
-      // The gradient's norm without std::hypot's care for overflow (a gradient is far from
-      // it), which took a third of the fits' time.
-      const double gradient = std::sqrt(plane.y() * plane.y() + plane.z() * plane.z());
-      cell.slope_rad = static_cast<float>(std::atan(gradient));
-      cell.roughness_m = static_cast<float>(std::sqrt(residual2 / count));
-      const double level = std::max(cell.slope_rad / config_.slope_cost_max_rad,
-                                    cell.roughness_m / config_.roughness_cost_max_m);
-      cell.terrain_cost =
-          static_cast<Cost>(std::lround(kMaxTerrainCost * std::clamp(level, 0.0, 1.0)));
+      finish(cell, plane, residual2, n[0]);
     }
   };
   od::ParallelFor(to.y() - from.y() + 1, config_.threads, fit_row, 8);
