@@ -15,6 +15,7 @@
 #include "cairn/util/format.hpp"
 #include "key_bricks.hpp"
 #include "ray_keys.hpp"
+#include "simd.hpp"  // libod/src: the processor's vector width
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -29,9 +30,18 @@ constexpr std::int64_t kOctreeFlushFrames = 8;
 
 float LogOdds(double p) { return static_cast<float>(std::log(p / (1.0 - p))); }
 
+/// How many cells along x or y a radius reaches: the most k with k cells' width within it, as
+/// DiscOffsets counts it (a radius of a whole number of cells, 1.2 m at 0.2 m, reaches its
+/// last cell although 1.2 / 0.2 rounds to 5.999...).
+int ReachCells(double radius_m, double cell_size_m) {
+  int r = static_cast<int>(std::floor(radius_m / cell_size_m));
+  while ((r + 1) * cell_size_m <= radius_m + 1e-9) ++r;
+  return r;
+}
+
 /// Cell offsets whose centres lie within `radius_m` of the centre cell's (itself included).
 std::vector<CellIndex> DiscOffsets(double radius_m, double cell_size_m) {
-  const int r = static_cast<int>(std::floor(radius_m / cell_size_m));
+  const int r = ReachCells(radius_m, cell_size_m);
   std::vector<CellIndex> offsets;
   for (int dy = -r; dy <= r; ++dy) {
     for (int dx = -r; dx <= r; ++dx) {
@@ -50,7 +60,6 @@ CellIndex Grow(const CellIndex& index, int cells) { return index + CellIndex::Co
 // n[e][lane] (AVX2).
 __attribute__((target("avx2"))) void FitSumsAvx2(const double* z, const double* w,
                                                  const std::ptrdiff_t* offsets,
-                                                 const Eigen::Vector3d* rows,
                                                  const std::array<double, 6>* upper,
                                                  std::size_t disc_size, double (&rhs)[3][4],
                                                  double (&n)[6][4]) {
@@ -60,7 +69,7 @@ __attribute__((target("avx2"))) void FitSumsAvx2(const double* z, const double* 
   for (std::size_t o = 0; o < disc_size; ++o) {
     const __m256d zo = _mm256_loadu_pd(z + offsets[o]), wo = _mm256_loadu_pd(w + offsets[o]);
     for (int k = 0; k < 3; ++k)
-      r[k] = _mm256_add_pd(r[k], _mm256_mul_pd(_mm256_set1_pd(rows[o](k)), zo));
+      r[k] = _mm256_add_pd(r[k], _mm256_mul_pd(_mm256_set1_pd(upper[o][k]), zo));
     for (int e = 0; e < 6; ++e)
       u[e] = _mm256_add_pd(u[e], _mm256_mul_pd(wo, _mm256_set1_pd(upper[o][e])));
   }
@@ -89,13 +98,16 @@ __attribute__((target("avx2"))) void FitResidualsAvx2(const double* z, const dou
 }
 #endif
 
-// The plane (a, b, c) of a cell's fit from its normal matrix N (symmetric) and right-hand side,
-// by N's adjugate over its determinant (a few dozen operations, in place of an LDLT
-// factorisation and solve per cell). False when the cells are collinear (|det N| < 1e-9 s^4 for
-// cells s metres apart): the plane is then undetermined.
-bool SolvePlane(const Eigen::Matrix3d& n, const Eigen::Vector3d& rhs, double s,
+// The plane (a, b, c) of a cell's fit from the upper triangle n of its normal matrix N (n[0] the
+// neighbours with an elevation) and its right-hand side, by N's adjugate over its determinant
+// (a few dozen operations, in place of an LDLT factorisation and solve per cell). False with
+// fewer than 3 neighbours, or when they are collinear (|det N| < 1e-9 s^4 for cells s metres
+// apart; det N is at least s^4 otherwise, the cells lying on a grid): the plane is then
+// undetermined.
+bool SolvePlane(const double (&n)[6], const Eigen::Vector3d& rhs, double s,
                 Eigen::Vector3d& plane) {
-  const double a = n(0, 0), b = n(0, 1), c = n(0, 2), d = n(1, 1), e = n(1, 2), f = n(2, 2);
+  if (n[0] < 3.0) return false;
+  const double a = n[0], b = n[1], c = n[2], d = n[3], e = n[4], f = n[5];
   const double a00 = d * f - e * e, a01 = c * e - b * f, a02 = b * e - c * d;
   const double det = a * a00 + b * a01 + c * a02;
   if (!(std::abs(det) >= 1e-9 * s * s * s * s)) return false;
@@ -147,11 +159,12 @@ struct TerrainMap::Scratch {
   std::vector<internal::KeyBitBox> ray_boxes;      // free keys of each ray worker, as bits
   std::vector<std::pair<std::uint64_t, std::uint32_t>> brick_order;
   std::vector<TerrainOcTree::FreeBrick> free_bricks;  // a frame's free voxels, brick by brick
-  TerrainGrid::SlotTable slot_table;                  // UpdateTerrain's, kept from frame to frame
+  TerrainGrid::SlotTable slot_table;   // UpdateTerrain's and UpdateCosts', kept from frame to frame
   std::vector<CellIndex> ground_disc;  // cells that may hold a return within ground_radius
   std::vector<CellIndex> fit_disc;     // offsets within plane_fit_radius
-  std::vector<Eigen::Vector3d> fit_rows;         // per offset: (1, dx, dy) [m], the fit's row
-  std::vector<std::array<double, 6>> fit_upper;  // and its outer product's upper triangle
+  // Per offset (dx, dy): the upper triangle of the outer product of its row (1, dx, dy) [m]
+  // with itself, whose first three are the row.
+  std::vector<std::array<double, 6>> fit_upper;
   std::vector<double> fit_elevations;            // UpdateTerrain's box, row by row (0 where none)
   std::vector<double> fit_weights;          // and 1 where the cell has an elevation, 0 where not
   std::vector<std::ptrdiff_t> fit_offsets;  // fit_disc's offsets in that box
@@ -160,7 +173,6 @@ struct TerrainMap::Scratch {
   // The inflation cost at offset (dx, dy) within r of a lethal cell, at (dy + r) (2 r + 1) +
   // dx + r; 0 at the cell itself and beyond inflation_radius.
   std::vector<Cost> inflation_table;
-  TerrainGrid::SlotTable cost_slots;  // UpdateCosts'
   std::vector<Cost> inflation_box;    // per cell of UpdateCosts' box, the most inflation at it
 
   // Cell c's slot for frame `stamp`: reset and listed in `touched` when first met.
@@ -223,18 +235,17 @@ TerrainMap::TerrainMap(const MapConfig& config)
   scratch_->fit_disc = DiscOffsets(config.plane_fit_radius_m, s);
   for (const CellIndex& d : scratch_->fit_disc) {
     const Eigen::Vector3d row(1.0, d.x() * s, d.y() * s);
-    scratch_->fit_rows.push_back(row);
     const Eigen::Matrix3d n = row * row.transpose();
     scratch_->fit_upper.push_back({n(0, 0), n(0, 1), n(0, 2), n(1, 1), n(1, 2), n(2, 2)});
   }
   scratch_->merge_disc = DiscOffsets(config.merge_distance_m, s);
-  const int r = static_cast<int>(std::floor(config.inflation_radius_m / s));
+  const int r = ReachCells(config.inflation_radius_m, s);
   scratch_->inflation_cells = r;
   scratch_->inflation_table.assign(static_cast<std::size_t>(2 * r + 1) * (2 * r + 1), 0);
   for (const CellIndex& d : DiscOffsets(config.inflation_radius_m, s)) {
     if (d.isZero()) continue;
     const double distance = std::hypot(d.x(), d.y()) * s;
-    scratch_->inflation_table[static_cast<std::size_t>(d.y() + r) * (2 * r + 1) + d.x() + r] =
+    scratch_->inflation_table[static_cast<std::size_t>(d.y() + r) * (2 * r + 1) + (d.x() + r)] =
         InflationCost(distance, config.robot_radius_m, config.cost_scaling_factor);
   }
   pruned_at_ = grid_.min_index();
@@ -722,7 +733,7 @@ void TerrainMap::UpdateGridEvidence(FrameSummary& summary) {
     }
   }
   if (!sc.touched.empty()) {
-    const int fit = static_cast<int>(std::floor(config_.plane_fit_radius_m / s));
+    const int fit = ReachCells(config_.plane_fit_radius_m, s);
     const CellIndex terrain_lo = Grow(dirty_lo, -fit);
     const CellIndex terrain_hi = Grow(dirty_hi, fit);
     UpdateTerrain(terrain_lo, terrain_hi);
@@ -760,10 +771,11 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
   if (from.x() > to.x() || from.y() > to.y()) return;
   Scratch& sc = *scratch_;
   const double s = config_.cell_size_m;
-  const int fit = static_cast<int>(std::floor(config_.plane_fit_radius_m / s));
-  // The elevations of the box and the cells within the fit's reach of it, row by row, NaN
-  // where a cell has none or lies outside the extent: each fit reads its neighbours here, in a
-  // few cache lines, rather than cell by cell through the slots.
+  const int fit = ReachCells(config_.plane_fit_radius_m, s);
+  // The elevations of the box and the cells within the fit's reach of it, row by row, with a
+  // weight 1, or 0 (and an elevation 0) where a cell has none or lies outside the extent: each
+  // fit reads its neighbours here, in a few cache lines, rather than cell by cell through the
+  // slots.
   const CellIndex box_lo = Grow(from, -fit), box_hi = Grow(to, fit);
   const int box_width = box_hi.x() - box_lo.x() + 1, box_height = box_hi.y() - box_lo.y() + 1;
   TerrainGrid::SlotTable& slots = sc.slot_table;
@@ -799,13 +811,6 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
     cell.terrain_cost =
         static_cast<Cost>(std::lround(kMaxTerrainCost * std::clamp(level, 0.0, 1.0)));
   };
-  // The plane of a cell from its sums, if it has one.
-  const auto solve = [&](const Eigen::Vector3d& rhs, const double(&n)[6], Eigen::Vector3d& plane) {
-    if (n[0] < 3.0) return false;  // n[0]: the neighbours with an elevation (the sum of 1 * 1)
-    Eigen::Matrix3d normal;
-    normal << n[0], n[1], n[2], n[1], n[3], n[4], n[2], n[4], n[5];
-    return SolvePlane(normal, rhs, s, plane);
-  };
   [[maybe_unused]] const int lanes = od::internal::VectorLanes();
   // Each cell's fit writes the cell alone and reads only the elevations above: rows go to
   // map.threads threads.
@@ -827,25 +832,26 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
       const double* const z = elevations + (i - from.x());
       const double* const w = weights + (i - from.x());
       double rhs[3][4], n[6][4], plane[3][4] = {}, residual2[4];
-      FitSumsAvx2(z, w, sc.fit_offsets.data(), sc.fit_rows.data(), sc.fit_upper.data(), disc_size,
-                  rhs, n);
-      bool fitted[4];
+      FitSumsAvx2(z, w, sc.fit_offsets.data(), sc.fit_upper.data(), disc_size, rhs, n);
+      Cell* fitted[4] = {};  // the lanes' cells that have a plane
       for (int l = 0; l < 4; ++l) {
         Cell& cell = cell_at(i + l);
         const double sums[6] = {n[0][l], n[1][l], n[2][l], n[3][l], n[4][l], n[5][l]};
         Eigen::Vector3d p;
-        fitted[l] = cell.has_elevation() &&
-                    solve(Eigen::Vector3d(rhs[0][l], rhs[1][l], rhs[2][l]), sums, p);
-        if (!fitted[l]) continue;
+        if (!cell.has_elevation() ||
+            !SolvePlane(sums, Eigen::Vector3d(rhs[0][l], rhs[1][l], rhs[2][l]), s, p)) {
+          continue;
+        }
+        fitted[l] = &cell;
         for (int e = 0; e < 3; ++e) plane[e][l] = p(e);
       }
       if (!(fitted[0] || fitted[1] || fitted[2] || fitted[3])) continue;
       FitResidualsAvx2(z, w, sc.fit_offsets.data(), sc.fit_disc.data(), disc_size, s, plane,
                        residual2);
       for (int l = 0; l < 4; ++l) {
-        if (!fitted[l]) continue;
-        finish(grid_.AtSlot(static_cast<std::size_t>(slots({i + l, j}))),
-               Eigen::Vector3d(plane[0][l], plane[1][l], plane[2][l]), residual2[l], n[0][l]);
+        if (fitted[l] == nullptr) continue;
+        finish(*fitted[l], Eigen::Vector3d(plane[0][l], plane[1][l], plane[2][l]), residual2[l],
+               n[0][l]);
       }
     }
 #endif
@@ -862,11 +868,11 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
       double n[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
       for (std::size_t o = 0; o < disc_size; ++o) {
         const std::ptrdiff_t at = sc.fit_offsets[o];
-        rhs += sc.fit_rows[o] * z[at];
+        for (int k = 0; k < 3; ++k) rhs(k) += sc.fit_upper[o][k] * z[at];
         for (int e = 0; e < 6; ++e) n[e] += w[at] * sc.fit_upper[o][e];
       }
       Eigen::Vector3d plane;
-      if (!solve(rhs, n, plane)) continue;
+      if (!SolvePlane(n, rhs, s, plane)) continue;
       double residual2 = 0.0;
       for (std::size_t o = 0; o < disc_size; ++o) {
         const std::ptrdiff_t at = sc.fit_offsets[o];
@@ -890,7 +896,7 @@ void TerrainMap::UpdateCosts(const CellIndex& lo, const CellIndex& hi) {
   const int r = sc.inflation_cells, side = 2 * r + 1;
   const CellIndex src_from = Grow(from, -r).cwiseMax(grid_lo);
   const CellIndex src_to = Grow(to, r).cwiseMin(grid_hi);
-  TerrainGrid::SlotTable& slots = sc.cost_slots;
+  TerrainGrid::SlotTable& slots = sc.slot_table;
   slots.Reset(grid_, src_from, src_to);  // every cell in the extent
   // Per cell of the box, the most inflation of a lethal cell near enough to reach it (every
   // one in the box grown by r): each raises the cells around it, row by row. nav2's rule

@@ -4,7 +4,8 @@
 // at run time: with AVX2 the exact search's hits, box tests, packing and its leaves' ranks by
 // height, the column baseline's whole columns, the features' gathering of segment pixels,
 // surface normals and slope angles (four doubles at a time, bit for bit; and libmap's
-// free-space rays, ray_keys.hpp, eight under way), with AVX-512F the same sixteen (or eight
+// free-space rays, ray_keys.hpp, eight under way, and its terrain's plane fits, four cells at a
+// time, terrain_map.cpp), with AVX-512F the same sixteen (or eight
 // doubles) at a time, and also the column baseline's neighbourhoods and dense windows. The
 // column baseline's gathering of columns and its binned columns' keys take AVX2 with either.
 // Capped to one lane, the searches run their scalar code (the level points are still rotated

@@ -9,12 +9,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <memory>
 #include <random>
 #include <set>
 #include <sstream>
+#include <string>
 #include <thread>
 #include <tuple>
 #include <vector>
@@ -71,6 +73,11 @@ void ForEachCell(const TerrainGrid& grid, F&& f) {
     }
   }
 }
+
+// Lets the vector width be capped (CapVectorLanes) for a test, and uncaps it when the test ends.
+struct UncapLanesAtEnd {
+  ~UncapLanesAtEnd() { od::internal::CapVectorLanes(0); }
+};
 
 // A 1 m x 1 m x 0.8 m box on flat ground at (4, 0): its footprint is cells x 17..22
 // ([3.4, 4.6)), y -3..2 ([-0.6, 0.6)) of 0.2 m, seen from two noiseless cameras.
@@ -215,47 +222,56 @@ TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
 
 TEST(TerrainMap, EveryCostIsTheBruteForceInflationOfTheLethalCells) {
   const BoxScene box;
-  MapConfig config;
-  TerrainMap map = NewMap(config);
-  for (const SimFrame& f : box.frames) Integrate(map, f);
-  const double s = config.cell_size_m;
-  std::vector<CellIndex> lethal;
-  ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
-    if (cell.lethal) lethal.push_back(c);
-  });
-  ASSERT_FALSE(lethal.empty());
-  int checked = 0;
-  ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
-    // nav2: distance to the nearest lethal cell, centre to centre, then the inflation rule.
-    double nearest = std::numeric_limits<double>::infinity();
-    for (const CellIndex& l : lethal)
-      nearest = std::min(nearest, (c - l).cast<double>().norm() * s);
-    Cost expected = cell.lethal ? kLethalCost : !cell.observed ? kUnknownCost : cell.terrain_cost;
-    if (nearest > 0.0 && nearest <= config.inflation_radius_m + 1e-9) {
-      const double factor =
-          std::exp(-config.cost_scaling_factor * (nearest - config.robot_radius_m));
-      const Cost inflated =
-          nearest <= config.robot_radius_m ? kInscribedCost : static_cast<Cost>(252 * factor);
-      if (expected == kUnknownCost) {
-        if (inflated >= kInscribedCost) expected = inflated;
-      } else {
-        expected = std::max(expected, inflated);
+  // The default inflation radius, and one of a whole number of cells (1.2 / 0.2 rounds to
+  // 5.999...), whose last ring is inflated too.
+  for (const double inflation : {1.5, 1.2}) {
+    MapConfig config;
+    config.inflation_radius_m = inflation;
+    TerrainMap map = NewMap(config);
+    for (const SimFrame& f : box.frames) Integrate(map, f);
+    const double s = config.cell_size_m;
+    std::vector<CellIndex> lethal;
+    ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
+      if (cell.lethal) lethal.push_back(c);
+    });
+    ASSERT_FALSE(lethal.empty());
+    int checked = 0, last_ring = 0;
+    ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
+      // nav2: distance to the nearest lethal cell, centre to centre, then the inflation rule.
+      double nearest = std::numeric_limits<double>::infinity();
+      for (const CellIndex& l : lethal)
+        nearest = std::min(nearest, (c - l).cast<double>().norm() * s);
+      Cost expected = cell.lethal ? kLethalCost : !cell.observed ? kUnknownCost : cell.terrain_cost;
+      if (nearest > 0.0 && nearest <= config.inflation_radius_m + 1e-9) {
+        const double factor =
+            std::exp(-config.cost_scaling_factor * (nearest - config.robot_radius_m));
+        const Cost inflated =
+            nearest <= config.robot_radius_m ? kInscribedCost : static_cast<Cost>(252 * factor);
+        if (expected == kUnknownCost) {
+          if (inflated >= kInscribedCost) expected = inflated;
+        } else {
+          last_ring += nearest > config.inflation_radius_m - 1e-9 && inflated > expected;
+          expected = std::max(expected, inflated);
+        }
       }
-    }
-    ASSERT_EQ(cell.cost, expected) << "cell " << c.transpose() << " at " << nearest << " m";
-    // Flat, noiseless ground away from the box costs nothing by itself.
-    if (nearest > 1.0 && cell.observed) {
-      EXPECT_EQ(cell.terrain_cost, 0) << c.transpose();
-    }
-    ++checked;
-  });
-  EXPECT_GT(checked, 1000);
-  // nav2's numbers in front of the face (cell x = 17 lethal), along y = 0 (cell y = 0).
-  EXPECT_EQ(map.CostAt({3.5, 0.1}), kLethalCost);
-  EXPECT_EQ(map.CostAt({3.1, 0.1}), kInscribedCost);  // 0.4 m <= robot radius 0.5 m
-  EXPECT_EQ(map.CostAt({2.9, 0.1}), 186);             // 0.6 m: 252 exp(-3 * 0.1) = 186.7
-  EXPECT_EQ(map.CostAt({2.5, 0.1}), 56);              // 1.0 m: 252 exp(-3 * 0.5) = 56.2
-  EXPECT_EQ(map.CostAt({2.1, 0.1}), 16);              // 1.4 m: 252 exp(-3 * 0.9) = 16.9
+      ASSERT_EQ(cell.cost, expected)
+          << "inflation " << inflation << ", cell " << c.transpose() << " at " << nearest << " m";
+      // Flat, noiseless ground away from the box costs nothing by itself.
+      if (nearest > 1.0 && cell.observed) {
+        EXPECT_EQ(cell.terrain_cost, 0) << c.transpose();
+      }
+      ++checked;
+    });
+    EXPECT_GT(checked, 1000);
+    if (inflation == 1.2) EXPECT_GT(last_ring, 0);  // cells exactly 1.2 m from the nearest
+    if (inflation != 1.5) continue;
+    // nav2's numbers in front of the face (cell x = 17 lethal), along y = 0 (cell y = 0).
+    EXPECT_EQ(map.CostAt({3.5, 0.1}), kLethalCost);
+    EXPECT_EQ(map.CostAt({3.1, 0.1}), kInscribedCost);  // 0.4 m <= robot radius 0.5 m
+    EXPECT_EQ(map.CostAt({2.9, 0.1}), 186);             // 0.6 m: 252 exp(-3 * 0.1) = 186.7
+    EXPECT_EQ(map.CostAt({2.5, 0.1}), 56);              // 1.0 m: 252 exp(-3 * 0.5) = 56.2
+    EXPECT_EQ(map.CostAt({2.1, 0.1}), 16);              // 1.4 m: 252 exp(-3 * 0.9) = 16.9
+  }
 }
 
 // Slope, roughness and terrain cost of every cell against the plane fitted directly, by QR on
@@ -264,13 +280,13 @@ TEST(TerrainMap, EveryCostIsTheBruteForceInflationOfTheLethalCells) {
 // what was seen, of the shadow and of the rock's cells). The fits of four cells at a time
 // (AVX2) equal those of one at a time bit for bit.
 TEST(TerrainMap, EverySlopeIsThePlaneFittedToTheNeighboursElevations) {
-  struct Uncap {
-    ~Uncap() { od::internal::CapVectorLanes(0); }
-  } uncap;
+  const UncapLanesAtEnd uncap;
+  if (od::internal::VectorLanes() < 8) {
+    std::printf("note: no AVX2 here: the plane fits of four cells at a time were not run\n");
+  }
   sim::Scene scene(sim::Terrain::Hills(0.0, {{0.4, 6.0, 0.3, 0.0}, {0.15, 2.5, 2.0, 1.0}}));
   scene.AddRock(4.0, 0.5, {0.5, 0.4, 0.4}, 0.5, 0.3, true, "rock");
   const od::io::DetectSettings settings = Settings();
-  MapConfig config;
   std::vector<SimFrame> frames;
   int id = 0;
   for (const Eigen::Isometry3d& T :
@@ -280,68 +296,81 @@ TEST(TerrainMap, EverySlopeIsThePlaneFittedToTheNeighboursElevations) {
     frames.push_back(std::move(*f));
     ++id;
   }
-  const auto mapped = [&](int lanes) {
-    od::internal::CapVectorLanes(lanes);
-    TerrainMap built = NewMap(config);
-    for (const SimFrame& f : frames) Integrate(built, f);
-    return built;
-  };
-  const TerrainMap map = mapped(0);
-  // Four cells at a time (AVX2, where the processor has it) against one at a time, bit for bit.
-  const TerrainMap one_at_a_time = mapped(1);
-  ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
-    const Cell& other = one_at_a_time.grid().At(c);
-    const auto same = [](float a, float b) { return (std::isnan(a) && std::isnan(b)) || a == b; };
-    ASSERT_TRUE(same(cell.slope_rad, other.slope_rad) &&
-                same(cell.roughness_m, other.roughness_m) &&
-                cell.terrain_cost == other.terrain_cost)
-        << c.transpose() << ": slope " << cell.slope_rad << " against " << other.slope_rad;
-  });
-  const double s = config.cell_size_m, radius = config.plane_fit_radius_m;
-  const int reach = static_cast<int>(std::floor(radius / s));
-  int whole = 0, part = 0, too_few = 0;
-  ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
-    if (!cell.has_elevation()) return;
-    std::vector<Eigen::Vector3d> rows;
-    std::vector<double> z;
-    int disc = 0;
-    for (int dy = -reach; dy <= reach; ++dy) {
-      for (int dx = -reach; dx <= reach; ++dx) {
-        if (std::hypot(dx, dy) * s > radius + 1e-9) continue;
-        ++disc;
-        const Cell* other = map.grid().Find(c + CellIndex(dx, dy));
-        if (other == nullptr || !other->has_elevation()) continue;
-        rows.emplace_back(1.0, dx * s, dy * s);
-        z.push_back(other->elevation_mean_m);
+  // The default radius, and one of a whole number of cells (0.6 / 0.2 rounds to 2.999...).
+  for (const double radius : {0.5, 0.6}) {
+    MapConfig config;
+    config.plane_fit_radius_m = radius;
+    const auto mapped = [&](int lanes) {
+      od::internal::CapVectorLanes(lanes);
+      TerrainMap built = NewMap(config);
+      for (const SimFrame& f : frames) Integrate(built, f);
+      return built;
+    };
+    const TerrainMap map = mapped(0);
+    // Four cells at a time (AVX2, where the processor has it) against one at a time, bit for
+    // bit.
+    const TerrainMap one_at_a_time = mapped(1);
+    const std::string where = "radius " + std::to_string(radius) + ", cell ";
+    ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
+      const Cell& other = one_at_a_time.grid().At(c);
+      const auto same = [](float a, float b) { return (std::isnan(a) && std::isnan(b)) || a == b; };
+      ASSERT_TRUE(same(cell.slope_rad, other.slope_rad) &&
+                  same(cell.roughness_m, other.roughness_m) &&
+                  cell.terrain_cost == other.terrain_cost)
+          << where << c.transpose() << ": slope " << cell.slope_rad << " against "
+          << other.slope_rad;
+    });
+    const double s = config.cell_size_m;
+    int whole = 0, part = 0, too_few = 0;
+    ForEachCell(map.grid(), [&](const CellIndex& c, const Cell& cell) {
+      if (!cell.has_elevation()) return;
+      // The neighbours whose centres lie within the radius, looked for well beyond it.
+      std::vector<Eigen::Vector3d> rows;
+      std::vector<double> z;
+      int disc = 0;
+      const int beyond = static_cast<int>(radius / s) + 2;
+      for (int dy = -beyond; dy <= beyond; ++dy) {
+        for (int dx = -beyond; dx <= beyond; ++dx) {
+          if (std::hypot(dx, dy) * s > radius + 1e-9) continue;
+          ++disc;
+          const Cell* other = map.grid().Find(c + CellIndex(dx, dy));
+          if (other == nullptr || !other->has_elevation()) continue;
+          rows.emplace_back(1.0, dx * s, dy * s);
+          z.push_back(other->elevation_mean_m);
+        }
       }
-    }
-    const int n = static_cast<int>(rows.size());
-    if (n < 3) {
-      EXPECT_TRUE(std::isnan(cell.slope_rad)) << c.transpose();
-      ++too_few;
-      return;
-    }
-    Eigen::MatrixXd A(n, 3);
-    Eigen::VectorXd b(n);
-    for (int k = 0; k < n; ++k) {
-      A.row(k) = rows[k].transpose();
-      b(k) = z[k];
-    }
-    if (std::abs((A.transpose() * A).determinant()) < 1e-6 * s * s * s * s) return;  // collinear
-    const Eigen::Vector3d plane = A.colPivHouseholderQr().solve(b);
-    const double slope = std::atan(std::hypot(plane.y(), plane.z()));
-    const double roughness = std::sqrt((A * plane - b).squaredNorm() / n);
-    ASSERT_NEAR(cell.slope_rad, slope, 1e-5) << c.transpose() << ", " << n << " neighbours";
-    ASSERT_NEAR(cell.roughness_m, roughness, 1e-5) << c.transpose() << ", " << n << " neighbours";
-    const double level =
-        std::max(slope / config.slope_cost_max_rad, roughness / config.roughness_cost_max_m);
-    EXPECT_NEAR(cell.terrain_cost, 252.0 * std::clamp(level, 0.0, 1.0), 0.5 + 1e-3)
-        << c.transpose();
-    (n == disc ? whole : part) += 1;
-  });
-  EXPECT_GT(whole, 1000);
-  EXPECT_GT(part, 100);
-  EXPECT_GT(too_few, 0);
+      const int n = static_cast<int>(rows.size());
+      if (n < 3) {
+        EXPECT_TRUE(std::isnan(cell.slope_rad)) << where << c.transpose();
+        ++too_few;
+        return;
+      }
+      Eigen::MatrixXd A(n, 3);
+      Eigen::VectorXd b(n);
+      for (int k = 0; k < n; ++k) {
+        A.row(k) = rows[k].transpose();
+        b(k) = z[k];
+      }
+      // Collinear cells (det A^T A is 0, else at least s^4 on a grid): no plane.
+      if (std::abs((A.transpose() * A).determinant()) < 1e-9 * s * s * s * s) {
+        EXPECT_TRUE(std::isnan(cell.slope_rad)) << where << c.transpose();
+        return;
+      }
+      const Eigen::Vector3d plane = A.colPivHouseholderQr().solve(b);
+      const double slope = std::atan(std::hypot(plane.y(), plane.z()));
+      const double roughness = std::sqrt((A * plane - b).squaredNorm() / n);
+      ASSERT_NEAR(cell.slope_rad, slope, 1e-5) << where << c.transpose() << ", " << n;
+      ASSERT_NEAR(cell.roughness_m, roughness, 1e-5) << where << c.transpose() << ", " << n;
+      const double level =
+          std::max(slope / config.slope_cost_max_rad, roughness / config.roughness_cost_max_m);
+      EXPECT_NEAR(cell.terrain_cost, 252.0 * std::clamp(level, 0.0, 1.0), 0.5 + 1e-3)
+          << where << c.transpose();
+      (n == disc ? whole : part) += 1;
+    });
+    EXPECT_GT(whole, 1000) << where;
+    EXPECT_GT(part, 100) << where;
+    if (radius == 0.5) EXPECT_GT(too_few, 0) << where;  // a wider disc always finds three
+  }
 }
 
 // A pole seen in one frame only (a false obstacle, or an object that went away) is cleared
@@ -735,9 +764,7 @@ TEST(RayKeys, TheWalkVisitsTheKeysOfComputeRayKeysInOrder) {
 // leave lanes without rays at the start and at the end, four rays at a time (SSE2) and eight
 // (AVX2, where the processor has it); from an origin outside the tree no key.
 TEST(RayKeys, RaysInTurnVisitTheKeysOfEachRayInOrder) {
-  struct Uncap {
-    ~Uncap() { od::internal::CapVectorLanes(0); }
-  } uncap;
+  const UncapLanesAtEnd uncap;
   std::vector<int> widths = {4};
   if (od::internal::VectorLanes() >= 8) widths.push_back(8);
   std::mt19937 rng(9);
