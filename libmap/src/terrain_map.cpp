@@ -32,7 +32,7 @@ float LogOdds(double p) { return static_cast<float>(std::log(p / (1.0 - p))); }
 
 /// How many cells along x or y a radius reaches: the most k with k cells' width within it, as
 /// DiscOffsets counts it (a radius of a whole number of cells, 1.2 m at 0.2 m, reaches its
-/// last cell although 1.2 / 0.2 rounds to 5.999...).
+/// last cell although 1.2 / 0.2 evaluates to 5.999...).
 int ReachCells(double radius_m, double cell_size_m) {
   int r = static_cast<int>(std::floor(radius_m / cell_size_m));
   while ((r + 1) * cell_size_m <= radius_m + 1e-9) ++r;
