@@ -868,7 +868,7 @@ void TerrainMap::UpdateTerrain(const CellIndex& lo, const CellIndex& hi) {
       double n[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
       for (std::size_t o = 0; o < disc_size; ++o) {
         const std::ptrdiff_t at = sc.fit_offsets[o];
-        for (int k = 0; k < 3; ++k) rhs(k) += sc.fit_upper[o][k] * z[at];
+        for (int c = 0; c < 3; ++c) rhs(c) += sc.fit_upper[o][c] * z[at];
         for (int e = 0; e < 6; ++e) n[e] += w[at] * sc.fit_upper[o][e];
       }
       Eigen::Vector3d plane;

@@ -263,7 +263,9 @@ TEST(TerrainMap, EveryCostIsTheBruteForceInflationOfTheLethalCells) {
       ++checked;
     });
     EXPECT_GT(checked, 1000);
-    if (inflation == 1.2) EXPECT_GT(last_ring, 0);  // cells exactly 1.2 m from the nearest
+    if (inflation == 1.2) {
+      EXPECT_GT(last_ring, 0);  // cells exactly 1.2 m from the nearest
+    }
     if (inflation != 1.5) continue;
     // nav2's numbers in front of the face (cell x = 17 lethal), along y = 0 (cell y = 0).
     EXPECT_EQ(map.CostAt({3.5, 0.1}), kLethalCost);
@@ -369,7 +371,9 @@ TEST(TerrainMap, EverySlopeIsThePlaneFittedToTheNeighboursElevations) {
     });
     EXPECT_GT(whole, 1000) << where;
     EXPECT_GT(part, 100) << where;
-    if (radius == 0.5) EXPECT_GT(too_few, 0) << where;  // a wider disc always finds three
+    if (radius == 0.5) {
+      EXPECT_GT(too_few, 0) << where;  // a wider disc always finds three
+    }
   }
 }
 
