@@ -13,12 +13,16 @@
 // operations, two rays to an SSE2 register (four under way) or, where the processor has AVX2
 // (libod's simd.hpp), four to a register (eight under way, 1.1x quicker on the free-space
 // benchmark), the axis picked by masks instead of branches, the key kept as a number that a
-// step adds an axis' stride to (a bit's index in a box of bits).
+// step adds an axis' stride to (a bit's index in a box of bits). With AVX2 the rays' starts
+// (RayWalk::Begin: the end's key, the direction, seven divisions) are also taken four to a
+// register, 64 rays ahead (BeginRaysAvx2): one at a time, between the steps, they cost a
+// quarter of the walk (FreeRays/walk 20.6 -> 15.3 ms, BENCHMARKS.md).
 #pragma once
 
 #include <octomap/OcTreeKey.h>
 #include <octomap/octomap_types.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -164,39 +168,148 @@ struct RayLanesAvx2 {
   unsigned pending = 0xfu;  // lanes to start the next ray on (every lane at first)
 };
 
+/// RayWalk::Begin of up to kRays rays at once, four at a time (AVX2), in its float and double
+/// operations, so with its values: per ray, whether it walks, and its walk's state but for
+/// the first key, which is the origin's for every ray. The key numbers are in `layout`.
+struct RayStartsAvx2 {
+  static constexpr int kRays = 64;
+  alignas(32) double t0[kRays], t1[kRays], t2[kRays];  // where the ray leaves the origin's voxel
+  alignas(32) double d0[kRays], d1[kRays], d2[kRays];  // a voxel's length along the ray, per axis
+  alignas(32) double length[kRays];
+  alignas(32) std::int64_t end[kRays];                       // the end's key, by its number
+  alignas(32) std::int64_t s0[kRays], s1[kRays], s2[kRays];  // a step along each axis
+  std::uint64_t walks = 0;                                   // bit r: ray r has keys (Start::kWalk)
+};
+
+/// Fills `out` for the rays from `origin` (inside the tree, its key `origin_key`) to the
+/// centres of ends[0, count), count <= RayStartsAvx2::kRays.
+template <typename Tree>
+__attribute__((target("avx2"))) void BeginRaysAvx2(const Tree& tree, const octomap::point3d& origin,
+                                                   const octomap::OcTreeKey& origin_key,
+                                                   const octomap::OcTreeKey* ends, int count,
+                                                   const KeyLayout& layout, RayStartsAvx2& out) {
+  const double resolution = tree.getResolution();
+  const __m256d res = _mm256_set1_pd(resolution);
+  const __m256d factor = _mm256_set1_pd(1.0 / resolution);  // OctoMap's resolution_factor
+  const __m256d half = _mm256_set1_pd(0.5);
+  const __m256d sign = _mm256_set1_pd(-0.0);
+  const __m256d most = _mm256_set1_pd(std::numeric_limits<double>::max());
+  const int max_val = tree.coordToKey(0.0);  // OctoMap's tree_max_val
+  const __m128i vmax = _mm_set1_epi32(max_val), vlimit = _mm_set1_epi32(2 * max_val);
+  out.walks = 0;
+  for (int j = 0; j < count; j += 4) {
+    alignas(16) std::int32_t k[3][4];
+    for (int l = 0; l < 4; ++l) {
+      // Lanes past the last ray repeat the origin's key (no walk).
+      for (int a = 0; a < 3; ++a) k[a][l] = j + l < count ? ends[j + l][a] : origin_key[a];
+    }
+    __m128 dir[3];
+    __m128i same = _mm_set1_epi32(-1), inside = _mm_set1_epi32(-1);
+    __m256i number = _mm256_setzero_si256();
+    for (int a = 0; a < 3; ++a) {
+      const __m128i key = _mm_load_si128(reinterpret_cast<const __m128i*>(k[a]));
+      // The end: keyToCoord(key) as floats; its key as coordToKeyChecked finds it.
+      const __m128 end = _mm256_cvtpd_ps(
+          _mm256_mul_pd(_mm256_add_pd(_mm256_cvtepi32_pd(_mm_sub_epi32(key, vmax)), half), res));
+      const __m128i key_end = _mm_add_epi32(
+          _mm256_cvttpd_epi32(_mm256_floor_pd(_mm256_mul_pd(factor, _mm256_cvtps_pd(end)))), vmax);
+      inside = _mm_and_si128(inside, _mm_andnot_si128(_mm_cmplt_epi32(key_end, _mm_setzero_si128()),
+                                                      _mm_cmplt_epi32(key_end, vlimit)));
+      same = _mm_and_si128(same, _mm_cmpeq_epi32(key_end, _mm_set1_epi32(origin_key[a])));
+      dir[a] = _mm_sub_ps(end, _mm_set1_ps(origin(a)));
+      // (key_end - lo) * stride, in 64 bits (the difference is not negative: the box holds the
+      // rays).
+      const __m256i from_lo = _mm256_cvtepu32_epi64(
+          _mm_sub_epi32(key_end, _mm_set1_epi32(static_cast<int>(layout.lo[a]))));
+      const std::uint64_t stride = static_cast<std::uint64_t>(layout.stride[a]);
+      const __m256i low = _mm256_mul_epu32(
+          from_lo, _mm256_set1_epi64x(static_cast<long long>(stride & 0xffffffffu)));
+      const __m256i high =
+          _mm256_mul_epu32(from_lo, _mm256_set1_epi64x(static_cast<long long>(stride >> 32)));
+      number = _mm256_add_epi64(number, _mm256_add_epi64(low, _mm256_slli_epi64(high, 32)));
+    }
+    _mm256_store_si256(reinterpret_cast<__m256i*>(out.end + j), number);
+    const unsigned walks =
+        static_cast<unsigned>(_mm_movemask_ps(_mm_castsi128_ps(_mm_andnot_si128(same, inside))));
+    out.walks |= static_cast<std::uint64_t>(walks) << j;
+    // The direction normalised by its float length (octomath's norm: the float sum, its double
+    // square root).
+    const __m128 norm2 =
+        _mm_add_ps(_mm_add_ps(_mm_mul_ps(dir[0], dir[0]), _mm_mul_ps(dir[1], dir[1])),
+                   _mm_mul_ps(dir[2], dir[2]));
+    const __m128 length = _mm256_cvtpd_ps(_mm256_sqrt_pd(_mm256_cvtps_pd(norm2)));
+    _mm256_store_pd(out.length + j, _mm256_cvtps_pd(length));
+    double* const t_out[3] = {out.t0 + j, out.t1 + j, out.t2 + j};
+    double* const d_out[3] = {out.d0 + j, out.d1 + j, out.d2 + j};
+    std::int64_t* const s_out[3] = {out.s0 + j, out.s1 + j, out.s2 + j};
+    for (int a = 0; a < 3; ++a) {
+      const __m256d d = _mm256_cvtps_pd(_mm_div_ps(dir[a], length));
+      const __m256d up = _mm256_cmp_pd(d, _mm256_setzero_pd(), _CMP_GT_OQ);
+      const __m256d down = _mm256_cmp_pd(d, _mm256_setzero_pd(), _CMP_LT_OQ);
+      // The border of the origin's voxel on the ray's side: its centre plus half a voxel, as a
+      // float.
+      const double centre = tree.keyToCoord(origin_key[a]);
+      double border_up = centre, border_down = centre;
+      border_up += static_cast<float>(1 * resolution * 0.5);
+      border_down += static_cast<float>(-1 * resolution * 0.5);
+      const __m256d border =
+          _mm256_blendv_pd(_mm256_set1_pd(border_down), _mm256_set1_pd(border_up), up);
+      const __m256d moves = _mm256_or_pd(up, down);
+      const __m256d t_max =
+          _mm256_div_pd(_mm256_sub_pd(border, _mm256_set1_pd(static_cast<double>(origin(a)))), d);
+      const __m256d t_delta = _mm256_div_pd(res, _mm256_andnot_pd(sign, d));
+      _mm256_store_pd(t_out[a], _mm256_blendv_pd(most, t_max, moves));
+      _mm256_store_pd(d_out[a], _mm256_blendv_pd(most, t_delta, moves));
+      const std::int64_t stride = layout.stride[a];
+      const __m256i step = _mm256_blendv_epi8(
+          _mm256_and_si256(_mm256_castpd_si256(down), _mm256_set1_epi64x(-stride)),
+          _mm256_set1_epi64x(stride), _mm256_castpd_si256(up));
+      _mm256_store_si256(reinterpret_cast<__m256i*>(s_out[a]), step);
+    }
+  }
+}
+
 /// The pending lanes of `v` each take the next ray of [first + next, first + count) that has
-/// keys (its first key handed to f), or are left without a ray when there are no more.
+/// keys (its first key, the origin's `origin_number`, handed to f), or are left without a ray
+/// when there are no more. `starts` holds the rays from `chunk` on (BeginRaysAvx2), and is
+/// filled afresh past them.
 template <typename Tree, typename F>
 __attribute__((target("avx2"), always_inline)) inline void StartRaysAvx2(
     RayLanesAvx2& v, std::size_t (&ray)[4], const Tree& tree, const octomap::point3d& origin,
-    const octomap::OcTreeKey* first, std::size_t count, std::size_t& next, const KeyLayout& layout,
-    F& f) {
+    const octomap::OcTreeKey& origin_key, std::int64_t origin_number,
+    const octomap::OcTreeKey* first, std::size_t count, std::size_t& next, std::size_t& chunk,
+    RayStartsAvx2& starts, const KeyLayout& layout, F& f) {
   for (unsigned m = v.pending; m != 0; m &= m - 1) {
     const int l = __builtin_ctz(m);
     v.live &= ~(1u << l);
-    RayWalk w;
     while (next < count) {
+      if (next >= chunk + RayStartsAvx2::kRays) {
+        chunk = next;
+        BeginRaysAvx2(tree, origin, origin_key, first + chunk,
+                      static_cast<int>(std::min<std::size_t>(RayStartsAvx2::kRays, count - chunk)),
+                      layout, starts);
+      }
       const std::size_t r = next++;
-      if (w.Begin(tree, origin, tree.keyToCoord(first[r])) != RayWalk::Start::kWalk) continue;
+      const std::size_t i = r - chunk;
+      if (!(starts.walks >> i & 1)) continue;
       const __m256i lane =  // all ones in lane l
           _mm256_cmpeq_epi64(_mm256_set_epi64x(3, 2, 1, 0), _mm256_set1_epi64x(l));
       const __m256d lane_pd = _mm256_castsi256_pd(lane);
-      v.t0 = _mm256_blendv_pd(v.t0, _mm256_set1_pd(w.t0), lane_pd);
-      v.t1 = _mm256_blendv_pd(v.t1, _mm256_set1_pd(w.t1), lane_pd);
-      v.t2 = _mm256_blendv_pd(v.t2, _mm256_set1_pd(w.t2), lane_pd);
-      v.d0 = _mm256_blendv_pd(v.d0, _mm256_set1_pd(w.t_delta[0]), lane_pd);
-      v.d1 = _mm256_blendv_pd(v.d1, _mm256_set1_pd(w.t_delta[1]), lane_pd);
-      v.d2 = _mm256_blendv_pd(v.d2, _mm256_set1_pd(w.t_delta[2]), lane_pd);
-      v.length = _mm256_blendv_pd(v.length, _mm256_set1_pd(w.length_m), lane_pd);
-      const std::int64_t n = layout.Of(w.k0, w.k1, w.k2);
-      v.key = _mm256_blendv_epi8(v.key, _mm256_set1_epi64x(n), lane);
-      v.end = _mm256_blendv_epi8(v.end, _mm256_set1_epi64x(layout.Of(w.e0, w.e1, w.e2)), lane);
-      v.s0 = _mm256_blendv_epi8(v.s0, _mm256_set1_epi64x(w.step[0] * layout.stride[0]), lane);
-      v.s1 = _mm256_blendv_epi8(v.s1, _mm256_set1_epi64x(w.step[1] * layout.stride[1]), lane);
-      v.s2 = _mm256_blendv_epi8(v.s2, _mm256_set1_epi64x(w.step[2] * layout.stride[2]), lane);
+      v.t0 = _mm256_blendv_pd(v.t0, _mm256_set1_pd(starts.t0[i]), lane_pd);
+      v.t1 = _mm256_blendv_pd(v.t1, _mm256_set1_pd(starts.t1[i]), lane_pd);
+      v.t2 = _mm256_blendv_pd(v.t2, _mm256_set1_pd(starts.t2[i]), lane_pd);
+      v.d0 = _mm256_blendv_pd(v.d0, _mm256_set1_pd(starts.d0[i]), lane_pd);
+      v.d1 = _mm256_blendv_pd(v.d1, _mm256_set1_pd(starts.d1[i]), lane_pd);
+      v.d2 = _mm256_blendv_pd(v.d2, _mm256_set1_pd(starts.d2[i]), lane_pd);
+      v.length = _mm256_blendv_pd(v.length, _mm256_set1_pd(starts.length[i]), lane_pd);
+      v.key = _mm256_blendv_epi8(v.key, _mm256_set1_epi64x(origin_number), lane);
+      v.end = _mm256_blendv_epi8(v.end, _mm256_set1_epi64x(starts.end[i]), lane);
+      v.s0 = _mm256_blendv_epi8(v.s0, _mm256_set1_epi64x(starts.s0[i]), lane);
+      v.s1 = _mm256_blendv_epi8(v.s1, _mm256_set1_epi64x(starts.s1[i]), lane);
+      v.s2 = _mm256_blendv_epi8(v.s2, _mm256_set1_epi64x(starts.s2[i]), lane);
       ray[l] = r;
       v.live |= 1u << l;
-      f(r, n);
+      f(r, origin_number);
       break;
     }
   }
@@ -247,7 +360,15 @@ __attribute__((target("avx2"))) void ForEachRayKeyInTurnAvx2(const Tree& tree,
                                                              const octomap::OcTreeKey* last,
                                                              const KeyLayout& layout, F& f) {
   const std::size_t count = static_cast<std::size_t>(last - first);
+  octomap::OcTreeKey origin_key;
+  if (!tree.coordToKeyChecked(origin, origin_key)) return;  // RayWalk::Begin's kOutside
+  const std::int64_t origin_number = layout.Of(origin_key[0], origin_key[1], origin_key[2]);
   std::size_t next = 0;
+  std::size_t chunk = 0;
+  RayStartsAvx2 starts;
+  BeginRaysAvx2(tree, origin, origin_key, first,
+                static_cast<int>(std::min<std::size_t>(RayStartsAvx2::kRays, count)), layout,
+                starts);
   RayLanesAvx2 a, b;
   a.t0 = a.t1 = a.t2 = a.d0 = a.d1 = a.d2 = _mm256_setzero_pd();
   a.length = _mm256_set1_pd(-std::numeric_limits<double>::infinity());
@@ -256,8 +377,10 @@ __attribute__((target("avx2"))) void ForEachRayKeyInTurnAvx2(const Tree& tree,
   std::size_t ray_a[4] = {}, ray_b[4] = {};
   for (;;) {
     if ((a.pending | b.pending) != 0) {
-      StartRaysAvx2(a, ray_a, tree, origin, first, count, next, layout, f);
-      StartRaysAvx2(b, ray_b, tree, origin, first, count, next, layout, f);
+      StartRaysAvx2(a, ray_a, tree, origin, origin_key, origin_number, first, count, next, chunk,
+                    starts, layout, f);
+      StartRaysAvx2(b, ray_b, tree, origin, origin_key, origin_number, first, count, next, chunk,
+                    starts, layout, f);
       if ((a.live | b.live) == 0) return;
     }
     StepRaysAvx2(a, ray_a, f);
