@@ -133,18 +133,32 @@ enum PointClass : std::uint8_t {
 struct TerrainMap::Scratch {
   struct Slot {
     std::int64_t stamp = -1;
-    Eigen::Vector3f lowest = Eigen::Vector3f::Constant(kInfinity);  // lowest return this frame
-    std::int64_t around_stamp = -1;
-    float lowest_around = kInfinity;  // the lowest of `lowest` over the cells within reach
-    int around_begin = 0, around_end = 0;  // those lowest returns: around[begin, end)
     int ground = 0;
     int obstacle = 0;
     bool seen_through = false;
   };
   std::vector<Slot> slots;
   std::vector<CellIndex> touched;  // cells stamped this frame
+  // The frame's box of cells (frame_slots'), row by row from frame_lo, frame_width wide: per
+  // cell its lowest in-range return this frame (low_z infinite where none; low_x and low_y
+  // are then stale), and, once a point in it asked (HeightAboveGround), the lowest returns
+  // of the cells within reach at around[around_begin, around_end) (around_begin -1 before)
+  // and the lowest of their heights. Dense: a frame's look-ups of its neighbourhoods read
+  // rows of it instead of each neighbour's slot.
+  CellIndex frame_lo = CellIndex::Zero();
+  int frame_width = 0;
+  std::vector<float> low_x, low_y, low_z;
+  std::vector<std::int32_t> around_begin, around_end;
+  std::vector<float> lowest_around;
+  std::vector<std::ptrdiff_t> ground_disc_at;  // ground_disc's offsets in the frame's box
   // Per cell that asked: the lowest returns within reach, coordinate by coordinate.
   std::vector<float> around_x, around_y, around_z;
+
+  // Cell c's place in the frame's box.
+  std::size_t FrameCell(const CellIndex& c) const {
+    return static_cast<std::size_t>(c.y() - frame_lo.y()) * static_cast<std::size_t>(frame_width) +
+           static_cast<std::size_t>(c.x() - frame_lo.x());
+  }
   std::vector<std::uint8_t> point_class;
   std::vector<Eigen::Vector3d> world;  // per pixel: the return (or the clipped ray end)
   std::vector<CellIndex> point_cell;   // per pixel with a return: its cell
@@ -468,6 +482,20 @@ Status TerrainMap::PlaceReturns(const od::RangeImage& image,
   int reach = 0;
   for (const CellIndex& d : sc.ground_disc) reach = std::max(reach, d.cwiseAbs().maxCoeff());
   sc.frame_slots.Reset(grid_, Grow(lo, -reach), Grow(hi, reach));
+  sc.frame_lo = Grow(lo, -reach);
+  sc.frame_width = hi.x() - lo.x() + 1 + 2 * reach;
+  const std::size_t frame_cells = static_cast<std::size_t>(sc.frame_width) *
+                                  static_cast<std::size_t>(hi.y() - lo.y() + 1 + 2 * reach);
+  sc.low_x.resize(frame_cells);
+  sc.low_y.resize(frame_cells);
+  sc.low_z.assign(frame_cells, kInfinity);
+  sc.around_begin.assign(frame_cells, -1);
+  sc.around_end.resize(frame_cells);
+  sc.lowest_around.resize(frame_cells);
+  sc.ground_disc_at.clear();
+  for (const CellIndex& d : sc.ground_disc) {
+    sc.ground_disc_at.push_back(static_cast<std::ptrdiff_t>(d.y()) * sc.frame_width + d.x());
+  }
   sc.point_slot.assign(n, -1);
   for (int i = 0; i < n; ++i) {
     if (sc.point_class[i] != kNone) sc.point_slot[i] = sc.frame_slots(sc.point_cell[i]);
@@ -475,7 +503,8 @@ Status TerrainMap::PlaceReturns(const od::RangeImage& image,
   return Status::Ok();
 }
 
-// The lowest in-range return of each grid cell, in its slot (stamped, listed in `touched`).
+// The lowest in-range return of each grid cell, in the frame's box (the cell's slot stamped,
+// listed in `touched`).
 void TerrainMap::FindLowestReturns(std::int64_t stamp, FrameSummary& summary) {
   Scratch& sc = *scratch_;
   sc.touched.clear();
@@ -483,9 +512,13 @@ void TerrainMap::FindLowestReturns(std::int64_t stamp, FrameSummary& summary) {
   for (int i = 0; i < n; ++i) {
     if (sc.point_class[i] != kGround || sc.point_slot[i] < 0) continue;
     ++summary.points_in_range;
-    Scratch::Slot& slot =
-        sc.Stamp(static_cast<std::size_t>(sc.point_slot[i]), sc.point_cell[i], stamp);
-    if (sc.world[i].z() < slot.lowest.z()) slot.lowest = sc.world[i].cast<float>();
+    sc.Stamp(static_cast<std::size_t>(sc.point_slot[i]), sc.point_cell[i], stamp);
+    const std::size_t at = sc.FrameCell(sc.point_cell[i]);
+    if (sc.world[i].z() < sc.low_z[at]) {
+      sc.low_x[at] = static_cast<float>(sc.world[i].x());
+      sc.low_y[at] = static_cast<float>(sc.world[i].y());
+      sc.low_z[at] = static_cast<float>(sc.world[i].z());
+    }
   }
 }
 
@@ -494,7 +527,6 @@ void TerrainMap::FindLowestReturns(std::int64_t stamp, FrameSummary& summary) {
 // tan, reach2 the squared ground_radius). Returns that and the plain height above the lowest
 // return within reach.
 std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, const CellIndex& c,
-                                                      std::size_t grid_slot, std::int64_t stamp,
                                                       float rise, float reach2) {
   Scratch& sc = *scratch_;
   const Eigen::Vector3f pf = p.cast<float>();
@@ -502,30 +534,41 @@ std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, 
   float plain = -kInfinity;
   // The lowest returns of the cells within reach, gathered once per cell and frame (the
   // points of a segment crowd into few cells); their lowest settles most points, the foot.
-  Scratch::Slot& slot = sc.slots[grid_slot];
-  if (slot.around_stamp != stamp) {
-    slot.around_stamp = stamp;
-    slot.lowest_around = kInfinity;
-    slot.around_begin = static_cast<int>(sc.around_x.size());
-    for (const CellIndex& d : sc.ground_disc) {
-      const std::ptrdiff_t other = sc.frame_slots(c + d);
-      if (other < 0) continue;
-      const Scratch::Slot& o = sc.slots[static_cast<std::size_t>(other)];
-      if (o.stamp != stamp) continue;
-      sc.around_x.push_back(o.lowest.x());
-      sc.around_y.push_back(o.lowest.y());
-      sc.around_z.push_back(o.lowest.z());
-      slot.lowest_around = std::min(slot.lowest_around, o.lowest.z());
+  // Each neighbour's is written, and kept (counted) only when there is one: no branch.
+  const std::size_t at = sc.FrameCell(c);
+  if (sc.around_begin[at] < 0) {
+    const std::size_t begin = sc.around_x.size();
+    std::size_t end = begin;
+    const std::size_t most = begin + sc.ground_disc_at.size();
+    sc.around_x.resize(most);
+    sc.around_y.resize(most);
+    sc.around_z.resize(most);
+    float lowest = kInfinity;
+    for (const std::ptrdiff_t d : sc.ground_disc_at) {
+      const std::size_t o = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(at) + d);
+      const float z = sc.low_z[o];
+      sc.around_x[end] = sc.low_x[o];
+      sc.around_y[end] = sc.low_y[o];
+      sc.around_z[end] = z;
+      end += z < kInfinity;
+      lowest = std::min(lowest, z);
     }
-    slot.around_end = static_cast<int>(sc.around_x.size());
+    sc.around_x.resize(end);
+    sc.around_y.resize(end);
+    sc.around_z.resize(end);
+    sc.around_begin[at] = static_cast<std::int32_t>(begin);
+    sc.around_end[at] = static_cast<std::int32_t>(end);
+    sc.lowest_around[at] = lowest;
   }
-  if (pf.z() - slot.lowest_around < config_.obstacle_min_height_m) {
-    return std::make_pair(pf.z() - slot.lowest_around, pf.z() - slot.lowest_around);
+  const float lowest_around = sc.lowest_around[at];
+  if (pf.z() - lowest_around < config_.obstacle_min_height_m) {
+    return std::make_pair(pf.z() - lowest_around, pf.z() - lowest_around);
   }
   const float* const qx = sc.around_x.data();
   const float* const qy = sc.around_y.data();
   const float* const qz = sc.around_z.data();
-  int k = slot.around_begin;
+  int k = sc.around_begin[at];
+  const int around_end = sc.around_end[at];
 #if defined(__SSE2__)
   // Four at a time, in the scalar loop's float operations. The four lanes' maxima are taken in
   // another order than one by one, which could differ only in the sign of a zero maximum (the
@@ -535,7 +578,7 @@ std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, 
     const __m128 vrise = _mm_set1_ps(rise), vreach2 = _mm_set1_ps(reach2);
     const __m128 none = _mm_set1_ps(-kInfinity);
     __m128 heights = none, plains = none;
-    for (; k + 4 <= slot.around_end; k += 4) {
+    for (; k + 4 <= around_end; k += 4) {
       const __m128 dx = _mm_sub_ps(px, _mm_loadu_ps(qx + k));
       const __m128 dy = _mm_sub_ps(py, _mm_loadu_ps(qy + k));
       const __m128 dxy2 = _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy));
@@ -554,7 +597,7 @@ std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, 
     plain = most(plains);
   }
 #endif
-  for (; k < slot.around_end; ++k) {
+  for (; k < around_end; ++k) {
     const float dx = pf.x() - qx[k], dy = pf.y() - qy[k];
     const float dxy2 = dx * dx + dy * dy;
     if (dxy2 > reach2) continue;
@@ -589,7 +632,7 @@ std::vector<TerrainMap::FrameSegment> TerrainMap::ClassifyReturns(
     const bool kept =
         label > 0 && classification.verdicts[label - 1].cls == od::SegmentClass::kKept;
     const auto [height, plain_height] =
-        kept ? HeightAboveGround(p, c, grid_slot, stamp, rise, reach2) : std::make_pair(0.0f, 0.0f);
+        kept ? HeightAboveGround(p, c, rise, reach2) : std::make_pair(0.0f, 0.0f);
     if (kept && height >= config_.obstacle_min_height_m) {
       sc.point_class[i] = kObstacle;
       ++summary.obstacle_points;

@@ -171,8 +171,7 @@ class TerrainMap {
   // Parts of those stages.
   void FindLowestReturns(std::int64_t stamp, FrameSummary& summary);
   std::pair<float, float> HeightAboveGround(const Eigen::Vector3d& p, const CellIndex& c,
-                                            std::size_t grid_slot, std::int64_t stamp, float rise,
-                                            float reach2);
+                                            float rise, float reach2);
   void CollectRayEnds();
   void UpdateCosts(const CellIndex& lo, const CellIndex& hi);
   void UpdateTerrain(const CellIndex& lo, const CellIndex& hi);
