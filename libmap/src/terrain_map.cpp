@@ -217,7 +217,9 @@ struct TerrainMap::FrameSegment {
   // Adds obstacle return p, in cell c, standing plain_height_m above the lowest return near it.
   void Add(int segment_label, const CellIndex& c, const Eigen::Vector3d& p, double plain_height_m) {
     label = segment_label;
-    cells.push_back(c);
+    // Returns come in the image's order, a segment's runs of them in one cell: each run's
+    // cell once (the cells are sorted and made unique later).
+    if (cells.empty() || cells.back() != c) cells.push_back(c);
     bbox_min = bbox_min.cwiseMin(p);
     bbox_max = bbox_max.cwiseMax(p);
     sum += p;
