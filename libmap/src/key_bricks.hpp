@@ -131,12 +131,43 @@ class KeyBricks {
     }
   }
 
-  /// The key of the brick's first voxel (its local coordinates 0, 0, 0).
-  static octomap::OcTreeKey BaseKey(const Brick& brick) {
-    return octomap::OcTreeKey(static_cast<octomap::key_type>(Compact3(brick.code) << 3),
-                              static_cast<octomap::key_type>(Compact3(brick.code >> 1) << 3),
-                              static_cast<octomap::key_type>(Compact3(brick.code >> 2) << 3));
+  /// Calls f(code, mine, theirs) for every brick held here or in `other`, in the Morton order
+  /// of their coordinates (`code`), with this set's brick and the same brick of `other` (null
+  /// where a set has none).
+  template <typename F>
+  void ForEachBrickOfEitherInMortonOrder(
+      const KeyBricks& other, std::vector<std::pair<std::uint64_t, std::uint32_t>>& order,
+      F&& f) const {
+    order.clear();
+    for (std::uint32_t i = 0; i < bricks_.size(); ++i) order.emplace_back(bricks_[i].code, 2 * i);
+    for (std::uint32_t i = 0; i < other.bricks_.size(); ++i) {
+      order.emplace_back(other.bricks_[i].code, 2 * i + 1);
+    }
+    std::sort(order.begin(), order.end());
+    for (std::size_t k = 0; k < order.size();) {
+      const std::uint64_t code = order[k].first;
+      const Brick* mine = nullptr;
+      const Brick* theirs = nullptr;
+      for (; k < order.size() && order[k].first == code; ++k) {
+        const std::uint32_t i = order[k].second;
+        (i % 2 == 0 ? mine : theirs) = i % 2 == 0 ? &bricks_[i / 2] : &other.bricks_[i / 2];
+      }
+      f(code, mine, theirs);
+    }
   }
+
+  /// The brick of Morton code `code` (Brick::code), or null.
+  const Brick* BrickOf(std::uint64_t code) const { return Find(PackFromCode(code)); }
+
+  /// The key of the first voxel of the brick of Morton code `code`.
+  static octomap::OcTreeKey BaseKeyOf(std::uint64_t code) {
+    return octomap::OcTreeKey(static_cast<octomap::key_type>(Compact3(code) << 3),
+                              static_cast<octomap::key_type>(Compact3(code >> 1) << 3),
+                              static_cast<octomap::key_type>(Compact3(code >> 2) << 3));
+  }
+
+  /// The key of the brick's first voxel (its local coordinates 0, 0, 0).
+  static octomap::OcTreeKey BaseKey(const Brick& brick) { return BaseKeyOf(brick.code); }
   /// The key of the voxel of local Morton code `bit` in the brick whose first key is `base`.
   static octomap::OcTreeKey KeyOf(const octomap::OcTreeKey& base, unsigned bit) {
     return octomap::OcTreeKey(static_cast<octomap::key_type>(base[0] | Compact3(bit)),

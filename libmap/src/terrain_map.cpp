@@ -172,7 +172,7 @@ struct TerrainMap::Scratch {
   std::vector<internal::KeyBricks> worker_keys;    // free keys of the other ray workers
   std::vector<internal::KeyBitBox> ray_boxes;      // free keys of each ray worker, as bits
   std::vector<std::pair<std::uint64_t, std::uint32_t>> brick_order;
-  std::vector<TerrainOcTree::FreeBrick> free_bricks;  // a frame's free voxels, brick by brick
+  std::vector<TerrainOcTree::BrickUpdate> bricks;  // a frame's free voxels and ends, brick by brick
   TerrainGrid::SlotTable slot_table;   // UpdateTerrain's and UpdateCosts', kept from frame to frame
   std::vector<CellIndex> ground_disc;  // cells that may hold a return within ground_radius
   std::vector<CellIndex> fit_disc;     // offsets within plane_fit_radius
@@ -698,31 +698,44 @@ void TerrainMap::UpdateOctree(const Eigen::Vector3d& origin, std::int64_t stamp,
                                 static_cast<float>(origin.z()));
   CastFreeRays(tree, sensor, sc.ray_ends, config_.threads, sc.free_keys, sc.worker_keys,
                sc.ray_boxes);
-  // Endpoints win: their voxels are not updated as free. A brick at a time: the tree is
-  // walked to each brick once, and the bricks' subtrees are updated on map.threads threads.
-  std::vector<TerrainOcTree::FreeBrick>& bricks = sc.free_bricks;
+  // Endpoints win: their voxels are not updated as free. A brick at a time, the free voxels
+  // and the endpoints together: the tree is walked to each brick once, and the bricks'
+  // subtrees are updated on map.threads threads.
+  std::vector<TerrainOcTree::BrickUpdate>& bricks = sc.bricks;
   bricks.clear();
-  sc.free_keys.ForEachBrickInMortonOrder(
-      &sc.endpoints, sc.brick_order,
-      [&](const internal::KeyBricks::Brick& brick, const internal::KeyBricks::Brick* ends) {
-        TerrainOcTree::FreeBrick& free = bricks.emplace_back();
-        const octomap::OcTreeKey base = internal::KeyBricks::BaseKey(brick);
-        free.base = base;
-        std::uint64_t* voxels = free.voxels;
-        for (int w = 0; w < 8; ++w) voxels[w] = brick.bits[w] & ~(ends ? ends->bits[w] : 0);
+  sc.free_keys.ForEachBrickOfEitherInMortonOrder(
+      sc.endpoints, sc.brick_order,
+      [&](std::uint64_t code, const internal::KeyBricks::Brick* free,
+          const internal::KeyBricks::Brick* ends) {
+        TerrainOcTree::BrickUpdate& update = bricks.emplace_back();
+        const octomap::OcTreeKey base = internal::KeyBricks::BaseKeyOf(code);
+        update.base = base;
+        const internal::KeyBricks::Brick* obstacles =
+            ends != nullptr ? sc.obstacle_endpoints.BrickOf(code) : nullptr;
+        for (int w = 0; w < 8; ++w) {
+          const std::uint64_t hit = ends != nullptr ? ends->bits[w] : 0;
+          update.free[w] = (free != nullptr ? free->bits[w] : 0) & ~hit;
+          update.hit[w] = hit;
+          update.obstacle[w] = obstacles != nullptr ? obstacles->bits[w] & hit : 0;
+        }
         // The window is an interval in x and y: a brick whose corner voxels lie in it does.
         const octomap::OcTreeKey far(static_cast<octomap::key_type>(base[0] + 7),
                                      static_cast<octomap::key_type>(base[1] + 7), base[2]);
         if (!in_window(base) || !in_window(far)) {
           for (unsigned b = 0; b < 512; ++b) {
             if (!in_window(internal::KeyBricks::KeyOf(base, b))) {
-              voxels[b >> 6] &= ~(std::uint64_t{1} << (b & 63));
+              const std::uint64_t keep = ~(std::uint64_t{1} << (b & 63));
+              update.free[b >> 6] &= keep;
+              update.hit[b >> 6] &= keep;
             }
           }
         }
+        for (const std::uint64_t w : update.hit) {
+          summary.voxels_occupied += __builtin_popcountll(w);
+        }
       });
-  tree.UpdateFreeBricks(bricks, config_.threads);
-  for (const TerrainOcTree::FreeBrick& brick : bricks) {
+  tree.UpdateBricks(bricks, config_.threads);
+  for (const TerrainOcTree::BrickUpdate& brick : bricks) {
     summary.voxels_free += brick.changed;
     for (unsigned w = 0; w < 8; ++w) {
       for (std::uint64_t word = brick.was_obstacle[w]; word != 0; word &= word - 1) {
@@ -734,13 +747,6 @@ void TerrainMap::UpdateOctree(const Eigen::Vector3d& origin, std::int64_t stamp,
       }
     }
   }
-  TerrainOcTree::LeafWalk touch(tree);
-  sc.endpoints.ForEachInMortonOrder(
-      &sc.obstacle_endpoints, sc.brick_order, [&](const octomap::OcTreeKey& key, bool obstacle) {
-        if (!in_window(key)) return;
-        tree.Update(touch.Touch(key), true, obstacle);
-        ++summary.voxels_occupied;
-      });
   // Inner nodes and pruning cost a walk over the whole tree: done every few frames, and
   // whenever the tree is looked at (octree()); the leaves are always current.
   octree_stale_ = true;

@@ -224,37 +224,9 @@ TerrainOcTreeNode* TerrainOcTree::TouchLeaf(const octomap::OcTreeKey& key) {
   return node;
 }
 
-TerrainOcTreeNode* TerrainOcTree::LeafWalk::Touch(const octomap::OcTreeKey& key) {
-  TerrainOcTree& t = tree_;
-  bool created = false;
-  std::size_t made = 0;
-  unsigned depth = 0;
-  if (started_ && t.root == path_[0]) {
-    // The first depth whose child differs from the last key's: below the highest bit in
-    // which the keys differ, along any axis.
-    const unsigned differ =
-        static_cast<unsigned>((key[0] ^ last_[0]) | (key[1] ^ last_[1]) | (key[2] ^ last_[2]));
-    if (differ == 0) return path_[t.tree_depth];
-    const unsigned highest = 31u - static_cast<unsigned>(__builtin_clz(differ));  // bit index
-    depth = t.tree_depth - 1 - highest;
-  } else {
-    path_[0] = t.Root(created);
-  }
-  TerrainOcTreeNode* node = path_[depth];
-  for (; depth < t.tree_depth; ++depth) {
-    node = t.Step(node, octomap::computeChildIdx(key, static_cast<int>(t.tree_depth - 1 - depth)),
-                  created, false, made);
-    path_[depth + 1] = node;
-  }
-  t.CountMade(made);
-  last_ = key;
-  started_ = true;
-  return node;
-}
-
 namespace {
 constexpr unsigned kBrickLevels = 3;  // a brick: the node this many levels above the leaves
-// UpdateFreeBricks' subtrees: this many levels above a brick (8 x 8 x 8 bricks, 6.4 m at
+// UpdateBricks' subtrees: this many levels above a brick (8 x 8 x 8 bricks, 6.4 m at
 // 0.1 m voxels; a LiDAR frame's bricks fall into a few hundred).
 constexpr unsigned kSubtreeLevels = 3;
 }  // namespace
@@ -281,13 +253,13 @@ TerrainOcTree::FreeUpdate TerrainOcTree::UpdateFree(const octomap::OcTreeKey& ke
   return FreeLeaf(node);
 }
 
-TerrainOcTreeNode* TerrainOcTree::WalkFree(const octomap::OcTreeKey& key, unsigned depth,
+TerrainOcTreeNode* TerrainOcTree::WalkDown(const octomap::OcTreeKey& key, unsigned depth, bool hits,
                                            bool& created) {
   std::size_t made = 0;
   TerrainOcTreeNode* node = Root(created);
   for (unsigned d = 0; d < depth && node != nullptr; ++d) {
     node = Step(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - d)), created,
-                true, made);
+                !hits, made);
   }
   CountMade(made);
   return node;
@@ -299,11 +271,13 @@ bool AnyVoxel(const std::uint64_t (&voxels)[8]) {
 }
 }  // namespace
 
-int TerrainOcTree::UpdateFreeBrickBelow(TerrainOcTreeNode* node, unsigned depth, bool created,
-                                        FreeBrick& brick, std::size_t& made) {
+int TerrainOcTree::UpdateBrickBelow(TerrainOcTreeNode* node, unsigned depth, bool created,
+                                    BrickUpdate& brick, std::size_t& made) {
+  // A hit's walk expands the pruned nodes on its way, which a free update's stops at.
+  const bool hits = AnyVoxel(brick.hit);
   for (unsigned d = depth; d + kBrickLevels < tree_depth && node != nullptr; ++d) {
     node = Step(node, octomap::computeChildIdx(brick.base, static_cast<int>(tree_depth - 1 - d)),
-                created, true, made);
+                created, !hits, made);
   }
   if (node == nullptr) return 0;  // inside a pruned node saturated free
   int changed = 0;
@@ -311,28 +285,35 @@ int TerrainOcTree::UpdateFreeBrickBelow(TerrainOcTreeNode* node, unsigned depth,
   // voxel's walk can meet the brick node as made by this update. Voxels in Morton order
   // share their first two steps with the voxel before in runs of 64 and 8: those steps
   // are kept (a step taken again returns what it returned, null included, and changes
-  // nothing), so most voxels take one step.
+  // nothing), so most voxels take one step. A hit where a free update's step stopped (null,
+  // at a pruned node saturated free) takes the step again, expanding that node.
   unsigned last_64 = ~0u, last_8 = ~0u;
   TerrainOcTreeNode* upper = nullptr;  // the node of voxels b >> 6 == last_64
   TerrainOcTreeNode* lower = nullptr;  // the node of voxels b >> 3 == last_8
   for (unsigned w = 0; w < 8; ++w) {
-    for (std::uint64_t word = brick.voxels[w]; word != 0; word &= word - 1) {
-      const unsigned b = w * 64 + static_cast<unsigned>(__builtin_ctzll(word));
-      if (b >> 6 != last_64) {
-        upper = Step(node, b >> 6, created, true, made);
+    for (std::uint64_t word = brick.free[w] | brick.hit[w]; word != 0; word &= word - 1) {
+      const unsigned at = static_cast<unsigned>(__builtin_ctzll(word));
+      const unsigned b = w * 64 + at;
+      const bool hit = (brick.hit[w] >> at & 1) != 0;
+      if (b >> 6 != last_64 || (hit && upper == nullptr)) {
+        upper = Step(node, b >> 6, created, !hit, made);
         last_64 = b >> 6;
         last_8 = ~0u;
       }
-      if (b >> 3 != last_8) {
-        lower = upper == nullptr ? nullptr : Step(upper, b >> 3 & 7u, created, true, made);
+      if (b >> 3 != last_8 || (hit && lower == nullptr)) {
+        lower = upper == nullptr ? nullptr : Step(upper, b >> 3 & 7u, created, !hit, made);
         last_8 = b >> 3;
       }
       TerrainOcTreeNode* leaf =
-          lower == nullptr ? nullptr : Step(lower, b & 7u, created, true, made);
+          lower == nullptr ? nullptr : Step(lower, b & 7u, created, !hit, made);
       created = false;
+      if (hit) {
+        Update(leaf, true, (brick.obstacle[w] >> at & 1) != 0);
+        continue;
+      }
       const FreeUpdate update = FreeLeaf(leaf);
       changed += update.changed;
-      if (update.was_obstacle) brick.was_obstacle[w] |= std::uint64_t{1} << (b & 63);
+      if (update.was_obstacle) brick.was_obstacle[w] |= std::uint64_t{1} << at;
     }
   }
   return changed;
@@ -342,19 +323,19 @@ int TerrainOcTree::UpdateFreeBrick(const octomap::OcTreeKey& base, const std::ui
                                    std::uint64_t (&was_obstacle)[8]) {
   std::fill(std::begin(was_obstacle), std::end(was_obstacle), 0);
   if (!AnyVoxel(voxels)) return 0;  // no walk: it would make nodes
-  FreeBrick brick;
+  BrickUpdate brick;
   brick.base = base;
-  std::copy(std::begin(voxels), std::end(voxels), std::begin(brick.voxels));
+  std::copy(std::begin(voxels), std::end(voxels), std::begin(brick.free));
   bool created = false;
   std::size_t made = 0;
   TerrainOcTreeNode* top = Root(created);
-  const int changed = UpdateFreeBrickBelow(top, 0, created, brick, made);
+  const int changed = UpdateBrickBelow(top, 0, created, brick, made);
   CountMade(made);
   std::copy(std::begin(brick.was_obstacle), std::end(brick.was_obstacle), std::begin(was_obstacle));
   return changed;
 }
 
-void TerrainOcTree::UpdateFreeBricks(std::vector<FreeBrick>& bricks, int threads) {
+void TerrainOcTree::UpdateBricks(std::vector<BrickUpdate>& bricks, int threads) {
   const unsigned depth = tree_depth - kBrickLevels - kSubtreeLevels;  // the subtrees' depth
   const unsigned shift = tree_depth - depth;
   auto subtree_of = [&](const octomap::OcTreeKey& k) {
@@ -380,11 +361,15 @@ void TerrainOcTree::UpdateFreeBricks(std::vector<FreeBrick>& bricks, int threads
       std::fill(std::begin(bricks[j].was_obstacle), std::end(bricks[j].was_obstacle), 0);
       bricks[j].changed = 0;
     }
-    const auto with_voxels = std::find_if(bricks.begin() + static_cast<std::ptrdiff_t>(t.first),
-                                          bricks.begin() + static_cast<std::ptrdiff_t>(t.last),
-                                          [](const FreeBrick& b) { return AnyVoxel(b.voxels); });
-    if (with_voxels == bricks.begin() + static_cast<std::ptrdiff_t>(t.last)) continue;
-    t.node = WalkFree(with_voxels->base, depth, t.created);
+    const auto first = bricks.begin() + static_cast<std::ptrdiff_t>(t.first);
+    const auto last = bricks.begin() + static_cast<std::ptrdiff_t>(t.last);
+    const auto with_voxels = std::find_if(
+        first, last, [](const BrickUpdate& b) { return AnyVoxel(b.free) || AnyVoxel(b.hit); });
+    if (with_voxels == last) continue;
+    // With a hit below it, the subtree's node is reached as TouchLeaf reaches it.
+    const bool hits =
+        std::any_of(with_voxels, last, [](const BrickUpdate& b) { return AnyVoxel(b.hit); });
+    t.node = WalkDown(with_voxels->base, depth, hits, t.created);
     if (t.node != nullptr) subtrees.push_back(t);
   }
   std::vector<std::size_t> made(static_cast<std::size_t>(std::max(1, od::ThreadCount(threads))), 0);
@@ -394,10 +379,10 @@ void TerrainOcTree::UpdateFreeBricks(std::vector<FreeBrick>& bricks, int threads
         const Subtree& t = subtrees[static_cast<std::size_t>(s)];
         bool created = t.created;
         for (std::size_t j = t.first; j < t.last; ++j) {
-          FreeBrick& brick = bricks[j];
-          if (!AnyVoxel(brick.voxels)) continue;
-          brick.changed = UpdateFreeBrickBelow(t.node, depth, created, brick,
-                                               made[static_cast<std::size_t>(worker)]);
+          BrickUpdate& brick = bricks[j];
+          if (!AnyVoxel(brick.free) && !AnyVoxel(brick.hit)) continue;
+          brick.changed = UpdateBrickBelow(t.node, depth, created, brick,
+                                           made[static_cast<std::size_t>(worker)]);
           created = false;  // the path to the subtree's node has children now
         }
       },

@@ -10,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -1007,7 +1008,7 @@ TEST(KeyBricks, HoldsEveryKeyOnceAndGivesThemInMortonOrder) {
 
 // The free updates of a brick at a time (a walk in Morton order) change the tree exactly as
 // the walk from the root for each voxel, on a tree with occupied, free and pruned saturated
-// regions; and so do the bricks' subtrees updated on several threads (UpdateFreeBricks).
+// regions; and so do the bricks' subtrees updated on several threads (UpdateBricks).
 TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
   std::mt19937 rng(5);
   TerrainOcTree a(0.1), b(0.1), c(0.1), d(0.1);
@@ -1060,7 +1061,7 @@ TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
   for (const octomap::OcTreeKey& key : keys) bricks.Insert(key);
   std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
   int brick_changed = 0, brick_obstacles = 0;
-  std::vector<TerrainOcTree::FreeBrick> many;
+  std::vector<TerrainOcTree::BrickUpdate> many;
   std::vector<std::array<std::uint64_t, 8>> each_was_obstacle;
   bricks.ForEachBrickInMortonOrder(
       nullptr, order,
@@ -1072,16 +1073,16 @@ TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
         each_was_obstacle.push_back({});
         std::copy(std::begin(was_obstacle), std::end(was_obstacle),
                   each_was_obstacle.back().begin());
-        TerrainOcTree::FreeBrick& free = many.emplace_back();
+        TerrainOcTree::BrickUpdate& free = many.emplace_back();
         free.base = internal::KeyBricks::BaseKey(brick);
-        std::copy(std::begin(brick.bits), std::end(brick.bits), std::begin(free.voxels));
+        std::copy(std::begin(brick.bits), std::end(brick.bits), std::begin(free.free));
         free.was_obstacle[0] = 12345;  // overwritten
       });
   EXPECT_GT(many.size(), 100u);
   // c on two threads, d on one: brick for brick the answers of b, and b's tree.
   for (const auto& [tree, threads] : {std::pair{&c, 2}, std::pair{&d, 1}}) {
-    std::vector<TerrainOcTree::FreeBrick> updated = many;
-    tree->UpdateFreeBricks(updated, threads);
+    std::vector<TerrainOcTree::BrickUpdate> updated = many;
+    tree->UpdateBricks(updated, threads);
     int tree_changed = 0;
     for (std::size_t i = 0; i < updated.size(); ++i) {
       tree_changed += updated[i].changed;
@@ -1249,59 +1250,142 @@ TEST(TerrainOcTree, NodesMadeAndFreedOnDifferentThreadsKeepEveryTreeWhole) {
   EXPECT_GT(trees[0]->size(), 20000u);
 }
 
-// Touching leaves with a LeafWalk (each walk resumed from the path it shares with the walk
-// before) makes the tree TouchLeaf makes from the root, through pruned, existing and new
-// nodes, and hands out the same leaves.
-TEST(TerrainOcTree, LeafWalkTouchesTheLeavesTouchLeafDoes) {
+// A frame's free voxels and ends a brick at a time (UpdateBricks, on one and two threads)
+// make the tree of all the free updates from the root first and then every end touched from
+// the root (TouchLeaf), through pruned nodes saturated free at every level, from above the
+// subtrees UpdateBricks splits by (128 voxels a side) down to two voxels, pruned nodes that
+// are not saturated, existing and new nodes, with the same answers: free voxels changed,
+// obstacles seen through.
+TEST(TerrainOcTree, BrickUpdatesEqualFreeUpdatesThenTouches) {
   std::mt19937 rng(11);
-  TerrainOcTree a(0.1), b(0.1);
+  TerrainOcTree a(0.1), b(0.1), c(0.1);
+  const std::vector<TerrainOcTree*> trees = {&a, &b, &c};
   const octomap::OcTreeKey origin = a.coordToKey(0.3, -0.2, 1.0);
   const auto near = [&](int dx, int dy, int dz) {
-    return octomap::OcTreeKey(static_cast<octomap::key_type>((origin[0] & ~15) + dx),
-                              static_cast<octomap::key_type>((origin[1] & ~15) + dy),
-                              static_cast<octomap::key_type>((origin[2] & ~15) + dz));
+    return octomap::OcTreeKey(static_cast<octomap::key_type>((origin[0] & ~127) + dx),
+                              static_cast<octomap::key_type>((origin[1] & ~127) + dy),
+                              static_cast<octomap::key_type>((origin[2] & ~127) + dz));
   };
-  // A 16-voxel cube saturated free (it prunes to one node) and occupied voxels around it.
-  std::uniform_int_distribution<int> around(-40, 56);
-  for (TerrainOcTree* t : {&a, &b}) {
-    for (int dx = 0; dx < 16; ++dx) {
-      for (int dy = 0; dy < 16; ++dy) {
-        for (int dz = 0; dz < 16; ++dz) {
-          for (int r = 0; r < 8; ++r) t->UpdateFree(near(dx, dy, dz));
+  // The 128-voxel cube from near(0, 0, 0) saturated free and pruned to one node: read as
+  // OctoMap's stream holds it (each node's two values and a byte of its children), the path
+  // to it made of nodes with one child each.
+  {
+    std::ostringstream stream;
+    const float saturated = a.getClampingThresMinLog();
+    const unsigned depth = a.getTreeDepth() - 7;
+    for (unsigned d = 0; d <= depth; ++d) {
+      stream.write(reinterpret_cast<const char*>(&saturated), sizeof(float));
+      stream.write(reinterpret_cast<const char*>(&saturated), sizeof(float));
+      const char children =
+          d == depth
+              ? 0
+              : static_cast<char>(1u << octomap::computeChildIdx(
+                                      near(0, 0, 0), static_cast<int>(a.getTreeDepth() - 1 - d)));
+      stream.write(&children, 1);
+    }
+    for (TerrainOcTree* t : trees) {
+      std::istringstream in(stream.str());
+      t->readData(in);
+    }
+    ASSERT_EQ(a.size(), depth + 1);
+    ASSERT_TRUE(a.IsSaturatedFree(*a.search(near(5, 100, 77))));
+  }
+  const auto cube = [&](int x0, int y0, int z0, int side, int misses, bool hit) {
+    for (int dx = 0; dx < side; ++dx) {
+      for (int dy = 0; dy < side; ++dy) {
+        for (int dz = 0; dz < side; ++dz) {
+          for (TerrainOcTree* t : trees) {
+            const octomap::OcTreeKey k = near(x0 + dx, y0 + dy, dz + z0);
+            if (hit) t->Update(t->TouchLeaf(k), true, false);
+            for (int r = 0; r < misses; ++r) t->UpdateFree(k);
+          }
         }
       }
     }
-  }
+  };
+  // Past it, in a brick seen occupied once, a brick's upper node (4 voxels a side) and a
+  // lower node (2 voxels) saturated free; a 16-voxel cube seen occupied once (equal, not
+  // saturated: OctoMap's prune collapses it too).
+  cube(128, 0, 0, 8, 0, true);
+  cube(128, 0, 0, 4, 8, false);
+  cube(132, 4, 4, 2, 8, false);
+  cube(128, 16, 0, 16, 0, true);
+  std::uniform_int_distribution<int> around(-8, 168);
+  std::uniform_int_distribution<int> past(128, 167);
+  std::vector<octomap::OcTreeKey> occupied;  // past the big cube, which stays pruned
   for (int k = 0; k < 500; ++k) {
-    const octomap::OcTreeKey key = near(around(rng), around(rng), around(rng));
-    for (TerrainOcTree* t : {&a, &b}) t->Update(t->TouchLeaf(key), true, k % 3 == 0);
+    occupied.push_back(near(past(rng), around(rng), around(rng)));
+    for (TerrainOcTree* t : trees) t->Update(t->TouchLeaf(occupied.back()), true, k % 3 == 0);
   }
-  for (TerrainOcTree* t : {&a, &b}) {
+  for (TerrainOcTree* t : trees) {
     t->updateInnerOccupancy();
     t->prune();
   }
-  // Keys in Morton order, some in the pruned cube, some repeated.
-  std::vector<octomap::OcTreeKey> keys;
-  for (int k = 0; k < 3000; ++k) keys.push_back(near(around(rng), around(rng), around(rng)));
-  for (int k = 0; k < 300; ++k) keys.push_back(keys[static_cast<std::size_t>(k) * 7]);
-  std::sort(keys.begin(), keys.end(), [](const octomap::OcTreeKey& x, const octomap::OcTreeKey& y) {
-    return MortonOf(x) < MortonOf(y);
-  });
-  const std::size_t before = a.size();
-  TerrainOcTree::LeafWalk walk(b);
-  for (std::size_t k = 0; k < keys.size(); ++k) {
-    TerrainOcTreeNode* from_root = a.TouchLeaf(keys[k]);
-    TerrainOcTreeNode* walked = walk.Touch(keys[k]);
-    ASSERT_EQ(*walked, *from_root) << "key " << k;
-    a.Update(from_root, true, k % 2 == 0);
-    b.Update(walked, true, k % 2 == 0);
+  // A frame: ends (some obstacles) and free voxels, none both, in and out of the cubes (the
+  // small ones' brick each way), and rays through some of the occupied voxels.
+  internal::KeyBricks free_keys, ends, obstacles;
+  std::uniform_int_distribution<int> small(0, 7);
+  for (int k = 0; k < 6000; ++k) {
+    free_keys.Insert(k % 4 == 0 ? near(128 + small(rng), small(rng), small(rng))
+                                : near(around(rng), around(rng), around(rng)));
   }
-  EXPECT_GT(a.size(), before + 1000);  // many nodes made, some expanded from the cube
-  EXPECT_EQ(a.size(), b.size());
-  std::ostringstream sa, sb;
-  a.writeData(sa);
-  b.writeData(sb);
-  EXPECT_EQ(sa.str(), sb.str());
+  for (std::size_t k = 0; k < occupied.size(); k += 2) free_keys.Insert(occupied[k]);
+  for (int k = 0; k < 1500; ++k) {
+    const octomap::OcTreeKey key = k % 4 == 0 ? near(128 + small(rng), small(rng), small(rng))
+                                              : near(around(rng), around(rng), around(rng));
+    if (free_keys.Contains(key)) continue;
+    ends.Insert(key);
+    if (k % 3 == 0) obstacles.Insert(key);
+  }
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+  int changed = 0, was_obstacle = 0;
+  std::vector<octomap::OcTreeKey> free_list, end_list;
+  free_keys.ForEachInMortonOrder(nullptr, order, [&](const octomap::OcTreeKey& key, bool) {
+    const TerrainOcTree::FreeUpdate u = a.UpdateFree(key);
+    changed += u.changed;
+    was_obstacle += u.was_obstacle;
+    free_list.push_back(key);
+  });
+  ends.ForEachInMortonOrder(&obstacles, order, [&](const octomap::OcTreeKey& key, bool obstacle) {
+    a.Update(a.TouchLeaf(key), true, obstacle);
+    end_list.push_back(key);
+  });
+  EXPECT_GT(free_list.size(), 3000u);
+  EXPECT_GT(end_list.size(), 1000u);
+  EXPECT_GT(changed, 1000);
+  EXPECT_LT(changed, static_cast<int>(free_list.size()));  // some in the saturated cube
+  EXPECT_GT(was_obstacle, 0);
+  std::vector<TerrainOcTree::BrickUpdate> bricks;
+  free_keys.ForEachBrickOfEitherInMortonOrder(
+      ends, order,
+      [&](std::uint64_t code, const internal::KeyBricks::Brick* free,
+          const internal::KeyBricks::Brick* hit) {
+        TerrainOcTree::BrickUpdate& u = bricks.emplace_back();
+        u.base = internal::KeyBricks::BaseKeyOf(code);
+        const internal::KeyBricks::Brick* obstacle = obstacles.BrickOf(code);
+        for (int w = 0; w < 8; ++w) {
+          u.free[w] = free != nullptr ? free->bits[w] : 0;
+          u.hit[w] = hit != nullptr ? hit->bits[w] : 0;
+          u.obstacle[w] = obstacle != nullptr ? obstacle->bits[w] : 0;
+        }
+      });
+  EXPECT_GT(bricks.size(), 100u);
+  for (const auto& [tree, threads] : {std::pair{&b, 1}, std::pair{&c, 2}}) {
+    std::vector<TerrainOcTree::BrickUpdate> updated = bricks;
+    tree->UpdateBricks(updated, threads);
+    int tree_changed = 0, tree_was_obstacle = 0;
+    for (const TerrainOcTree::BrickUpdate& u : updated) {
+      tree_changed += u.changed;
+      for (const std::uint64_t w : u.was_obstacle) tree_was_obstacle += __builtin_popcountll(w);
+    }
+    EXPECT_EQ(tree_changed, changed) << threads << " threads";
+    EXPECT_EQ(tree_was_obstacle, was_obstacle) << threads << " threads";
+    EXPECT_EQ(tree->size(), a.size()) << threads << " threads";
+    std::ostringstream sa, st;
+    a.writeData(sa);
+    tree->writeData(st);
+    EXPECT_EQ(st.str(), sa.str()) << threads << " threads";
+  }
 }
 
 // The gravity step's ground planes (libmap/src/ground_rise.hpp), here because this test runs

@@ -102,22 +102,6 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   /// nodes are not updated (call updateInnerOccupancy() after a batch, as with lazy_eval).
   TerrainOcTreeNode* TouchLeaf(const octomap::OcTreeKey& key);
 
-  /// TouchLeaf for keys in turn, each walk resumed from the deepest node it shares with the
-  /// walk before (the nodes on the way are kept): keys in Morton order share most of their
-  /// path. The same tree and leaves as TouchLeaf on each key, as long as nothing else
-  /// changes the tree's structure between two calls (updating a leaf's values is fine).
-  class LeafWalk {
-   public:
-    explicit LeafWalk(TerrainOcTree& tree) : tree_(tree) {}
-    TerrainOcTreeNode* Touch(const octomap::OcTreeKey& key);
-
-   private:
-    TerrainOcTree& tree_;
-    octomap::OcTreeKey last_;
-    bool started_ = false;
-    TerrainOcTreeNode* path_[17] = {};  // path_[d]: the node at depth d of the last walk
-  };
-
   /// One update of both log-odds of a leaf, clamped with the tree's thresholds:
   /// `occupied` adds the hit (else the miss) log-odds to occupancy; `obstacle` adds the hit
   /// (else the miss) log-odds to the obstacle value.
@@ -150,22 +134,31 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   int UpdateFreeBrick(const octomap::OcTreeKey& base, const std::uint64_t (&voxels)[8],
                       std::uint64_t (&was_obstacle)[8]);
 
-  /// Free updates of many bricks, as UpdateFreeBrick on each in turn, on up to `threads`
-  /// threads (0: every core): the same tree and answers when the bricks come in the Morton
-  /// order of their bases (KeyBricks::ForEachBrickInMortonOrder's), as the sequential
-  /// updates would leave them in that order. The bricks are split by their subtree a few
-  /// levels above them (Morton order keeps each subtree's bricks together, which the
-  /// threads rely on: a subtree met twice would be updated by two threads at once); the
-  /// path to each subtree is walked first, in order, on one thread, then the subtrees,
-  /// which share no node, each on one thread. UpdateFree, UpdateFreeBrick and TouchLeaf
-  /// are the references the tests hold this and LeafWalk to.
-  struct FreeBrick {
+  /// A frame's updates of one brick (whose first voxel is `base`), its voxels' bits as
+  /// UpdateFreeBrick's: `free` a free update each (a ray passed through), `hit` an occupied
+  /// one (a return ended there: TouchLeaf, then Update with occupied true), with an
+  /// obstacle hit where `obstacle` has the voxel too. No voxel is in both `free` and `hit`.
+  struct BrickUpdate {
     octomap::OcTreeKey base;
-    std::uint64_t voxels[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-    std::uint64_t was_obstacle[8] = {0, 0, 0, 0, 0, 0, 0, 0};  ///< out
-    int changed = 0;                                           ///< out
+    std::uint64_t free[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    std::uint64_t hit[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    std::uint64_t obstacle[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    std::uint64_t was_obstacle[8] = {0, 0, 0, 0, 0, 0, 0, 0};  ///< out: of the free voxels
+    int changed = 0;  ///< out: free voxels that changed (UpdateFreeBrick's count)
   };
-  void UpdateFreeBricks(std::vector<FreeBrick>& bricks, int threads);
+  /// The updates of many bricks, each voxel's as UpdateFree or TouchLeaf and Update make it,
+  /// walking the tree to each brick once and down to each voxel in the brick's Morton order.
+  /// Each leaf takes one update, and a hit expands the pruned nodes above it that a free update
+  /// stops at, whichever comes first: the tree and the answers are those of all the free
+  /// updates first (UpdateFreeBrick on each brick in turn), then all the hits. On up to
+  /// `threads` threads (0: every core), the bricks in the Morton order of their bases
+  /// (KeyBricks::ForEachBrickInMortonOrder's): they are split by their subtree a few levels
+  /// above them (Morton order keeps each subtree's bricks together, which the threads rely
+  /// on: a subtree met twice would be updated by two threads at once); the path to each
+  /// subtree is walked first, in order, on one thread, then the subtrees, which share no
+  /// node, each on one thread. UpdateFree, UpdateFreeBrick and TouchLeaf are the references
+  /// the tests hold this to.
+  void UpdateBricks(std::vector<BrickUpdate>& bricks, int threads);
 
   /// Whether a node is saturated free in both values (a free update changes nothing).
   bool IsSaturatedFree(const TerrainOcTreeNode& node) const {
@@ -193,13 +186,14 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   // (Defined in terrain_octree.cpp, the only user, inline in its walks.)
   inline TerrainOcTreeNode* Step(TerrainOcTreeNode* node, unsigned pos, bool& created,
                                  bool free_update, std::size_t& made);
-  // The walk from the root down to `depth` along `key` (free updates), as UpdateFreeBrick
-  // makes it; null inside a pruned node saturated free.
-  TerrainOcTreeNode* WalkFree(const octomap::OcTreeKey& key, unsigned depth, bool& created);
-  // UpdateFreeBrick's work below `node`, at `depth` on the path to the brick (reached with
-  // `created`); the nodes made are counted into `made`.
-  int UpdateFreeBrickBelow(TerrainOcTreeNode* node, unsigned depth, bool created, FreeBrick& brick,
-                           std::size_t& made);
+  // The walk from the root down to `depth` along `key`, as UpdateFreeBrick makes it (null
+  // inside a pruned node saturated free), or, with `hits`, as TouchLeaf does.
+  TerrainOcTreeNode* WalkDown(const octomap::OcTreeKey& key, unsigned depth, bool hits,
+                              bool& created);
+  // UpdateBricks' work on one brick below `node`, at `depth` on the path to it (reached with
+  // `created`); the nodes made are counted into `made`. Returns the free voxels changed.
+  int UpdateBrickBelow(TerrainOcTreeNode* node, unsigned depth, bool created, BrickUpdate& brick,
+                       std::size_t& made);
   void CountMade(std::size_t made) {
     tree_size += made;
     if (made > 0) size_changed = true;
