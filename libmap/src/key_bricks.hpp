@@ -138,6 +138,8 @@ class KeyBricks {
   void ForEachBrickOfEitherInMortonOrder(
       const KeyBricks& other, std::vector<std::pair<std::uint64_t, std::uint32_t>>& order,
       F&& f) const {
+    assert(bricks_.size() < (std::size_t{1} << 31) &&
+           other.bricks_.size() < (std::size_t{1} << 31));
     order.clear();
     for (std::uint32_t i = 0; i < bricks_.size(); ++i) order.emplace_back(bricks_[i].code, 2 * i);
     for (std::uint32_t i = 0; i < other.bricks_.size(); ++i) {
@@ -150,7 +152,11 @@ class KeyBricks {
       const Brick* theirs = nullptr;
       for (; k < order.size() && order[k].first == code; ++k) {
         const std::uint32_t i = order[k].second;
-        (i % 2 == 0 ? mine : theirs) = i % 2 == 0 ? &bricks_[i / 2] : &other.bricks_[i / 2];
+        if (i % 2 == 0) {
+          mine = &bricks_[i / 2];
+        } else {
+          theirs = &other.bricks_[i / 2];
+        }
       }
       f(code, mine, theirs);
     }

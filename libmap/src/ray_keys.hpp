@@ -14,7 +14,7 @@
 // (libod's simd.hpp), four to a register (eight under way, 1.1x quicker on the free-space
 // benchmark), the axis picked by masks instead of branches, the key kept as a number that a
 // step adds an axis' stride to (a bit's index in a box of bits). With AVX2 the rays' starts
-// (RayWalk::Begin: the end's key, the direction, seven divisions) are also taken four to a
+// (RayWalk::Begin: the end's key, the direction, nine divisions) are also taken four to a
 // register, 64 rays ahead (BeginRaysAvx2): one at a time, between the steps, they cost a
 // quarter of the walk (FreeRays/walk 20.6 -> 15.3 ms, BENCHMARKS.md).
 #pragma once
@@ -196,6 +196,17 @@ __attribute__((target("avx2"))) void BeginRaysAvx2(const Tree& tree, const octom
   const __m256d most = _mm256_set1_pd(std::numeric_limits<double>::max());
   const int max_val = tree.coordToKey(0.0);  // OctoMap's tree_max_val
   const __m128i vmax = _mm_set1_epi32(max_val), vlimit = _mm_set1_epi32(2 * max_val);
+  // The border of the origin's voxel on each side along each axis: its centre plus half a
+  // voxel, as a float.
+  __m256d border_up[3], border_down[3];
+  for (int a = 0; a < 3; ++a) {
+    const double centre = tree.keyToCoord(origin_key[a]);
+    double up = centre, down = centre;
+    up += static_cast<float>(1 * resolution * 0.5);
+    down += static_cast<float>(-1 * resolution * 0.5);
+    border_up[a] = _mm256_set1_pd(up);
+    border_down[a] = _mm256_set1_pd(down);
+  }
   out.walks = 0;
   for (int j = 0; j < count; j += 4) {
     alignas(16) std::int32_t k[3][4];
@@ -246,14 +257,7 @@ __attribute__((target("avx2"))) void BeginRaysAvx2(const Tree& tree, const octom
       const __m256d d = _mm256_cvtps_pd(_mm_div_ps(dir[a], length));
       const __m256d up = _mm256_cmp_pd(d, _mm256_setzero_pd(), _CMP_GT_OQ);
       const __m256d down = _mm256_cmp_pd(d, _mm256_setzero_pd(), _CMP_LT_OQ);
-      // The border of the origin's voxel on the ray's side: its centre plus half a voxel, as a
-      // float.
-      const double centre = tree.keyToCoord(origin_key[a]);
-      double border_up = centre, border_down = centre;
-      border_up += static_cast<float>(1 * resolution * 0.5);
-      border_down += static_cast<float>(-1 * resolution * 0.5);
-      const __m256d border =
-          _mm256_blendv_pd(_mm256_set1_pd(border_down), _mm256_set1_pd(border_up), up);
+      const __m256d border = _mm256_blendv_pd(border_down[a], border_up[a], up);
       const __m256d moves = _mm256_or_pd(up, down);
       const __m256d t_max =
           _mm256_div_pd(_mm256_sub_pd(border, _mm256_set1_pd(static_cast<double>(origin(a)))), d);

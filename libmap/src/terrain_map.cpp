@@ -139,26 +139,23 @@ struct TerrainMap::Scratch {
   };
   std::vector<Slot> slots;
   std::vector<CellIndex> touched;  // cells stamped this frame
-  // The frame's box of cells (frame_slots'), row by row from frame_lo, frame_width wide: per
-  // cell its lowest in-range return this frame (low_z infinite where none; low_x and low_y
-  // are then stale), and, once a point in it asked (HeightAboveGround), the lowest returns
-  // of the cells within reach at around[around_begin, around_end) (around_begin -1 before)
-  // and the lowest of their heights. Dense: a frame's look-ups of its neighbourhoods read
-  // rows of it instead of each neighbour's slot.
+  // The frame's box of cells: those of its in-range returns in the grid and those within the
+  // ground disc of them, row by row from frame_lo, frame_width wide. Per cell its lowest
+  // in-range return this frame (low_z infinite where none; low_x and low_y are then stale),
+  // and, once a point in it asked (HeightAboveGround), the lowest returns of the cells within
+  // reach at around[around_begin, around_end) (around_begin -1 before) and the lowest of
+  // their heights. Dense: a frame's look-ups of its neighbourhoods read rows of it instead of
+  // each neighbour's slot. Only the cells written (`lowest_set`, `asked`) are reset for the
+  // next frame.
   CellIndex frame_lo = CellIndex::Zero();
   int frame_width = 0;
   std::vector<float> low_x, low_y, low_z;
   std::vector<std::int32_t> around_begin, around_end;
   std::vector<float> lowest_around;
+  std::vector<std::size_t> lowest_set, asked;
   std::vector<std::ptrdiff_t> ground_disc_at;  // ground_disc's offsets in the frame's box
   // Per cell that asked: the lowest returns within reach, coordinate by coordinate.
   std::vector<float> around_x, around_y, around_z;
-
-  // Cell c's place in the frame's box.
-  std::size_t FrameCell(const CellIndex& c) const {
-    return static_cast<std::size_t>(c.y() - frame_lo.y()) * static_cast<std::size_t>(frame_width) +
-           static_cast<std::size_t>(c.x() - frame_lo.x());
-  }
   std::vector<std::uint8_t> point_class;
   std::vector<Eigen::Vector3d> world;  // per pixel: the return (or the clipped ray end)
   std::vector<CellIndex> point_cell;   // per pixel with a return: its cell
@@ -188,6 +185,12 @@ struct TerrainMap::Scratch {
   // dx + r; 0 at the cell itself and beyond inflation_radius.
   std::vector<Cost> inflation_table;
   std::vector<Cost> inflation_box;    // per cell of UpdateCosts' box, the most inflation at it
+
+  // Cell c's place in the frame's box.
+  std::size_t FrameCell(const CellIndex& c) const {
+    return static_cast<std::size_t>(c.y() - frame_lo.y()) * static_cast<std::size_t>(frame_width) +
+           static_cast<std::size_t>(c.x() - frame_lo.x());
+  }
 
   // Cell c's slot for frame `stamp`: reset and listed in `touched` when first met.
   Slot& Stamp(const TerrainGrid& grid, const CellIndex& c, std::int64_t stamp) {
@@ -484,23 +487,38 @@ Status TerrainMap::PlaceReturns(const od::RangeImage& image,
   int reach = 0;
   for (const CellIndex& d : sc.ground_disc) reach = std::max(reach, d.cwiseAbs().maxCoeff());
   sc.frame_slots.Reset(grid_, Grow(lo, -reach), Grow(hi, reach));
-  sc.frame_lo = Grow(lo, -reach);
-  sc.frame_width = hi.x() - lo.x() + 1 + 2 * reach;
+  sc.point_slot.assign(n, -1);
+  CellIndex in_lo = CellIndex::Constant(std::numeric_limits<int>::max());
+  CellIndex in_hi = CellIndex::Constant(std::numeric_limits<int>::min());
+  for (int i = 0; i < n; ++i) {
+    if (sc.point_class[i] == kNone) continue;
+    sc.point_slot[i] = sc.frame_slots(sc.point_cell[i]);
+    if (sc.point_class[i] == kGround && sc.point_slot[i] >= 0) {
+      in_lo = in_lo.cwiseMin(sc.point_cell[i]);
+      in_hi = in_hi.cwiseMax(sc.point_cell[i]);
+    }
+  }
+  // The dense box: last frame's cells reset, then laid out afresh (cleared where it grows).
+  for (const std::size_t at : sc.lowest_set) sc.low_z[at] = kInfinity;
+  for (const std::size_t at : sc.asked) sc.around_begin[at] = -1;
+  sc.lowest_set.clear();
+  sc.asked.clear();
+  if (in_lo.x() > in_hi.x()) in_lo = in_hi = lo;  // no return in range: any box
+  sc.frame_lo = Grow(in_lo, -reach);
+  sc.frame_width = in_hi.x() - in_lo.x() + 1 + 2 * reach;
   const std::size_t frame_cells = static_cast<std::size_t>(sc.frame_width) *
-                                  static_cast<std::size_t>(hi.y() - lo.y() + 1 + 2 * reach);
-  sc.low_x.resize(frame_cells);
-  sc.low_y.resize(frame_cells);
-  sc.low_z.assign(frame_cells, kInfinity);
-  sc.around_begin.assign(frame_cells, -1);
-  sc.around_end.resize(frame_cells);
-  sc.lowest_around.resize(frame_cells);
+                                  static_cast<std::size_t>(in_hi.y() - in_lo.y() + 1 + 2 * reach);
+  if (sc.low_z.size() < frame_cells) {
+    sc.low_x.resize(frame_cells);
+    sc.low_y.resize(frame_cells);
+    sc.low_z.resize(frame_cells, kInfinity);
+    sc.around_begin.resize(frame_cells, -1);
+    sc.around_end.resize(frame_cells);
+    sc.lowest_around.resize(frame_cells);
+  }
   sc.ground_disc_at.clear();
   for (const CellIndex& d : sc.ground_disc) {
     sc.ground_disc_at.push_back(static_cast<std::ptrdiff_t>(d.y()) * sc.frame_width + d.x());
-  }
-  sc.point_slot.assign(n, -1);
-  for (int i = 0; i < n; ++i) {
-    if (sc.point_class[i] != kNone) sc.point_slot[i] = sc.frame_slots(sc.point_cell[i]);
   }
   return Status::Ok();
 }
@@ -517,6 +535,7 @@ void TerrainMap::FindLowestReturns(std::int64_t stamp, FrameSummary& summary) {
     sc.Stamp(static_cast<std::size_t>(sc.point_slot[i]), sc.point_cell[i], stamp);
     const std::size_t at = sc.FrameCell(sc.point_cell[i]);
     if (sc.world[i].z() < sc.low_z[at]) {
+      if (sc.low_z[at] == kInfinity) sc.lowest_set.push_back(at);
       sc.low_x[at] = static_cast<float>(sc.world[i].x());
       sc.low_y[at] = static_cast<float>(sc.world[i].y());
       sc.low_z[at] = static_cast<float>(sc.world[i].z());
@@ -558,6 +577,7 @@ std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, 
     sc.around_x.resize(end);
     sc.around_y.resize(end);
     sc.around_z.resize(end);
+    sc.asked.push_back(at);
     sc.around_begin[at] = static_cast<std::int32_t>(begin);
     sc.around_end[at] = static_cast<std::int32_t>(end);
     sc.lowest_around[at] = lowest;

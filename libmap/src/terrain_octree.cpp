@@ -214,14 +214,7 @@ inline TerrainOcTreeNode* TerrainOcTree::Step(TerrainOcTreeNode* node, unsigned 
 
 TerrainOcTreeNode* TerrainOcTree::TouchLeaf(const octomap::OcTreeKey& key) {
   bool created = false;
-  std::size_t made = 0;
-  TerrainOcTreeNode* node = Root(created);
-  for (unsigned depth = 0; depth < tree_depth; ++depth) {
-    node = Step(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth)),
-                created, false, made);
-  }
-  CountMade(made);
-  return node;
+  return WalkDown(key, tree_depth, false, created);
 }
 
 namespace {
@@ -243,23 +236,16 @@ inline TerrainOcTree::FreeUpdate TerrainOcTree::FreeLeaf(TerrainOcTreeNode* leaf
 
 TerrainOcTree::FreeUpdate TerrainOcTree::UpdateFree(const octomap::OcTreeKey& key) {
   bool created = false;
-  std::size_t made = 0;
-  TerrainOcTreeNode* node = Root(created);
-  for (unsigned depth = 0; depth < tree_depth && node != nullptr; ++depth) {
-    node = Step(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth)),
-                created, true, made);
-  }
-  CountMade(made);
-  return FreeLeaf(node);
+  return FreeLeaf(WalkDown(key, tree_depth, true, created));
 }
 
-TerrainOcTreeNode* TerrainOcTree::WalkDown(const octomap::OcTreeKey& key, unsigned depth, bool hits,
-                                           bool& created) {
+TerrainOcTreeNode* TerrainOcTree::WalkDown(const octomap::OcTreeKey& key, unsigned depth,
+                                           bool free_update, bool& created) {
   std::size_t made = 0;
   TerrainOcTreeNode* node = Root(created);
   for (unsigned d = 0; d < depth && node != nullptr; ++d) {
     node = Step(node, octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - d)), created,
-                !hits, made);
+                free_update, made);
   }
   CountMade(made);
   return node;
@@ -369,7 +355,7 @@ void TerrainOcTree::UpdateBricks(std::vector<BrickUpdate>& bricks, int threads) 
     // With a hit below it, the subtree's node is reached as TouchLeaf reaches it.
     const bool hits =
         std::any_of(with_voxels, last, [](const BrickUpdate& b) { return AnyVoxel(b.hit); });
-    t.node = WalkDown(with_voxels->base, depth, hits, t.created);
+    t.node = WalkDown(with_voxels->base, depth, !hits, t.created);
     if (t.node != nullptr) subtrees.push_back(t);
   }
   std::vector<std::size_t> made(static_cast<std::size_t>(std::max(1, od::ThreadCount(threads))), 0);

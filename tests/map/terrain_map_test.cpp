@@ -132,7 +132,9 @@ TEST(TerrainMap, LethalCellsAreTheBoxFootprint) {
 // ground_radius of p horizontally, lies below p by obstacle_min_height plus the rise of ground
 // at ground_max_slope over |p - q|_xy, in the map's float arithmetic; checked against every
 // cell's lowest return, on hills with poles and boxes (ground lower and higher around them),
-// one frame at a time into fresh maps: the frame's count and each cell's.
+// one frame at a time into fresh maps: the frame's count and each cell's; and the frames'
+// counts in one map that takes them all, unbounded and in a rolling window smaller than the
+// frames (the returns outside it count for nothing, and their cells are not ground).
 TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
   sim::Scene scene(sim::Terrain::Hills(0.0, {sim::SineWave{0.4, 6.0, 0.3, 0.0}}));
   const double poles[][2] = {{4, 1}, {6, -1.5}, {8, 0.5}, {10, -0.5}};
@@ -143,11 +145,60 @@ TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
   const MapConfig config;
   const float rise = static_cast<float>(std::tan(config.ground_max_slope_rad));
   const float reach2 = static_cast<float>(config.ground_radius_m * config.ground_radius_m);
-  int frames = 0, obstacle_points = 0, foot_points = 0;
+  int frames = 0, obstacle_points = 0, foot_points = 0, outside = 0;
+  TerrainMap all = NewMap(config);
+  MapConfig rolling_config = config;
+  rolling_config.window_size_m = 10.0;
+  TerrainMap rolling = NewMap(rolling_config);
   for (const double heading : {0.0, 20.0, -25.0}) {
-    const Expected<SimFrame> frame = test::CameraFrame(
-        scene, Camera(), CameraPose({0.0, 0.0, 1.5}, heading, 15.0), 0.0, 0, settings);
+    const Expected<SimFrame> frame =
+        test::CameraFrame(scene, Camera(), CameraPose({0.0, 0.0, 1.5}, heading, 15.0), frames * 0.1,
+                          frames, settings);
     ASSERT_TRUE(frame.ok()) << frame.error().message;
+    // The definition's count over the returns whose cells `in` holds.
+    const auto definition = [&](const std::function<bool(const CellIndex&)>& in) {
+      std::vector<Eigen::Vector3f> lowest_in;
+      std::map<std::pair<int, int>, std::size_t> lowest_of;
+      std::vector<Eigen::Vector3f> kept_in;
+      for (int i = 0; i < frame->image.size(); ++i) {
+        if (!frame->image.valid(i)) continue;
+        const Eigen::Vector3d p = frame->image.point(i);
+        const double range = p.norm();
+        if (!(range > 0.0) || range > config.max_range_m) continue;
+        const Eigen::Vector3d w = frame->T_world_sensor * p;
+        const CellIndex c = all.grid().IndexOf(w.head<2>());
+        if (!in(c)) continue;
+        const auto [at, made] = lowest_of.emplace(std::pair(c.x(), c.y()), lowest_in.size());
+        if (made) lowest_in.push_back(w.cast<float>());
+        if (w.z() < lowest_in[at->second].z()) lowest_in[at->second] = w.cast<float>();
+        const int label = frame->detection.labels[i];
+        if (label > 0 && frame->classification.verdicts[label - 1].cls == od::SegmentClass::kKept) {
+          kept_in.push_back(w.cast<float>());
+        }
+      }
+      int count = 0;
+      for (const Eigen::Vector3f& p : kept_in) {
+        float height = -std::numeric_limits<float>::infinity();
+        for (const Eigen::Vector3f& q : lowest_in) {
+          const float dx = p.x() - q.x(), dy = p.y() - q.y();
+          const float dxy2 = dx * dx + dy * dy;
+          if (dxy2 > reach2) continue;
+          height = std::max(height, p.z() - q.z() - rise * std::sqrt(dxy2));
+        }
+        count += height >= static_cast<float>(config.obstacle_min_height_m);
+      }
+      return count;
+    };
+    const Expected<FrameSummary> in_all = frame->IntegrateInto(all);
+    const Expected<FrameSummary> in_window = frame->IntegrateInto(rolling);
+    ASSERT_TRUE(in_all.ok() && in_window.ok());
+    const TerrainGrid& window = rolling.grid();
+    EXPECT_EQ(in_all->obstacle_points, definition([](const CellIndex&) { return true; }))
+        << "heading " << heading;
+    EXPECT_EQ(in_window->obstacle_points,
+              definition([&](const CellIndex& c) { return window.Contains(c); }))
+        << "heading " << heading;
+    outside += in_all->obstacle_points - in_window->obstacle_points;
     TerrainMap map = NewMap(config);
     const Expected<FrameSummary> summary = frame->IntegrateInto(map);
     ASSERT_TRUE(summary.ok()) << summary.error().message;
@@ -219,6 +270,62 @@ TEST(TerrainMap, ObstaclePointsAreThoseTheDefinitionNames) {
   EXPECT_EQ(frames, 3);
   EXPECT_GT(obstacle_points, 300);  // the objects' points
   EXPECT_GT(foot_points, 20);       // their feet
+  EXPECT_GT(outside, 50);           // obstacle points out of the window
+}
+
+// A rolling window smaller than the frame: the octree takes the free voxels and the ends
+// inside the window and nothing outside it, each as the unbounded map takes it.
+TEST(TerrainMap, TheRollingOctreeTakesTheVoxelsInsideItsWindow) {
+  sim::Scene scene(sim::Terrain::Hills(0.0, {sim::SineWave{0.4, 6.0, 0.3, 0.0}}));
+  for (const double x : {3.0, 6.0, 9.0, 12.0}) scene.AddPole(x, 0.5, 0.1, 1.2, true);
+  const Expected<SimFrame> frame = test::CameraFrame(
+      scene, Camera(), CameraPose({0.0, 0.0, 1.5}, 0.0, 15.0), 0.0, 0, Settings());
+  ASSERT_TRUE(frame.ok()) << frame.error().message;
+  MapConfig config;
+  config.max_range_m = 15.0;
+  TerrainMap unbounded = NewMap(config);
+  config.window_size_m = 10.0;  // 5 m each way of the sensor
+  TerrainMap rolling = NewMap(config);
+  const Expected<FrameSummary> all = frame->IntegrateInto(unbounded);
+  const Expected<FrameSummary> in = frame->IntegrateInto(rolling);
+  ASSERT_TRUE(all.ok() && in.ok());
+  const double s = config.cell_size_m;
+  const TerrainGrid& grid = rolling.grid();
+  const Eigen::Vector2d lo = grid.min_index().cast<double>() * s;
+  const Eigen::Vector2d hi = (grid.min_index() + grid.extent()).cast<double>() * s;
+  const auto inside = [&](double x, double y) {
+    return x >= lo.x() && x < hi.x() && y >= lo.y() && y < hi.y();
+  };
+  const TerrainOcTree& a = rolling.octree();
+  const TerrainOcTree& b = unbounded.octree();
+  std::size_t leaves = 0;
+  for (auto it = a.begin_leafs(), end = a.end_leafs(); it != end; ++it) {
+    ASSERT_TRUE(inside(it.getX(), it.getY())) << it.getX() << ", " << it.getY();
+    ++leaves;
+  }
+  // The unbounded map's voxels inside: the rolling map's, with the same values; its ends
+  // inside: those the rolling map counts.
+  std::size_t compared = 0, outside = 0;
+  double ends_inside = 0.0;
+  for (auto it = b.begin_leafs(), end = b.end_leafs(); it != end; ++it) {
+    const double half = it.getSize() / 2.0;
+    if (!inside(it.getX() - half, it.getY() - half) ||
+        !inside(it.getX() + half - 1e-6, it.getY() + half - 1e-6)) {
+      outside += !inside(it.getX(), it.getY());
+      continue;
+    }
+    if (it->getLogOdds() > 0.0f) ends_inside += std::pow(it.getSize() / config.voxel_size_m, 3.0);
+    const TerrainOcTreeNode* other = a.search(it.getKey(), it.getDepth());
+    ASSERT_NE(other, nullptr);
+    ASSERT_EQ(other->getLogOdds(), it->getLogOdds());
+    ASSERT_EQ(other->obstacle_log_odds(), it->obstacle_log_odds());
+    ++compared;
+  }
+  EXPECT_GT(compared, 1000u);
+  EXPECT_GT(outside, 1000u);
+  EXPECT_GT(leaves, 1000u);
+  EXPECT_EQ(static_cast<double>(in->voxels_occupied), std::round(ends_inside));
+  EXPECT_LT(in->voxels_occupied, all->voxels_occupied);
 }
 
 TEST(TerrainMap, EveryCostIsTheBruteForceInflationOfTheLethalCells) {
@@ -817,7 +924,7 @@ TEST(RayKeys, RaysInTurnVisitTheKeysOfEachRayInOrder) {
         od::internal::CapVectorLanes(lanes);
         for (const std::size_t count :
              {ends.size(), std::size_t{1}, std::size_t{2}, std::size_t{3}, std::size_t{5},
-              std::size_t{7}, std::size_t{9}, std::size_t{13}}) {
+              std::size_t{7}, std::size_t{9}, std::size_t{13}, std::size_t{64}, std::size_t{65}}) {
           std::vector<std::vector<octomap::OcTreeKey>> in_turn(count);
           internal::ForEachRayKeyInTurn(tree, origin, ends.data(), ends.data() + count, layout,
                                         [&](std::size_t ray, std::int64_t n) {
@@ -950,6 +1057,69 @@ TEST(KeyBricks, ADenseBoxHoldsTheSameKeysAsHashing) {
         octomap::OcTreeKey(static_cast<octomap::key_type>(hi[0] + 9), lo[1], lo[2])));
     EXPECT_EQ(dense.Contains(lo), hashed.Contains(lo));
   }
+}
+
+// The bricks of either of two sets (one indexed in a box, one hashed, as a frame's free voxels
+// and ends are), each once, in Morton order, each with the same brick of each set; BrickOf
+// finds a set's brick by its code, and none outside the box or where nothing was put.
+TEST(KeyBricks, TheBricksOfEitherSetComeOnceInMortonOrder) {
+  std::mt19937 rng(23);
+  std::vector<octomap::OcTreeKey> keys = RayKeys(rng, 400);
+  keys.resize(keys.size() - 6);  // without RayKeys' keys at the ends of the key range
+  octomap::OcTreeKey lo = keys.front(), hi = keys.front();
+  for (const octomap::OcTreeKey& k : keys) {
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = std::min(lo[i], k[i]);
+      hi[i] = std::max(hi[i], k[i]);
+    }
+  }
+  internal::KeyBricks mine, theirs;
+  mine.Clear(lo, hi);
+  theirs.Clear();
+  // Brick (Morton code) -> which sets hold a key in it.
+  std::map<std::uint64_t, int> reference;
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    const std::uint64_t code = MortonOf(keys[k]) >> 9;
+    if (k % 3 != 2) {
+      mine.Insert(keys[k]);
+      reference[code] |= 1;
+    }
+    if (k % 3 != 0 || k % 7 == 0) {
+      theirs.Insert(keys[k]);
+      reference[code] |= 2;
+    }
+  }
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+  std::map<std::uint64_t, int> seen;
+  std::uint64_t last = 0;
+  bool first = true, ordered = true;
+  mine.ForEachBrickOfEitherInMortonOrder(
+      theirs, order,
+      [&](std::uint64_t code, const internal::KeyBricks::Brick* a,
+          const internal::KeyBricks::Brick* b) {
+        ordered = ordered && (first || code > last);
+        first = false;
+        last = code;
+        seen[code] = (a != nullptr ? 1 : 0) | (b != nullptr ? 2 : 0);
+        EXPECT_EQ(a, mine.BrickOf(code));
+        EXPECT_EQ(b, theirs.BrickOf(code));
+        for (const internal::KeyBricks::Brick* brick : {a, b}) {
+          if (brick == nullptr) continue;
+          EXPECT_EQ(brick->code, code);
+          EXPECT_TRUE(std::any_of(std::begin(brick->bits), std::end(brick->bits),
+                                  [](std::uint64_t w) { return w != 0; }));
+        }
+      });
+  EXPECT_TRUE(ordered);
+  EXPECT_EQ(seen, reference);
+  int both = 0, one = 0;
+  for (const auto& [code, sets] : reference) (sets == 3 ? both : one) += 1;
+  EXPECT_GT(both, 100);
+  EXPECT_GT(one, 10);
+  const std::uint64_t beyond =
+      MortonOf(octomap::OcTreeKey(static_cast<octomap::key_type>(hi[0] + 16), lo[1], lo[2])) >> 9;
+  EXPECT_EQ(mine.BrickOf(beyond), nullptr);
+  EXPECT_EQ(theirs.BrickOf(beyond), nullptr);
 }
 
 TEST(KeyBricks, HoldsEveryKeyOnceAndGivesThemInMortonOrder) {
@@ -1252,10 +1422,10 @@ TEST(TerrainOcTree, NodesMadeAndFreedOnDifferentThreadsKeepEveryTreeWhole) {
 
 // A frame's free voxels and ends a brick at a time (UpdateBricks, on one and two threads)
 // make the tree of all the free updates from the root first and then every end touched from
-// the root (TouchLeaf), through pruned nodes saturated free at every level, from above the
-// subtrees UpdateBricks splits by (128 voxels a side) down to two voxels, pruned nodes that
-// are not saturated, existing and new nodes, with the same answers: free voxels changed,
-// obstacles seen through.
+// the root (TouchLeaf), through pruned nodes saturated free at every level, from one of 128
+// voxels a side (above the 64-voxel subtrees UpdateBricks splits by) down to two voxels, pruned
+// nodes that are not saturated, existing and new nodes, with the same answers: free voxels
+// changed, obstacles seen through.
 TEST(TerrainOcTree, BrickUpdatesEqualFreeUpdatesThenTouches) {
   std::mt19937 rng(11);
   TerrainOcTree a(0.1), b(0.1), c(0.1);

@@ -152,7 +152,7 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   /// stops at, whichever comes first: the tree and the answers are those of all the free
   /// updates first (UpdateFreeBrick on each brick in turn), then all the hits. On up to
   /// `threads` threads (0: every core), the bricks in the Morton order of their bases
-  /// (KeyBricks::ForEachBrickInMortonOrder's): they are split by their subtree a few levels
+  /// (KeyBricks::ForEachBrickOfEitherInMortonOrder's): they are split by their subtree a few levels
   /// above them (Morton order keeps each subtree's bricks together, which the threads rely
   /// on: a subtree met twice would be updated by two threads at once); the path to each
   /// subtree is walked first, in order, on one thread, then the subtrees, which share no
@@ -186,9 +186,9 @@ class TerrainOcTree : public octomap::OccupancyOcTreeBase<TerrainOcTreeNode> {
   // (Defined in terrain_octree.cpp, the only user, inline in its walks.)
   inline TerrainOcTreeNode* Step(TerrainOcTreeNode* node, unsigned pos, bool& created,
                                  bool free_update, std::size_t& made);
-  // The walk from the root down to `depth` along `key`, as UpdateFreeBrick makes it (null
-  // inside a pruned node saturated free), or, with `hits`, as TouchLeaf does.
-  TerrainOcTreeNode* WalkDown(const octomap::OcTreeKey& key, unsigned depth, bool hits,
+  // The walk from the root down to `depth` along `key`: a free update's (null inside a
+  // pruned node saturated free), or TouchLeaf's (`free_update` false).
+  TerrainOcTreeNode* WalkDown(const octomap::OcTreeKey& key, unsigned depth, bool free_update,
                               bool& created);
   // UpdateBricks' work on one brick below `node`, at `depth` on the path to it (reached with
   // `created`); the nodes made are counted into `made`. Returns the free voxels changed.
