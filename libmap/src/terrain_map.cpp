@@ -145,14 +145,12 @@ struct TerrainMap::Scratch {
   // and, once a point in it asked (HeightAboveGround), the lowest returns of the cells within
   // reach at around[around_begin, around_end) (around_begin -1 before) and the lowest of
   // their heights. Dense: a frame's look-ups of its neighbourhoods read rows of it instead of
-  // each neighbour's slot. Only the cells written (`lowest_set`, `asked`) are reset for the
-  // next frame.
+  // each neighbour's slot.
   CellIndex frame_lo = CellIndex::Zero();
   int frame_width = 0;
   std::vector<float> low_x, low_y, low_z;
   std::vector<std::int32_t> around_begin, around_end;
   std::vector<float> lowest_around;
-  std::vector<std::size_t> lowest_set, asked;
   std::vector<std::ptrdiff_t> ground_disc_at;  // ground_disc's offsets in the frame's box
   // Per cell that asked: the lowest returns within reach, coordinate by coordinate.
   std::vector<float> around_x, around_y, around_z;
@@ -498,24 +496,18 @@ Status TerrainMap::PlaceReturns(const od::RangeImage& image,
       in_hi = in_hi.cwiseMax(sc.point_cell[i]);
     }
   }
-  // The dense box: last frame's cells reset, then laid out afresh (cleared where it grows).
-  for (const std::size_t at : sc.lowest_set) sc.low_z[at] = kInfinity;
-  for (const std::size_t at : sc.asked) sc.around_begin[at] = -1;
-  sc.lowest_set.clear();
-  sc.asked.clear();
+  // The dense box, afresh.
   if (in_lo.x() > in_hi.x()) in_lo = in_hi = lo;  // no return in range: any box
   sc.frame_lo = Grow(in_lo, -reach);
   sc.frame_width = in_hi.x() - in_lo.x() + 1 + 2 * reach;
   const std::size_t frame_cells = static_cast<std::size_t>(sc.frame_width) *
                                   static_cast<std::size_t>(in_hi.y() - in_lo.y() + 1 + 2 * reach);
-  if (sc.low_z.size() < frame_cells) {
-    sc.low_x.resize(frame_cells);
-    sc.low_y.resize(frame_cells);
-    sc.low_z.resize(frame_cells, kInfinity);
-    sc.around_begin.resize(frame_cells, -1);
-    sc.around_end.resize(frame_cells);
-    sc.lowest_around.resize(frame_cells);
-  }
+  sc.low_x.resize(frame_cells);
+  sc.low_y.resize(frame_cells);
+  sc.low_z.assign(frame_cells, kInfinity);
+  sc.around_begin.assign(frame_cells, -1);
+  sc.around_end.resize(frame_cells);
+  sc.lowest_around.resize(frame_cells);
   sc.ground_disc_at.clear();
   for (const CellIndex& d : sc.ground_disc) {
     sc.ground_disc_at.push_back(static_cast<std::ptrdiff_t>(d.y()) * sc.frame_width + d.x());
@@ -535,7 +527,6 @@ void TerrainMap::FindLowestReturns(std::int64_t stamp, FrameSummary& summary) {
     sc.Stamp(static_cast<std::size_t>(sc.point_slot[i]), sc.point_cell[i], stamp);
     const std::size_t at = sc.FrameCell(sc.point_cell[i]);
     if (sc.world[i].z() < sc.low_z[at]) {
-      if (sc.low_z[at] == kInfinity) sc.lowest_set.push_back(at);
       sc.low_x[at] = static_cast<float>(sc.world[i].x());
       sc.low_y[at] = static_cast<float>(sc.world[i].y());
       sc.low_z[at] = static_cast<float>(sc.world[i].z());
@@ -577,7 +568,6 @@ std::pair<float, float> TerrainMap::HeightAboveGround(const Eigen::Vector3d& p, 
     sc.around_x.resize(end);
     sc.around_y.resize(end);
     sc.around_z.resize(end);
-    sc.asked.push_back(at);
     sc.around_begin[at] = static_cast<std::int32_t>(begin);
     sc.around_end[at] = static_cast<std::int32_t>(end);
     sc.lowest_around[at] = lowest;
