@@ -956,6 +956,19 @@ TEST(RayKeys, RaysInTurnVisitTheKeysOfEachRayInOrder) {
   EXPECT_GT(keys_compared, 1000000);
 }
 
+// The least and the greatest key along each axis.
+std::pair<octomap::OcTreeKey, octomap::OcTreeKey> BoxOf(
+    const std::vector<octomap::OcTreeKey>& keys) {
+  octomap::OcTreeKey lo = keys.front(), hi = keys.front();
+  for (const octomap::OcTreeKey& k : keys) {
+    for (int i = 0; i < 3; ++i) {
+      lo[i] = std::min(lo[i], k[i]);
+      hi[i] = std::max(hi[i], k[i]);
+    }
+  }
+  return {lo, hi};
+}
+
 // A box of bits hands over the keys set in it: the same set as inserting them one by one,
 // keys on the box's margin (one beyond the keys it was made for) included; MoveInto empties
 // it for the next frame, and so does a Reset after keys were set and not handed over; a box
@@ -964,13 +977,7 @@ TEST(KeyBitBox, HandsOverTheKeysSetInIt) {
   std::mt19937 rng(23);
   std::vector<octomap::OcTreeKey> keys = RayKeys(rng, 400);
   keys.resize(keys.size() - 6);  // without RayKeys' keys at the ends of the key range
-  octomap::OcTreeKey lo = keys.front(), hi = keys.front();
-  for (const octomap::OcTreeKey& k : keys) {
-    for (int i = 0; i < 3; ++i) {
-      lo[i] = std::min(lo[i], k[i]);
-      hi[i] = std::max(hi[i], k[i]);
-    }
-  }
+  const auto [lo, hi] = BoxOf(keys);
   const auto shifted = [](const octomap::OcTreeKey& k, int by) {
     return octomap::OcTreeKey(static_cast<octomap::key_type>(k[0] + by),
                               static_cast<octomap::key_type>(k[1] + by),
@@ -1015,13 +1022,7 @@ TEST(KeyBitBox, HandsOverTheKeysSetInIt) {
 TEST(KeyBricks, ADenseBoxHoldsTheSameKeysAsHashing) {
   std::mt19937 rng(17);
   const std::vector<octomap::OcTreeKey> keys = RayKeys(rng, 700);
-  octomap::OcTreeKey lo = keys.front(), hi = keys.front();
-  for (const octomap::OcTreeKey& k : keys) {
-    for (int i = 0; i < 3; ++i) {
-      lo[i] = std::min(lo[i], k[i]);
-      hi[i] = std::max(hi[i], k[i]);
-    }
-  }
+  const auto [lo, hi] = BoxOf(keys);
   internal::KeyBricks hashed, dense, dense_half, other_half;
   for (int pass = 0; pass < 2; ++pass) {
     hashed.Clear();
@@ -1066,13 +1067,7 @@ TEST(KeyBricks, TheBricksOfEitherSetComeOnceInMortonOrder) {
   std::mt19937 rng(23);
   std::vector<octomap::OcTreeKey> keys = RayKeys(rng, 400);
   keys.resize(keys.size() - 6);  // without RayKeys' keys at the ends of the key range
-  octomap::OcTreeKey lo = keys.front(), hi = keys.front();
-  for (const octomap::OcTreeKey& k : keys) {
-    for (int i = 0; i < 3; ++i) {
-      lo[i] = std::min(lo[i], k[i]);
-      hi[i] = std::max(hi[i], k[i]);
-    }
-  }
+  const auto [lo, hi] = BoxOf(keys);
   internal::KeyBricks mine, theirs;
   mine.Clear(lo, hi);
   theirs.Clear();
