@@ -956,6 +956,14 @@ TEST(RayKeys, RaysInTurnVisitTheKeysOfEachRayInOrder) {
   EXPECT_GT(keys_compared, 1000000);
 }
 
+// A tree's nodes as OctoMap's stream holds them: two trees with the same bytes are the same
+// tree, node for node.
+std::string TreeBytes(const TerrainOcTree& tree) {
+  std::ostringstream bytes;
+  tree.writeData(bytes);
+  return bytes.str();
+}
+
 // The least and the greatest key along each axis.
 std::pair<octomap::OcTreeKey, octomap::OcTreeKey> BoxOf(
     const std::vector<octomap::OcTreeKey>& keys) {
@@ -1258,10 +1266,7 @@ TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
     }
     EXPECT_EQ(tree_changed, brick_changed) << threads << " threads";
     EXPECT_EQ(tree->size(), b.size()) << threads << " threads";
-    std::ostringstream sb, st;
-    b.writeData(sb);
-    tree->writeData(st);
-    EXPECT_EQ(st.str(), sb.str()) << threads << " threads";
+    EXPECT_TRUE(TreeBytes(*tree) == TreeBytes(b)) << threads << " threads";
   }
   EXPECT_EQ(brick_changed, changed);
   EXPECT_EQ(brick_obstacles, obstacles);
@@ -1269,10 +1274,7 @@ TEST(TerrainOcTree, FreeUpdatesOfABrickEqualThoseFromTheRoot) {
   EXPECT_GT(unchanged, 100);  // inside the pruned saturated regions
   EXPECT_GT(obstacles, 0);
   EXPECT_EQ(a.size(), b.size());
-  std::ostringstream sa, sb;
-  a.writeData(sa);
-  b.writeData(sb);
-  EXPECT_EQ(sa.str(), sb.str());
+  EXPECT_TRUE(TreeBytes(a) == TreeBytes(b));
 }
 
 // Collapsing only what is saturated free keeps every leaf's values, deletes nodes, and
@@ -1326,10 +1328,7 @@ TEST(TerrainOcTree, PruningWhatIsSaturatedFreeKeepsTheLeavesAndTheFullPrune) {
       t->updateInnerOccupancy();
       t->prune();
     }
-    std::ostringstream sx, sy;
-    x.writeData(sx);
-    y.writeData(sy);
-    EXPECT_TRUE(sx.str() == sy.str()) << "the trees' bytes differ";
+    EXPECT_TRUE(TreeBytes(x) == TreeBytes(y)) << "the trees' bytes differ";
     EXPECT_EQ(x.size(), y.size());
   };
   // A rolling window's cut through nodes pruned in one and not in the other (b fully pruned
@@ -1546,10 +1545,7 @@ TEST(TerrainOcTree, BrickUpdatesEqualFreeUpdatesThenTouches) {
     EXPECT_EQ(tree_changed, changed) << threads << " threads";
     EXPECT_EQ(tree_was_obstacle, was_obstacle) << threads << " threads";
     EXPECT_EQ(tree->size(), a.size()) << threads << " threads";
-    std::ostringstream sa, st;
-    a.writeData(sa);
-    tree->writeData(st);
-    EXPECT_EQ(st.str(), sa.str()) << threads << " threads";
+    EXPECT_TRUE(TreeBytes(*tree) == TreeBytes(a)) << threads << " threads";
   }
 }
 
