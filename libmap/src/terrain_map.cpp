@@ -7,6 +7,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 #include <utility>
@@ -14,6 +15,7 @@
 #include "cairn/od/parallel.hpp"
 #include "cairn/util/format.hpp"
 #include "key_bricks.hpp"
+#include "place_returns.hpp"
 #include "ray_keys.hpp"
 #include "simd.hpp"  // libod/src: the processor's vector width
 
@@ -119,15 +121,139 @@ bool SolvePlane(const double (&n)[6], const Eigen::Vector3d& rhs, double s,
   return true;
 }
 
-// What one return is, for this frame.
-enum PointClass : std::uint8_t {
-  kNone = 0,     // no return
-  kFar = 1,      // beyond max_range: free space up to max_range, nothing else
-  kGround = 2,   // in range, not an obstacle point
-  kObstacle = 3  // in range, kept segment, above its foot
-};
+using internal::kFar;
+using internal::kGround;
+using internal::kNone;
+using internal::kObstacle;
+
+#if defined(CAIRN_OD_WIDE_VECTORS)
+// PlacePixels four pixels at a time (AVX2), from pixel 0 on; returns the first pixel left (fewer
+// than four before n). m holds T_world_sensor's rotation row by row, then its translation.
+__attribute__((target("avx2"))) int PlacePixelsAvx2(const float* x, const float* y, const float* z,
+                                                    const std::uint8_t* valid_mask, int n,
+                                                    const double (&m)[12], double max_range_m,
+                                                    double cell_size_m, std::uint8_t* point_class,
+                                                    Eigen::Vector3d* world, CellIndex* cell,
+                                                    int& valid, CellIndex& lo, CellIndex& hi) {
+  const __m256d zero = _mm256_setzero_pd(), max_range = _mm256_set1_pd(max_range_m);
+  const __m256d size = _mm256_set1_pd(cell_size_m);
+  __m256d r[12];
+  for (int k = 0; k < 12; ++k) r[k] = _mm256_set1_pd(m[k]);
+  __m128i lo_x = _mm_set1_epi32(lo.x()), lo_y = _mm_set1_epi32(lo.y());
+  __m128i hi_x = _mm_set1_epi32(hi.x()), hi_y = _mm_set1_epi32(hi.y());
+  alignas(32) double wx[4], wy[4], wz[4];
+  int placed_count = 0, i = 0;
+  for (; i + 4 <= n; i += 4) {
+    std::int32_t bytes;
+    std::memcpy(&bytes, valid_mask + i, sizeof bytes);
+    const __m256d has_return = _mm256_castsi256_pd(_mm256_xor_si256(
+        _mm256_cmpeq_epi64(_mm256_cvtepu8_epi64(_mm_cvtsi32_si128(bytes)), _mm256_setzero_si256()),
+        _mm256_set1_epi64x(-1)));
+    const __m256d px = _mm256_cvtps_pd(_mm_loadu_ps(x + i));
+    const __m256d py = _mm256_cvtps_pd(_mm_loadu_ps(y + i));
+    const __m256d pz = _mm256_cvtps_pd(_mm_loadu_ps(z + i));
+    // p.norm(), then the cut, as the one-pixel path has them.
+    const __m256d range = _mm256_sqrt_pd(_mm256_add_pd(
+        _mm256_add_pd(_mm256_mul_pd(px, px), _mm256_mul_pd(py, py)), _mm256_mul_pd(pz, pz)));
+    const __m256d placed = _mm256_and_pd(has_return, _mm256_cmp_pd(range, zero, _CMP_GT_OQ));
+    const __m256d far = _mm256_and_pd(placed, _mm256_cmp_pd(range, max_range, _CMP_GT_OQ));
+    const __m256d scale = _mm256_div_pd(max_range, range);
+    const __m256d qx = _mm256_blendv_pd(px, _mm256_mul_pd(px, scale), far);
+    const __m256d qy = _mm256_blendv_pd(py, _mm256_mul_pd(py, scale), far);
+    const __m256d qz = _mm256_blendv_pd(pz, _mm256_mul_pd(pz, scale), far);
+    // Row k of R times q, plus the translation's k (a lambda would not take the target).
+    __m256d v[3];
+    for (int k = 0; k < 3; ++k) {
+      v[k] = _mm256_add_pd(
+          _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(r[3 * k], qx), _mm256_mul_pd(r[3 * k + 1], qy)),
+                        _mm256_mul_pd(r[3 * k + 2], qz)),
+          r[9 + k]);
+    }
+    const __m256d vx = v[0], vy = v[1], vz = v[2];
+    _mm256_store_pd(wx, vx);
+    _mm256_store_pd(wy, vy);
+    _mm256_store_pd(wz, vz);
+    // IndexOf: floor(coordinate / size), exact in doubles, as ints.
+    const __m128i cx = _mm256_cvtpd_epi32(
+        _mm256_round_pd(_mm256_div_pd(vx, size), _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
+    const __m128i cy = _mm256_cvtpd_epi32(
+        _mm256_round_pd(_mm256_div_pd(vy, size), _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
+    auto* const to = reinterpret_cast<__m128i*>(cell + i);
+    _mm_storeu_si128(to, _mm_unpacklo_epi32(cx, cy));
+    _mm_storeu_si128(to + 1, _mm_unpackhi_epi32(cx, cy));
+    // The cells' bounds over the placed pixels only (the others' lanes keep the bounds).
+    const __m128i in = _mm256_cvtpd_epi32(_mm256_and_pd(placed, _mm256_set1_pd(-1.0)));
+    lo_x = _mm_min_epi32(lo_x, _mm_blendv_epi8(lo_x, cx, in));
+    lo_y = _mm_min_epi32(lo_y, _mm_blendv_epi8(lo_y, cy, in));
+    hi_x = _mm_max_epi32(hi_x, _mm_blendv_epi8(hi_x, cx, in));
+    hi_y = _mm_max_epi32(hi_y, _mm_blendv_epi8(hi_y, cy, in));
+    const int is_placed = _mm256_movemask_pd(placed), is_far = _mm256_movemask_pd(far);
+    placed_count += __builtin_popcount(static_cast<unsigned>(is_placed));
+    for (int l = 0; l < 4; ++l) {
+      point_class[i + l] = ((is_placed >> l) & 1) == 0 ? kNone
+                           : ((is_far >> l) & 1)       ? kFar
+                                                       : kGround;
+      world[i + l] = Eigen::Vector3d(wx[l], wy[l], wz[l]);
+    }
+  }
+  alignas(16) std::int32_t b[4][4];
+  _mm_store_si128(reinterpret_cast<__m128i*>(b[0]), lo_x);
+  _mm_store_si128(reinterpret_cast<__m128i*>(b[1]), lo_y);
+  _mm_store_si128(reinterpret_cast<__m128i*>(b[2]), hi_x);
+  _mm_store_si128(reinterpret_cast<__m128i*>(b[3]), hi_y);
+  for (int l = 0; l < 4; ++l) {
+    lo = lo.cwiseMin(CellIndex(b[0][l], b[1][l]));
+    hi = hi.cwiseMax(CellIndex(b[2][l], b[3][l]));
+  }
+  valid += placed_count;
+  return i;
+}
+#endif
 
 }  // namespace
+
+namespace internal {
+
+void PlacePixels(const od::RangeImage& image, const Eigen::Isometry3d& T_world_sensor,
+                 double max_range_m, const TerrainGrid& grid, int lanes, std::uint8_t* point_class,
+                 Eigen::Vector3d* world, CellIndex* cell, int& valid, CellIndex& lo,
+                 CellIndex& hi) {
+  const int n = image.size();
+  int i = 0;
+#if defined(CAIRN_OD_WIDE_VECTORS)
+  if (lanes >= 8) {
+    const Eigen::Matrix3d& R = T_world_sensor.linear();
+    const Eigen::Vector3d& t = T_world_sensor.translation();
+    const double m[12] = {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
+                          R(2, 0), R(2, 1), R(2, 2), t.x(),   t.y(),   t.z()};
+    i = PlacePixelsAvx2(image.x().data(), image.y().data(), image.z().data(),
+                        image.valid_mask().data(), n, m, max_range_m, grid.cell_size(), point_class,
+                        world, cell, valid, lo, hi);
+  }
+#else
+  (void)lanes;
+#endif
+  for (; i < n; ++i) {
+    point_class[i] = kNone;
+    if (!image.valid(i)) continue;
+    const Eigen::Vector3d p = image.point(i);
+    const double range = p.norm();
+    if (!(range > 0.0)) continue;
+    ++valid;
+    if (range > max_range_m) {
+      point_class[i] = kFar;
+      world[i] = T_world_sensor * (p * (max_range_m / range));
+    } else {
+      point_class[i] = kGround;
+      world[i] = T_world_sensor * p;
+    }
+    cell[i] = grid.IndexOf(world[i].head<2>());
+    lo = lo.cwiseMin(cell[i]);
+    hi = hi.cwiseMax(cell[i]);
+  }
+}
+
+}  // namespace internal
 
 // Per-slot values that live for one frame (stamped with the frame, reset lazily).
 struct TerrainMap::Scratch {
@@ -443,29 +569,16 @@ Status TerrainMap::PlaceReturns(const od::RangeImage& image,
                                 const Eigen::Isometry3d& T_world_sensor, FrameSummary& summary) {
   Scratch& sc = *scratch_;
   const int n = image.size();
-  sc.point_class.assign(n, kNone);
+  sc.point_class.resize(n);
   sc.world.resize(n);
   sc.point_cell.resize(n);
   CellIndex lo = grid_.IndexOf(T_world_sensor.translation().head<2>());
   CellIndex hi = lo;
-  for (int i = 0; i < n; ++i) {
-    if (!image.valid(i)) continue;
-    const Eigen::Vector3d p = image.point(i);
-    const double range = p.norm();
-    if (!(range > 0.0)) continue;
-    ++summary.valid_points;
-    if (range > config_.max_range_m) {
-      sc.point_class[i] = kFar;
-      sc.world[i] = T_world_sensor * (p * (config_.max_range_m / range));
-    } else {
-      sc.point_class[i] = kGround;
-      sc.world[i] = T_world_sensor * p;
-    }
-    const CellIndex c = grid_.IndexOf(sc.world[i].head<2>());
-    sc.point_cell[i] = c;
-    lo = lo.cwiseMin(c);
-    hi = hi.cwiseMax(c);
-  }
+  int valid = 0;
+  internal::PlacePixels(image, T_world_sensor, config_.max_range_m, grid_,
+                        od::internal::VectorLanes(), sc.point_class.data(), sc.world.data(),
+                        sc.point_cell.data(), valid, lo, hi);
+  summary.valid_points += valid;
   if (!grid_.rolling() && summary.valid_points > 0) {
     CellIndex new_lo = lo, new_hi = hi;
     if (grid_.extent().x() > 0) {

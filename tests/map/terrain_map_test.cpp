@@ -27,6 +27,7 @@
 #include "cairn/sim/scene.hpp"
 #include "ground_rise.hpp"  // libmap/src: the gravity step's ground seen twice
 #include "key_bricks.hpp"   // libmap/src: the free-space key set
+#include "place_returns.hpp"  // libmap/src: the returns placed in the world
 #include "ray_keys.hpp"     // libmap/src: the ray walk
 #include "sim_frames.hpp"
 #include "simd.hpp"  // libod/src: the vector width
@@ -483,6 +484,91 @@ TEST(TerrainMap, EverySlopeIsThePlaneFittedToTheNeighboursElevations) {
       EXPECT_GT(too_few, 0) << where;  // a wider disc always finds three
     }
   }
+}
+
+// Each return's class, world point and cell (TerrainMap's first pass over a frame) four pixels
+// at a time (AVX2) against one at a time, bit for bit, with the count and the cells' bounds:
+// frames with holes and far returns cut at max_range, seen from tilted poses far from the origin
+// (cells on both sides of zero), on images whose width leaves pixels after the last four.
+TEST(TerrainMap, PlacesReturnsAlikeFourAtATimeAndOneAtATime) {
+  const UncapLanesAtEnd uncap;
+  const int widest = od::internal::VectorLanes();
+  if (widest < 8) {
+    std::printf("note: no AVX2 here: the returns placed four at a time were not compared\n");
+  }
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int far = 0, none = 0, in_range = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    od::PinholeModel model;
+    model.width = 37 + trial;  // 37 .. 60: every remainder of four
+    model.height = 29;
+    model.fx = model.fy = 30.0;
+    model.cx = model.width / 2.0;
+    model.cy = model.height / 2.0;
+    std::vector<float> depth(static_cast<std::size_t>(model.width) * model.height);
+    for (float& d : depth) {
+      const double u = unit(rng);
+      d = u < 0.1    ? 0.0f
+          : u < 0.15 ? std::numeric_limits<float>::quiet_NaN()
+                     : static_cast<float>(0.2 + 59.8 * unit(rng));
+    }
+    Expected<od::RangeImage> image =
+        od::RangeImage::FromDepth(depth, model, Eigen::Vector3d(0.0, -1.0, 0.0));
+    ASSERT_TRUE(image.ok()) << image.error().message;
+    const Eigen::Vector3d axis = Eigen::Vector3d::Random().normalized();
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(3.0 * unit(rng), axis).toRotationMatrix();
+    T.translation() = Eigen::Vector3d(1000.0 * unit(rng) - 500.0, 1000.0 * unit(rng) - 500.0,
+                                      10.0 * unit(rng) - 5.0);
+    const double max_range = trial % 3 == 0 ? 1000.0 : 5.0 + 30.0 * unit(rng);
+    const TerrainGrid grid(trial % 2 == 0 ? 0.2 : 0.35, 0);
+    struct Placed {
+      std::vector<std::uint8_t> cls;
+      std::vector<Eigen::Vector3d> world;
+      std::vector<CellIndex> cell;
+      int valid = 0;
+      CellIndex lo, hi;
+    };
+    const auto place = [&](int lanes) {
+      od::internal::CapVectorLanes(lanes);
+      const int n = image->size();
+      Placed p{std::vector<std::uint8_t>(n),
+               std::vector<Eigen::Vector3d>(n),
+               std::vector<CellIndex>(n),
+               0,
+               CellIndex(3, -4),
+               CellIndex(3, -4)};
+      internal::PlacePixels(*image, T, max_range, grid, od::internal::VectorLanes(), p.cls.data(),
+                            p.world.data(), p.cell.data(), p.valid, p.lo, p.hi);
+      return p;
+    };
+    const Placed one = place(1), wide = place(0);
+    const std::string where = "trial " + std::to_string(trial) + ", pixel ";
+    for (int i = 0; i < image->size(); ++i) {
+      ASSERT_EQ(one.cls[i], wide.cls[i]) << where << i;
+      if (one.cls[i] == internal::kNone) {
+        ++none;
+        continue;
+      }
+      (one.cls[i] == internal::kFar ? far : in_range) += 1;
+      // The one-pixel path is PlaceReturns' own arithmetic: p, or p cut to max_range, placed.
+      const Eigen::Vector3d p = image->point(i);
+      const double range = p.norm();
+      const Eigen::Vector3d expected = range > max_range ? T * (p * (max_range / range)) : T * p;
+      ASSERT_TRUE(one.world[i] == expected) << where << i;
+      ASSERT_TRUE(wide.world[i] == one.world[i]) << where << i << ": " << wide.world[i].transpose()
+                                                 << " against " << one.world[i].transpose();
+      ASSERT_EQ(one.cell[i], grid.IndexOf(expected.head<2>())) << where << i;
+      ASSERT_EQ(wide.cell[i], one.cell[i]) << where << i;
+    }
+    EXPECT_EQ(wide.valid, one.valid);
+    EXPECT_EQ(wide.lo, one.lo);
+    EXPECT_EQ(wide.hi, one.hi);
+  }
+  EXPECT_GT(far, 1000);
+  EXPECT_GT(none, 1000);
+  EXPECT_GT(in_range, 1000);
 }
 
 // A pole seen in one frame only (a false obstacle, or an object that went away) is cleared
