@@ -6,7 +6,10 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <new>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "cairn/od/detector.hpp"
@@ -14,10 +17,31 @@
 
 namespace cairn::od::internal {
 
+/// An allocator whose elements are default-initialised, so left as they are for numbers:
+/// std::vector<T, DefaultInit<T>>(n) allocates without the fill that std::vector<T>(n) does,
+/// for arrays that every element of is written before it is read.
+template <typename T>
+struct DefaultInit : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = DefaultInit<U>;
+  };
+  using std::allocator<T>::allocator;
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    if constexpr (sizeof...(Args) == 0) {
+      ::new (static_cast<void*>(p)) U;
+    } else {
+      ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+    }
+  }
+};
+
 /// Points in the level frame (z up along gravity), structure of arrays, NaN when invalid.
 /// Computed on up to `threads` threads (0: all).
 struct LevelPoints {
-  std::vector<float> x, y, z;
+  // Written whole by the constructor, in parts on its threads: not filled beforehand.
+  std::vector<float, DefaultInit<float>> x, y, z;
   /// The valid points' extent in x and y (+inf / -inf when there are none) and their count,
   /// taken as the points are stored.
   float x_min = std::numeric_limits<float>::infinity(), x_max = -x_min;

@@ -77,7 +77,8 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
   const int ny = static_cast<int>((y_hi - y_lo) / side) + 1;
   const int rings = std::max(1, static_cast<int>(std::ceil(reach / side)));
   const std::size_t cells = static_cast<std::size_t>(nx) * ny;
-  std::vector<std::int32_t> cell(n, -1);
+  // Each point's cell (-1: none), written by the first pass below, so not filled first.
+  std::vector<std::int32_t, DefaultInit<std::int32_t>> cell(n);
   // Each worker's highest and lowest point per cell, then the workers' together.
   // Rounding may put a point lying on a cell boundary in the neighbouring cell (off by far
   // less than a micrometre): the margin below covers it.
@@ -108,7 +109,10 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
         const int end = part_begin(k + 1);
         for (int i = part_begin(k); i < end; ++i) {
           const float zi = z[i];
-          if (std::isnan(zi)) continue;
+          if (std::isnan(zi)) {
+            cells_of[i] = -1;
+            continue;
+          }
           const int cx = std::clamp(static_cast<int>((x[i] - x0) * scale), 0, cols - 1);
           const int cy = std::clamp(static_cast<int>((y[i] - y0) * scale), 0, rows - 1);
           const std::int32_t j = cy * cols + cx;
