@@ -129,12 +129,10 @@ using internal::kObstacle;
 #if defined(CAIRN_OD_WIDE_VECTORS)
 // PlacePixels four pixels at a time (AVX2), from pixel 0 on; returns the first pixel left (fewer
 // than four before n). m holds T_world_sensor's rotation row by row, then its translation.
-__attribute__((target("avx2"))) int PlacePixelsAvx2(const float* x, const float* y, const float* z,
-                                                    const std::uint8_t* valid_mask, int n,
-                                                    const double (&m)[12], double max_range_m,
-                                                    double cell_size_m, std::uint8_t* point_class,
-                                                    Eigen::Vector3d* world, CellIndex* cell,
-                                                    int& valid, CellIndex& lo, CellIndex& hi) {
+__attribute__((target("avx2,popcnt"))) int PlacePixelsAvx2(
+    const float* x, const float* y, const float* z, const std::uint8_t* valid_mask, int n,
+    const double (&m)[12], double max_range_m, double cell_size_m, std::uint8_t* point_class,
+    Eigen::Vector3d* world, CellIndex* cell, int& valid, CellIndex& lo, CellIndex& hi) {
   const __m256d zero = _mm256_setzero_pd(), max_range = _mm256_set1_pd(max_range_m);
   const __m256d size = _mm256_set1_pd(cell_size_m);
   __m256d r[12];
@@ -161,7 +159,7 @@ __attribute__((target("avx2"))) int PlacePixelsAvx2(const float* x, const float*
     const __m256d qx = _mm256_blendv_pd(px, _mm256_mul_pd(px, scale), far);
     const __m256d qy = _mm256_blendv_pd(py, _mm256_mul_pd(py, scale), far);
     const __m256d qz = _mm256_blendv_pd(pz, _mm256_mul_pd(pz, scale), far);
-    // Row k of R times q, plus the translation's k (a lambda would not take the target).
+    // Row k of R times q, plus the translation's k.
     __m256d v[3];
     for (int k = 0; k < 3; ++k) {
       v[k] = _mm256_add_pd(
@@ -214,11 +212,11 @@ __attribute__((target("avx2"))) int PlacePixelsAvx2(const float* x, const float*
 
 namespace internal {
 
-void PlacePixels(const od::RangeImage& image, const Eigen::Isometry3d& T_world_sensor,
-                 double max_range_m, const TerrainGrid& grid, int lanes, std::uint8_t* point_class,
+void PlacePixels(const float* x, const float* y, const float* z, const std::uint8_t* valid_mask,
+                 int n, const Eigen::Isometry3d& T_world_sensor, double max_range_m,
+                 const TerrainGrid& grid, int lanes, std::uint8_t* point_class,
                  Eigen::Vector3d* world, CellIndex* cell, int& valid, CellIndex& lo,
                  CellIndex& hi) {
-  const int n = image.size();
   int i = 0;
 #if defined(CAIRN_OD_WIDE_VECTORS)
   if (lanes >= 8) {
@@ -226,8 +224,7 @@ void PlacePixels(const od::RangeImage& image, const Eigen::Isometry3d& T_world_s
     const Eigen::Vector3d& t = T_world_sensor.translation();
     const double m[12] = {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
                           R(2, 0), R(2, 1), R(2, 2), t.x(),   t.y(),   t.z()};
-    i = PlacePixelsAvx2(image.x().data(), image.y().data(), image.z().data(),
-                        image.valid_mask().data(), n, m, max_range_m, grid.cell_size(), point_class,
+    i = PlacePixelsAvx2(x, y, z, valid_mask, n, m, max_range_m, grid.cell_size(), point_class,
                         world, cell, valid, lo, hi);
   }
 #else
@@ -235,8 +232,8 @@ void PlacePixels(const od::RangeImage& image, const Eigen::Isometry3d& T_world_s
 #endif
   for (; i < n; ++i) {
     point_class[i] = kNone;
-    if (!image.valid(i)) continue;
-    const Eigen::Vector3d p = image.point(i);
+    if (valid_mask[i] == 0) continue;
+    const Eigen::Vector3d p(x[i], y[i], z[i]);  // as RangeImage::point
     const double range = p.norm();
     if (!(range > 0.0)) continue;
     ++valid;
@@ -281,7 +278,7 @@ struct TerrainMap::Scratch {
   // Per cell that asked: the lowest returns within reach, coordinate by coordinate.
   std::vector<float> around_x, around_y, around_z;
   std::vector<std::uint8_t> point_class;
-  std::vector<Eigen::Vector3d> world;  // per pixel: the return (or the clipped ray end)
+  std::vector<Eigen::Vector3d> world;  // per pixel with a return: it (or its clipped ray end)
   std::vector<CellIndex> point_cell;   // per pixel with a return: its cell
   std::vector<std::ptrdiff_t> point_slot;  // and that cell's slot, -1 outside the grid
   TerrainGrid::SlotTable frame_slots;      // the frame's cells and those within the ground disc
@@ -575,7 +572,8 @@ Status TerrainMap::PlaceReturns(const od::RangeImage& image,
   CellIndex lo = grid_.IndexOf(T_world_sensor.translation().head<2>());
   CellIndex hi = lo;
   int valid = 0;
-  internal::PlacePixels(image, T_world_sensor, config_.max_range_m, grid_,
+  internal::PlacePixels(image.x().data(), image.y().data(), image.z().data(),
+                        image.valid_mask().data(), n, T_world_sensor, config_.max_range_m, grid_,
                         od::internal::VectorLanes(), sc.point_class.data(), sc.world.data(),
                         sc.point_cell.data(), valid, lo, hi);
   summary.valid_points += valid;

@@ -18,13 +18,13 @@
 namespace cairn::od::internal {
 
 /// An allocator whose elements are default-initialised, so left as they are for numbers:
-/// std::vector<T, DefaultInit<T>>(n) allocates without the fill that std::vector<T>(n) does,
-/// for arrays that every element of is written before it is read.
+/// std::vector<T, DefaultInitAllocator<T>>(n) allocates without the fill that std::vector<T>(n)
+/// does, for arrays that every element of is written before it is read.
 template <typename T>
-struct DefaultInit : std::allocator<T> {
+struct DefaultInitAllocator : std::allocator<T> {
   template <typename U>
   struct rebind {
-    using other = DefaultInit<U>;
+    using other = DefaultInitAllocator<U>;
   };
   using std::allocator<T>::allocator;
   template <typename U, typename... Args>
@@ -40,8 +40,8 @@ struct DefaultInit : std::allocator<T> {
 /// Points in the level frame (z up along gravity), structure of arrays, NaN when invalid.
 /// Computed on up to `threads` threads (0: all).
 struct LevelPoints {
-  // Written whole by the constructor, in parts on its threads: not filled beforehand.
-  std::vector<float, DefaultInit<float>> x, y, z;
+  /// Written whole by the constructor, in parts on its threads: not filled beforehand.
+  std::vector<float, DefaultInitAllocator<float>> x, y, z;
   /// The valid points' extent in x and y (+inf / -inf when there are none) and their count,
   /// taken as the points are stored.
   float x_min = std::numeric_limits<float>::infinity(), x_max = -x_min;

@@ -78,7 +78,7 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
   const int rings = std::max(1, static_cast<int>(std::ceil(reach / side)));
   const std::size_t cells = static_cast<std::size_t>(nx) * ny;
   // Each point's cell (-1: none), written by the first pass below, so not filled first.
-  std::vector<std::int32_t, DefaultInit<std::int32_t>> cell(n);
+  std::vector<std::int32_t, DefaultInitAllocator<std::int32_t>> cell(n);
   // Each worker's highest and lowest point per cell, then the workers' together.
   // Rounding may put a point lying on a cell boundary in the neighbouring cell (off by far
   // less than a micrometre): the margin below covers it.

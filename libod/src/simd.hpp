@@ -4,17 +4,16 @@
 // at run time: with AVX2 the exact search's hits, box tests, packing and its leaves' ranks by
 // height, the column baseline's whole columns, the features' gathering of segment pixels,
 // surface normals and slope angles (four doubles at a time, bit for bit; and libmap's
-// free-space rays, ray_keys.hpp, eight under way, and its terrain's plane fits, four cells at a
-// time, terrain_map.cpp), with AVX-512F the same sixteen (or eight
-// doubles) at a time, and also the column baseline's neighbourhoods and dense windows. The
-// column baseline's gathering of columns and its binned columns' keys take AVX2 with either.
-// Capped to one lane, the searches run their scalar code (the level points are still rotated
-// four at a time, and the features' angles taken two at a time).
-// Every path does the pair test's float operations in the same order (no fused multiply-add:
-// the library is built with -ffp-contract=off), so every width gives the same obstacle points,
-// segments and features (the counts of pairs tested, and found where not every pair is sought,
-// differ); the tests run each width the processor has against the definition and against each
-// other.
+// free-space rays, ray_keys.hpp, eight under way, its terrain's plane fits, four cells at a
+// time, and its placement of returns, four pixels at a time, terrain_map.cpp), with AVX-512F the
+// same sixteen (or eight doubles) at a time, and also the column baseline's neighbourhoods and
+// dense windows. The column baseline's gathering of columns and its binned columns' keys take AVX2
+// with either. Capped to one lane, the searches run their scalar code (the level points are still
+// rotated four at a time, and the features' angles taken two at a time). Every path does the pair
+// test's float operations in the same order (no fused multiply-add: the library is built with
+// -ffp-contract=off), so every width gives the same obstacle points, segments and features (the
+// counts of pairs tested, and found where not every pair is sought, differ); the tests run each
+// width the processor has against the definition and against each other.
 #pragma once
 
 #include <array>

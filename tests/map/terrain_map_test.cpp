@@ -487,38 +487,50 @@ TEST(TerrainMap, EverySlopeIsThePlaneFittedToTheNeighboursElevations) {
 }
 
 // Each return's class, world point and cell (TerrainMap's first pass over a frame) four pixels
-// at a time (AVX2) against one at a time, bit for bit, with the count and the cells' bounds:
-// frames with holes and far returns cut at max_range, seen from tilted poses far from the origin
-// (cells on both sides of zero), on images whose width leaves pixels after the last four.
+// at a time (AVX2) against one at a time, bit for bit, with the count and the cells' bounds, over
+// pixels with and without a return: returns in range and far ones cut at max_range; pixels
+// marked without a return whose coordinates are finite, some far out (their cells would move
+// either bound); returns at the origin and returns with a NaN coordinate (both no return); mask
+// bytes other than 1. Seen from tilted poses far from the origin (cells on both sides of zero),
+// over every remainder of four pixels.
 TEST(TerrainMap, PlacesReturnsAlikeFourAtATimeAndOneAtATime) {
   const UncapLanesAtEnd uncap;
-  const int widest = od::internal::VectorLanes();
-  if (widest < 8) {
+  if (od::internal::VectorLanes() < 8) {
     std::printf("note: no AVX2 here: the returns placed four at a time were not compared\n");
   }
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
-  int far = 0, none = 0, in_range = 0;
+  constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+  int far = 0, in_range = 0, none = 0, odd = 0;
   for (int trial = 0; trial < 24; ++trial) {
-    od::PinholeModel model;
-    model.width = 37 + trial;  // 37 .. 60: every remainder of four
-    model.height = 29;
-    model.fx = model.fy = 30.0;
-    model.cx = model.width / 2.0;
-    model.cy = model.height / 2.0;
-    std::vector<float> depth(static_cast<std::size_t>(model.width) * model.height);
-    for (float& d : depth) {
-      const double u = unit(rng);
-      d = u < 0.1    ? 0.0f
-          : u < 0.15 ? std::numeric_limits<float>::quiet_NaN()
-                     : static_cast<float>(0.2 + 59.8 * unit(rng));
+    const int n = 1001 + trial;  // every remainder of four
+    std::vector<float> x(n), y(n), z(n);
+    std::vector<std::uint8_t> has_return(n);
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3d d =
+          Eigen::Vector3d(unit(rng) - 0.5, unit(rng) - 0.5, unit(rng) - 0.5).normalized();
+      const double range = 0.2 + 59.8 * unit(rng);
+      x[i] = static_cast<float>(range * d.x());
+      y[i] = static_cast<float>(range * d.y());
+      z[i] = static_cast<float>(range * d.z());
+      has_return[i] = unit(rng) < 0.1 ? 255 : 1;
+      const double kind = unit(rng);
+      if (kind < 0.1) {  // no return, its coordinates left finite, some far out
+        has_return[i] = 0;
+        if (kind < 0.03) x[i] = y[i] = static_cast<float>(kind < 0.015 ? 1e5 : -1e5);
+      } else if (kind < 0.13) {  // at the origin
+        x[i] = y[i] = z[i] = 0.0f;
+        ++odd;
+      } else if (kind < 0.16) {  // a NaN coordinate
+        (kind < 0.14 ? x[i] : kind < 0.15 ? y[i] : z[i]) = kNaN;
+        ++odd;
+      }
     }
-    Expected<od::RangeImage> image =
-        od::RangeImage::FromDepth(depth, model, Eigen::Vector3d(0.0, -1.0, 0.0));
-    ASSERT_TRUE(image.ok()) << image.error().message;
-    const Eigen::Vector3d axis = Eigen::Vector3d::Random().normalized();
+    const double angle = 3.0 * unit(rng);
+    const Eigen::Vector3d axis =
+        Eigen::Vector3d(unit(rng) - 0.5, unit(rng) - 0.5, unit(rng) - 0.5).normalized();
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = Eigen::AngleAxisd(3.0 * unit(rng), axis).toRotationMatrix();
+    T.linear() = Eigen::AngleAxisd(angle, axis).toRotationMatrix();
     T.translation() = Eigen::Vector3d(1000.0 * unit(rng) - 500.0, 1000.0 * unit(rng) - 500.0,
                                       10.0 * unit(rng) - 5.0);
     const double max_range = trial % 3 == 0 ? 1000.0 : 5.0 + 30.0 * unit(rng);
@@ -530,45 +542,61 @@ TEST(TerrainMap, PlacesReturnsAlikeFourAtATimeAndOneAtATime) {
       int valid = 0;
       CellIndex lo, hi;
     };
+    const CellIndex start = grid.IndexOf(T.translation().head<2>());
     const auto place = [&](int lanes) {
       od::internal::CapVectorLanes(lanes);
-      const int n = image->size();
       Placed p{std::vector<std::uint8_t>(n),
                std::vector<Eigen::Vector3d>(n),
                std::vector<CellIndex>(n),
                0,
-               CellIndex(3, -4),
-               CellIndex(3, -4)};
-      internal::PlacePixels(*image, T, max_range, grid, od::internal::VectorLanes(), p.cls.data(),
-                            p.world.data(), p.cell.data(), p.valid, p.lo, p.hi);
+               start,
+               start};
+      internal::PlacePixels(x.data(), y.data(), z.data(), has_return.data(), n, T, max_range, grid,
+                            od::internal::VectorLanes(), p.cls.data(), p.world.data(),
+                            p.cell.data(), p.valid, p.lo, p.hi);
       return p;
     };
     const Placed one = place(1), wide = place(0);
     const std::string where = "trial " + std::to_string(trial) + ", pixel ";
-    for (int i = 0; i < image->size(); ++i) {
-      ASSERT_EQ(one.cls[i], wide.cls[i]) << where << i;
-      if (one.cls[i] == internal::kNone) {
+    int placed = 0;
+    CellIndex lo = start, hi = start;
+    for (int i = 0; i < n; ++i) {
+      // The definition: RangeImage's return, its norm, PlaceReturns' cut and Eigen's pose.
+      const Eigen::Vector3d p(x[i], y[i], z[i]);
+      const double range = p.norm();
+      if (has_return[i] == 0 || !(range > 0.0)) {
+        ASSERT_EQ(one.cls[i], internal::kNone) << where << i;
+        ASSERT_EQ(wide.cls[i], internal::kNone) << where << i;
         ++none;
         continue;
       }
-      (one.cls[i] == internal::kFar ? far : in_range) += 1;
-      // The one-pixel path is PlaceReturns' own arithmetic: p, or p cut to max_range, placed.
-      const Eigen::Vector3d p = image->point(i);
-      const double range = p.norm();
-      const Eigen::Vector3d expected = range > max_range ? T * (p * (max_range / range)) : T * p;
+      const bool is_far = range > max_range;
+      (is_far ? far : in_range) += 1;
+      ++placed;
+      const Eigen::Vector3d expected = is_far ? T * (p * (max_range / range)) : T * p;
+      const CellIndex c = grid.IndexOf(expected.head<2>());
+      lo = lo.cwiseMin(c);
+      hi = hi.cwiseMax(c);
+      const std::uint8_t cls = is_far ? internal::kFar : internal::kGround;
+      ASSERT_EQ(one.cls[i], cls) << where << i;
+      ASSERT_EQ(wide.cls[i], cls) << where << i;
       ASSERT_TRUE(one.world[i] == expected) << where << i;
-      ASSERT_TRUE(wide.world[i] == one.world[i]) << where << i << ": " << wide.world[i].transpose()
-                                                 << " against " << one.world[i].transpose();
-      ASSERT_EQ(one.cell[i], grid.IndexOf(expected.head<2>())) << where << i;
-      ASSERT_EQ(wide.cell[i], one.cell[i]) << where << i;
+      ASSERT_TRUE(wide.world[i] == expected)
+          << where << i << ": " << wide.world[i].transpose() << " against " << expected.transpose();
+      ASSERT_EQ(one.cell[i], c) << where << i;
+      ASSERT_EQ(wide.cell[i], c) << where << i;
     }
-    EXPECT_EQ(wide.valid, one.valid);
-    EXPECT_EQ(wide.lo, one.lo);
-    EXPECT_EQ(wide.hi, one.hi);
+    EXPECT_EQ(one.valid, placed);
+    EXPECT_EQ(wide.valid, placed);
+    EXPECT_EQ(one.lo, lo);
+    EXPECT_EQ(wide.lo, lo);
+    EXPECT_EQ(one.hi, hi);
+    EXPECT_EQ(wide.hi, hi);
   }
   EXPECT_GT(far, 1000);
-  EXPECT_GT(none, 1000);
   EXPECT_GT(in_range, 1000);
+  EXPECT_GT(none, 1000);
+  EXPECT_GT(odd, 1000);
 }
 
 // A pole seen in one frame only (a false obstacle, or an object that went away) is cleared
