@@ -167,15 +167,14 @@ __attribute__((target("avx2,popcnt"))) int PlacePixelsAvx2(
                         _mm256_mul_pd(r[3 * k + 2], qz)),
           r[9 + k]);
     }
-    const __m256d vx = v[0], vy = v[1], vz = v[2];
-    _mm256_store_pd(wx, vx);
-    _mm256_store_pd(wy, vy);
-    _mm256_store_pd(wz, vz);
+    _mm256_store_pd(wx, v[0]);
+    _mm256_store_pd(wy, v[1]);
+    _mm256_store_pd(wz, v[2]);
     // IndexOf: floor(coordinate / size), exact in doubles, as ints.
     const __m128i cx = _mm256_cvtpd_epi32(
-        _mm256_round_pd(_mm256_div_pd(vx, size), _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
+        _mm256_round_pd(_mm256_div_pd(v[0], size), _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
     const __m128i cy = _mm256_cvtpd_epi32(
-        _mm256_round_pd(_mm256_div_pd(vy, size), _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
+        _mm256_round_pd(_mm256_div_pd(v[1], size), _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
     auto* const to = reinterpret_cast<__m128i*>(cell + i);
     _mm_storeu_si128(to, _mm_unpacklo_epi32(cx, cy));
     _mm_storeu_si128(to + 1, _mm_unpackhi_epi32(cx, cy));

@@ -557,41 +557,43 @@ TEST(TerrainMap, PlacesReturnsAlikeFourAtATimeAndOneAtATime) {
       return p;
     };
     const Placed one = place(1), wide = place(0);
-    const std::string where = "trial " + std::to_string(trial) + ", pixel ";
     int placed = 0;
     CellIndex lo = start, hi = start;
     for (int i = 0; i < n; ++i) {
       // The definition: RangeImage's return, its norm, PlaceReturns' cut and Eigen's pose.
       const Eigen::Vector3d p(x[i], y[i], z[i]);
       const double range = p.norm();
-      if (has_return[i] == 0 || !(range > 0.0)) {
-        ASSERT_EQ(one.cls[i], internal::kNone) << where << i;
-        ASSERT_EQ(wide.cls[i], internal::kNone) << where << i;
+      const bool has = has_return[i] != 0 && range > 0.0;
+      const bool is_far = has && range > max_range;
+      const std::uint8_t cls = !has ? internal::kNone : is_far ? internal::kFar : internal::kGround;
+      Eigen::Vector3d expected = Eigen::Vector3d::Zero();
+      CellIndex c = CellIndex::Zero();
+      if (has) {
+        (is_far ? far : in_range) += 1;
+        ++placed;
+        expected = is_far ? T * (p * (max_range / range)) : T * p;
+        c = grid.IndexOf(expected.head<2>());
+        lo = lo.cwiseMin(c);
+        hi = hi.cwiseMax(c);
+      } else {
         ++none;
-        continue;
       }
-      const bool is_far = range > max_range;
-      (is_far ? far : in_range) += 1;
-      ++placed;
-      const Eigen::Vector3d expected = is_far ? T * (p * (max_range / range)) : T * p;
-      const CellIndex c = grid.IndexOf(expected.head<2>());
-      lo = lo.cwiseMin(c);
-      hi = hi.cwiseMax(c);
-      const std::uint8_t cls = is_far ? internal::kFar : internal::kGround;
-      ASSERT_EQ(one.cls[i], cls) << where << i;
-      ASSERT_EQ(wide.cls[i], cls) << where << i;
-      ASSERT_TRUE(one.world[i] == expected) << where << i;
-      ASSERT_TRUE(wide.world[i] == expected)
-          << where << i << ": " << wide.world[i].transpose() << " against " << expected.transpose();
-      ASSERT_EQ(one.cell[i], c) << where << i;
-      ASSERT_EQ(wide.cell[i], c) << where << i;
+      for (const Placed* got : {&one, &wide}) {
+        const std::string where = "trial " + std::to_string(trial) + ", " +
+                                  (got == &one ? "one" : "four") + " at a time, pixel " +
+                                  std::to_string(i);
+        ASSERT_EQ(got->cls[i], cls) << where;
+        if (!has) continue;  // world and cell unspecified
+        ASSERT_TRUE(got->world[i] == expected)
+            << where << ": " << got->world[i].transpose() << " against " << expected.transpose();
+        ASSERT_EQ(got->cell[i], c) << where;
+      }
     }
-    EXPECT_EQ(one.valid, placed);
-    EXPECT_EQ(wide.valid, placed);
-    EXPECT_EQ(one.lo, lo);
-    EXPECT_EQ(wide.lo, lo);
-    EXPECT_EQ(one.hi, hi);
-    EXPECT_EQ(wide.hi, hi);
+    for (const Placed* got : {&one, &wide}) {
+      EXPECT_EQ(got->valid, placed) << "trial " << trial;
+      EXPECT_EQ(got->lo, lo) << "trial " << trial;
+      EXPECT_EQ(got->hi, hi) << "trial " << trial;
+    }
   }
   EXPECT_GT(far, 1000);
   EXPECT_GT(in_range, 1000);
