@@ -166,6 +166,53 @@ TEST(PairSearch, EqualsTheDefinitionAndTheRegionScanOnRandomViews) {
   EXPECT_GE(with_obstacles, 12);
 }
 
+// The feet by their definition (detector.hpp), from pairs tested here one by one: an obstacle
+// point is a foot when it is the upper point of no pair and lies less than HT above its own
+// segment's ground (the lowest of its points); each segment counts its own. On views with several
+// segments, so that a foot measured from another segment's ground shows.
+TEST(PairSearch, FeetFollowTheirDefinitionInEverySegment) {
+  std::mt19937 rng(91);
+  int with_segments = 0;
+  for (int seed = 0; seed < 12; ++seed) {
+    const RangeImage image = RandomView(500 + seed, seed % 2 ? 0.03 : 0.0, 0.05);
+    DetectorConfig config = RandomConfig(rng);
+    config.min_height_m = 0.1 + 0.2 * (seed % 3);  // HT 0.1-0.5 m: a foot band of some height
+    const Detection d = *Detect(image, config);
+    const std::string what = "view " + std::to_string(seed);
+    const internal::LevelPoints level(image);
+    const PairTest test(config);
+    const int n = image.size();
+    std::vector<std::uint8_t> raised(n, 0);
+    for (int i = 0; i < n; ++i) {
+      if (!image.valid(i)) continue;
+      for (int j = 0; j < n; ++j) {
+        if (j == i || !image.valid(j) || !(level.z[j] > level.z[i])) continue;
+        if (test(level.x[j] - level.x[i], level.y[j] - level.y[i], level.z[j] - level.z[i])) {
+          raised[j] = 1;
+        }
+      }
+    }
+    std::vector<float> ground(d.segments.size(), std::numeric_limits<float>::infinity());
+    for (int i = 0; i < n; ++i) {
+      if (d.labels[i] > 0) ground[d.labels[i] - 1] = std::min(ground[d.labels[i] - 1], level.z[i]);
+    }
+    std::vector<int> feet(d.segments.size(), 0);
+    for (int i = 0; i < n; ++i) {
+      const bool foot = d.labels[i] > 0 && !raised[i] &&
+                        static_cast<double>(level.z[i]) - ground[d.labels[i] - 1] <
+                            static_cast<double>(test.min_height);
+      EXPECT_EQ(d.is_foot(i), foot) << what << ", pixel " << i;
+      if (foot) ++feet[d.labels[i] - 1];
+    }
+    for (std::size_t k = 0; k < d.segments.size(); ++k) {
+      EXPECT_EQ(d.segments[k].ground_height_m, ground[k]) << what << ", segment " << k + 1;
+      EXPECT_EQ(d.segments[k].foot_count, feet[k]) << what << ", segment " << k + 1;
+    }
+    with_segments += d.segments.size() >= 2;
+  }
+  EXPECT_GE(with_segments, 6);
+}
+
 // Depths on a 0.1 m lattice seen by a level camera with integer fx = fy and pixel-centred rays:
 // coordinates are multiples of 0.1 m, so many pairs sit exactly on HT, Hmax and the slope,
 // where rounding decides. A tenth of the pixels have no return.
