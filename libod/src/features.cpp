@@ -745,18 +745,25 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
         // The segment whose feet are being counted (0: none yet; ids start at 1), and its
         // count so far, added to its part's counts when another segment's points begin.
         int id = 0, feet_of_id = 0;
-        // The bounds held apart: the byte stores below may alias anything, part_begin too.
+        double ground = 0.0;  // segment id's ground height
+        // Raw pointers, the bounds and the ground held apart: the byte stores below may alias
+        // anything, which would load each of them again at every member.
+        const std::int32_t* const member = members.data();
+        const std::int32_t* const label = det.labels.data();
+        const std::uint8_t* const raised_of = raised.data();
+        const float* const z = level.z.data();
+        std::uint8_t* const foot_of = det.foot.data();
         const int begin = part_begin(k), end = part_begin(k + 1);
         for (int mi = begin; mi < end; ++mi) {
-          const int i = members[mi];
-          if (det.labels[i] != id) {
+          const int i = member[mi];
+          if (label[i] != id) {
             if (id > 0) count[id - 1] += feet_of_id;
-            id = det.labels[i];
+            id = label[i];
+            ground = det.segments[id - 1].ground_height_m;
             feet_of_id = 0;
           }
-          const bool foot =
-              raised[i] == 0 && level.z[i] - det.segments[id - 1].ground_height_m < min_height;
-          det.foot[i] = foot;
+          const bool foot = raised_of[i] == 0 && z[i] - ground < min_height;
+          foot_of[i] = foot;
           feet_of_id += foot;
         }
         if (id > 0) count[id - 1] += feet_of_id;
