@@ -123,8 +123,8 @@ int RunBench(const BenchOptions& o) {
   column.min_blob_pixels = settings->min_blob_pixels;
 
   // The quick methods run in turn, one run of each per round: the machine may be shared, and a
-  // change in its load then falls on each of them alike (on the ratio of the two exact rows
-  // above all). The slow references follow, each in a block.
+  // change in its load then falls on each of them alike (above all on the ratio of the two exact
+  // rows). The slow references follow, each in a block.
   const std::string threads =
       all.threads > 0 ? std::to_string(all.threads) + " threads" : "every core";
   const std::array<std::pair<std::string, std::function<Expected<od::Detection>()>>, 3> quick = {{
@@ -133,19 +133,21 @@ int RunBench(const BenchOptions& o) {
       {"column baseline", [&] { return od::DetectColumns(image, column); }},
   }};
   std::array<Timing, 3> in_turn;
+  for (std::size_t q = 0; q < quick.size(); ++q) in_turn[q].method = quick[q].first;
   for (int k = 0; k < o.repeat; ++k) {
     for (std::size_t q = 0; q < quick.size(); ++q) {
       const auto start = std::chrono::steady_clock::now();
       Expected<od::Detection> d = quick[q].second();
       in_turn[q].ms.push_back(1e3 * util::SecondsSince(start));
       if (!d) return BenchFail(quick[q].first + ": " + d.error().message);
-      in_turn[q].method = quick[q].first;
       in_turn[q].last = std::move(*d);
     }
   }
   std::cerr << "cairn bench: cone exact (1 thread, " << threads
             << ") and column baseline done, in turn\n";
-  std::vector<Timing> rows = {std::move(in_turn[0]), std::move(in_turn[1])};
+  std::vector<Timing> rows;
+  rows.push_back(std::move(in_turn[0]));
+  rows.push_back(std::move(in_turn[1]));
   const auto add = [&](const std::string& name, auto&& run) -> Status {
     Expected<Timing> t = time(name, run);
     if (!t) return t.error();

@@ -166,10 +166,36 @@ TEST(PairSearch, EqualsTheDefinitionAndTheRegionScanOnRandomViews) {
   EXPECT_GE(with_obstacles, 12);
 }
 
-// The feet by their definition (detector.hpp), from pairs tested here one by one: an obstacle
-// point is a foot when it is the upper point of no pair and lies less than HT above its own
-// segment's ground (the lowest of its points); each segment counts its own. On views with several
-// segments, so that a foot measured from another segment's ground shows.
+// Each pixel's foot, and each segment's ground and count of feet, by their definition
+// (detector.hpp) from the raised points given: a foot is an obstacle point that is the upper
+// point of no pair and lies less than HT above its own segment's ground (the lowest of its
+// points).
+void ExpectFeetFollowTheirDefinition(const Detection& d, const internal::LevelPoints& level,
+                                     const std::vector<std::uint8_t>& raised, float min_height,
+                                     const std::string& what) {
+  std::vector<float> ground(d.segments.size(), std::numeric_limits<float>::infinity());
+  for (std::size_t i = 0; i < d.labels.size(); ++i) {
+    if (d.labels[i] > 0) ground[d.labels[i] - 1] = std::min(ground[d.labels[i] - 1], level.z[i]);
+  }
+  std::vector<int> feet(d.segments.size(), 0);
+  int wrong = 0;
+  for (std::size_t i = 0; i < d.labels.size(); ++i) {
+    const bool foot =
+        d.labels[i] > 0 && !raised[i] &&
+        static_cast<double>(level.z[i]) - ground[d.labels[i] - 1] < static_cast<double>(min_height);
+    wrong += d.is_foot(static_cast<int>(i)) != foot;
+    if (foot) ++feet[d.labels[i] - 1];
+  }
+  EXPECT_EQ(wrong, 0) << what << ": pixels whose foot differs from the definition";
+  for (std::size_t k = 0; k < d.segments.size(); ++k) {
+    EXPECT_EQ(d.segments[k].ground_height_m, ground[k]) << what << ", segment " << k + 1;
+    EXPECT_EQ(d.segments[k].foot_count, feet[k]) << what << ", segment " << k + 1;
+  }
+}
+
+// The feet against their definition on views with several segments, so that a foot measured
+// from another segment's ground shows; the raised points from pairs tested here one by one.
+// (Every reference Detect is held to assembles its result with the same BuildDetection.)
 TEST(PairSearch, FeetFollowTheirDefinitionInEverySegment) {
   std::mt19937 rng(91);
   int with_segments = 0;
@@ -177,8 +203,8 @@ TEST(PairSearch, FeetFollowTheirDefinitionInEverySegment) {
     const RangeImage image = RandomView(500 + seed, seed % 2 ? 0.03 : 0.0, 0.05);
     DetectorConfig config = RandomConfig(rng);
     config.min_height_m = 0.1 + 0.2 * (seed % 3);  // HT 0.1-0.5 m: a foot band of some height
+    config.max_height_m = std::max(config.max_height_m, config.min_height_m + 0.1);
     const Detection d = *Detect(image, config);
-    const std::string what = "view " + std::to_string(seed);
     const internal::LevelPoints level(image);
     const PairTest test(config);
     const int n = image.size();
@@ -192,22 +218,8 @@ TEST(PairSearch, FeetFollowTheirDefinitionInEverySegment) {
         }
       }
     }
-    std::vector<float> ground(d.segments.size(), std::numeric_limits<float>::infinity());
-    for (int i = 0; i < n; ++i) {
-      if (d.labels[i] > 0) ground[d.labels[i] - 1] = std::min(ground[d.labels[i] - 1], level.z[i]);
-    }
-    std::vector<int> feet(d.segments.size(), 0);
-    for (int i = 0; i < n; ++i) {
-      const bool foot = d.labels[i] > 0 && !raised[i] &&
-                        static_cast<double>(level.z[i]) - ground[d.labels[i] - 1] <
-                            static_cast<double>(test.min_height);
-      EXPECT_EQ(d.is_foot(i), foot) << what << ", pixel " << i;
-      if (foot) ++feet[d.labels[i] - 1];
-    }
-    for (std::size_t k = 0; k < d.segments.size(); ++k) {
-      EXPECT_EQ(d.segments[k].ground_height_m, ground[k]) << what << ", segment " << k + 1;
-      EXPECT_EQ(d.segments[k].foot_count, feet[k]) << what << ", segment " << k + 1;
-    }
+    ExpectFeetFollowTheirDefinition(d, level, raised, test.min_height,
+                                    "view " + std::to_string(seed));
     with_segments += d.segments.size() >= 2;
   }
   EXPECT_GE(with_segments, 6);
@@ -819,6 +831,20 @@ TEST(PairSearch, FeaturesOfTheDemoFrameAreTheSameOnAnyThreadsAndMatchTheirDefini
   const int m = one.stats.obstacle_points, segments = static_cast<int>(one.segments.size());
   ASSERT_GE(std::min(m / 4096, m / (4 * segments)), 2)
       << "too few points for the sums to run in parts";
+  // Its feet by their definition, counted in those parts too; the raised points from the pair
+  // search (too many points to test the pairs one by one here).
+  {
+    const internal::LevelPoints level(image, 1, config.min_range_m);
+    const PairTest test(config);
+    const internal::Candidates candidates = internal::FindCandidates(level, test, 1);
+    const internal::PointTree lower(level, candidates.lower, image.width(), image.height(),
+                                    internal::kCameraLeaf.rows, internal::kCameraLeaf.cols);
+    const internal::PointTree upper(level, candidates.upper, image.width(), image.height(),
+                                    internal::kCameraLeaf.rows, internal::kCameraLeaf.cols);
+    const internal::PairSearchResult found =
+        internal::SearchPairs(lower, upper, image.size(), test, internal::PairSearchOptions{});
+    ExpectFeetFollowTheirDefinition(one, level, found.raised, test.min_height, "demo frame");
+  }
   for (int threads : {2, 5}) {
     config.threads = threads;
     const Detection many = *Detect(image, config);

@@ -747,7 +747,8 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
         int id = 0, feet_of_id = 0;
         double ground = 0.0;  // segment id's ground height
         // Raw pointers, the bounds and the ground held apart: the byte stores below may alias
-        // anything, which would load each of them again at every member.
+        // anything, which would load each of them again at every member (captures too, such as
+        // `labels`, which are read through the closure).
         const std::int32_t* const member = members.data();
         const std::int32_t* const label = det.labels.data();
         const std::uint8_t* const raised_of = raised.data();
