@@ -295,8 +295,8 @@ __attribute__((target("avx512f,popcnt"))) int InnerNormalsAvx512(
   const auto kept =
       static_cast<__mmask8>((a8 | b8) & (_mm512_cmp_pd_mask(square, zero, _CMP_GT_OQ) |
                                          _mm512_cmp_pd_mask(nz, zero, _CMP_NEQ_UQ)));
-  _mm512_mask_compressstoreu_pd(squares, kept, square);
-  _mm512_mask_compressstoreu_pd(verticals, kept, _mm512_abs_pd(nz));
+  CompressStore(squares, kept, square);
+  CompressStore(verticals, kept, _mm512_abs_pd(nz));
   return __builtin_popcount(kept);
 }
 
@@ -314,7 +314,7 @@ __attribute__((target("avx512f,popcnt"))) int GatherMembersAvx512(std::int32_t* 
   for (; i + 16 <= end; i += 16) {
     const __m512i name = _mm512_loadu_si512(labels + i);
     const __mmask16 member = _mm512_cmpge_epi32_mask(name, zero);
-    _mm512_mask_compressstoreu_epi32(part + c, member, index);
+    CompressStore(part + c, member, index);
     c += __builtin_popcount(member);
     _mm512_storeu_si512(labels + i, _mm512_max_epi32(name, zero));
     index = _mm512_add_epi32(index, sixteen);

@@ -615,10 +615,10 @@ __attribute__((target("avx512f,popcnt"))) int PackAvx512(const float* x, const f
   for (int j = 0; j < size; j += 16) {
     const auto take = static_cast<__mmask16>(near >> j);
     if (take == 0) continue;
-    _mm512_mask_compressstoreu_ps(qx + c, take, _mm512_maskz_loadu_ps(take, x + j));
-    _mm512_mask_compressstoreu_ps(qy + c, take, _mm512_maskz_loadu_ps(take, y + j));
-    _mm512_mask_compressstoreu_ps(qz + c, take, _mm512_maskz_loadu_ps(take, z + j));
-    _mm512_mask_compressstoreu_epi32(qpixel + c, take, _mm512_maskz_loadu_epi32(take, pixel + j));
+    CompressStore(qx + c, take, _mm512_maskz_loadu_ps(take, x + j));
+    CompressStore(qy + c, take, _mm512_maskz_loadu_ps(take, y + j));
+    CompressStore(qz + c, take, _mm512_maskz_loadu_ps(take, z + j));
+    CompressStore(qpixel + c, take, _mm512_maskz_loadu_epi32(take, pixel + j));
     c += __builtin_popcount(take);
   }
   const auto pad = static_cast<__mmask16>(((1u << ((16 - (c & 15)) & 15)) - 1));

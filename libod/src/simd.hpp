@@ -74,6 +74,28 @@ __attribute__((target("avx2"))) inline __m256i ToFront8(unsigned mask) {
 }
 #endif
 
+#if defined(CAIRN_OD_WIDE_VECTORS)
+// The lanes of `v` that `take` selects, stored side by side from `at` (what follows them is left
+// as it was): a compress in a register and a masked store. Not the compress with a memory operand
+// (_mm512_mask_compressstoreu_*), which Zen 4 runs as microcode: with it the exact search spent
+// 15% of the KITTI scan packing leaves (BENCHMARKS.md).
+__attribute__((target("avx512f,popcnt"))) inline void CompressStore(float* at, __mmask16 take,
+                                                                    __m512 v) {
+  const auto first = static_cast<__mmask16>((1u << __builtin_popcount(take)) - 1u);
+  _mm512_mask_storeu_ps(at, first, _mm512_maskz_compress_ps(take, v));
+}
+__attribute__((target("avx512f,popcnt"))) inline void CompressStore(std::int32_t* at,
+                                                                    __mmask16 take, __m512i v) {
+  const auto first = static_cast<__mmask16>((1u << __builtin_popcount(take)) - 1u);
+  _mm512_mask_storeu_epi32(at, first, _mm512_maskz_compress_epi32(take, v));
+}
+__attribute__((target("avx512f,popcnt"))) inline void CompressStore(double* at, __mmask8 take,
+                                                                    __m512d v) {
+  const auto first = static_cast<__mmask8>((1u << __builtin_popcount(take)) - 1u);
+  _mm512_mask_storeu_pd(at, first, _mm512_maskz_compress_pd(take, v));
+}
+#endif
+
 /// Tests: the vector loops use at most `lanes` (1, 4, 8 or 16) from now on, process-wide;
 /// 0 lifts the cap.
 void CapVectorLanes(int lanes);
