@@ -187,10 +187,11 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
 namespace {
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
-// RanksAvx512 eight points at a time (AVX2; zs padded to a multiple of eight). Each point's
-// count of points below it, summed in a register: without ties, these are the ranks (each
-// from 0 to m - 1 once); where points tie they count the same, and take the next ranks in
-// index order, as RanksAvx512 counts them.
+// Each point's rank among zs[0, m) by ascending height, ties in index order (m <= 64, zs
+// padded to a multiple of eight), as PointTree::Build's scalar loop ranks them, eight points at
+// a time (AVX2). Each point's count of points below it, summed in a register: without ties,
+// these are the ranks (each from 0 to m - 1 once); points that tie count the same b, and take
+// b, b + 1, ... in index order.
 __attribute__((target("avx2,popcnt"))) void RanksAvx2(const float* zs, int m, int* rank) {
   const int chunks = (m + 7) / 8;
   __m256 z[8];
@@ -214,11 +215,11 @@ __attribute__((target("avx2,popcnt"))) void RanksAvx2(const float* zs, int m, in
   std::uint8_t taken[PointTree::kMaxLeafPoints] = {};
   for (int k = 0; k < m; ++k) rank[k] += taken[rank[k]]++;
 }
-// Each point's rank among zs[0, m) by ascending height, ties in index order (m <= 64, zs
-// padded with +infinity to a multiple of sixteen; `rank` room for as many): PointTree::Build's
-// count, sixteen points at a time (AVX-512F), each lane counting the points below its own with
-// one broadcast per point (no sum across lanes; faster on Zen 4 than a mask and a population
-// count per point, BENCHMARKS.md); ties taken as RanksAvx2 takes them.
+// RanksAvx2's ranks sixteen points at a time (AVX-512F; zs padded to a multiple of sixteen,
+// `rank` with room for as many): each lane counts the points below its own, one broadcast and
+// one masked add per point, with no sum across lanes (on Zen 4 faster than the two compares,
+// mask moves and population counts per point it replaces, BENCHMARKS.md); ties as RanksAvx2
+// takes them.
 __attribute__((target("avx512f"))) void RanksAvx512(const float* zs, int m, int* rank) {
   const int chunks = (m + 15) / 16;
   __m512 z[4];
