@@ -210,33 +210,54 @@ __attribute__((target("avx512f,popcnt"))) bool WindowAvx512(
 
 // A whole column of m <= 16 kChunks points, unsorted, padded by the caller to 16 kChunks with
 // points infinitely high (x = y = 0), which no window holds (infinity is not less than Hmax):
-// each point p with more than HT between it and the column's `top` meets every point, sixteen
-// at a time from registers, with the pair test's float operations in its order.
+// each point p with more than HT between it and the column's top meets, sixteen at a time, the
+// chunks whose heights' bounds leave room for a window (as WholeColumnAvx2's do), with the pair
+// test's float operations in its order; the counts are as if every chunk were tested.
 // Bit k of `lower` is set when point k is the lower point of a pair found, of `upper` when the
 // upper one; `tested` and `compatible` count the points HT..Hmax above p and the hits.
 template <int kChunks>
 __attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
-    const float* cx, const float* cy, const float* cz, int m, float top, const PairTest& t,
+    const float* cx, const float* cy, const float* cz, int m, const PairTest& t,
     std::uint64_t& lower, std::uint64_t& upper, std::int64_t& tested, std::int64_t& compatible) {
-  __m512 x[kChunks], y[kChunks], z[kChunks];
-  for (int c = 0; c < kChunks; ++c) {
-    x[c] = _mm512_loadu_ps(cx + 16 * c);
-    y[c] = _mm512_loadu_ps(cy + 16 * c);
-    z[c] = _mm512_loadu_ps(cz + 16 * c);
+  static_assert(kChunks <= 4);
+  // Lane c: the lowest and highest point of chunk c (the padding left out; chunks past the
+  // last are +inf and -inf, and never met); and the column's top.
+  alignas(16) float chunk_lo[4], chunk_hi[4];
+  for (int c = 0; c < 4; ++c) {
+    chunk_lo[c] = std::numeric_limits<float>::infinity();
+    chunk_hi[c] = -std::numeric_limits<float>::infinity();
   }
+  float top = -std::numeric_limits<float>::infinity();
+  for (int c = 0; c < kChunks; ++c) {
+    float lo = cz[16 * c], hi = lo;
+    for (int k = 16 * c + 1; k < std::min(16 * c + 16, m); ++k) {
+      lo = std::min(lo, cz[k]);
+      hi = std::max(hi, cz[k]);
+    }
+    chunk_lo[c] = lo;
+    chunk_hi[c] = hi;
+    top = std::max(top, hi);
+  }
+  const __m128 lo_z = _mm_load_ps(chunk_lo), hi_z = _mm_load_ps(chunk_hi);
+  const __m128 ht4 = _mm_set1_ps(t.min_height), h4 = _mm_set1_ps(t.max_height);
   const __m512 vht = _mm512_set1_ps(t.min_height), vh = _mm512_set1_ps(t.max_height);
   const __m512 vt = _mm512_set1_ps(t.tan2_theta);
   std::uint64_t lo = 0, up = 0;
   int in_window = 0, hit = 0;
   for (int k = 0; k < m; ++k) {
     if (!(top - cz[k] > t.min_height)) continue;  // nothing more than HT above it
+    const __m128 pz4 = _mm_set1_ps(cz[k]);
+    auto chunks = static_cast<unsigned>(_mm_movemask_ps(_mm_and_ps(
+        _mm_cmpgt_ps(_mm_sub_ps(hi_z, pz4), ht4), _mm_cmplt_ps(_mm_sub_ps(lo_z, pz4), h4))));
+    if (chunks == 0) continue;
     const __m512 px = _mm512_set1_ps(cx[k]), py = _mm512_set1_ps(cy[k]);
     const __m512 pz = _mm512_set1_ps(cz[k]);
     std::uint64_t hits = 0;
-    for (int c = 0; c < kChunks; ++c) {
-      const __m512 dz = _mm512_sub_ps(z[c], pz);
-      const __m512 dx = _mm512_sub_ps(x[c], px);
-      const __m512 dy = _mm512_sub_ps(y[c], py);
+    for (; chunks != 0; chunks &= chunks - 1) {
+      const int c = __builtin_ctz(chunks);
+      const __m512 dz = _mm512_sub_ps(_mm512_loadu_ps(cz + 16 * c), pz);
+      const __m512 dx = _mm512_sub_ps(_mm512_loadu_ps(cx + 16 * c), px);
+      const __m512 dy = _mm512_sub_ps(_mm512_loadu_ps(cy + 16 * c), py);
       const __mmask16 window = static_cast<__mmask16>(_mm512_cmp_ps_mask(dz, vht, _CMP_GT_OQ) &
                                                       _mm512_cmp_ps_mask(dz, vh, _CMP_LT_OQ));
       const __mmask16 bits = static_cast<__mmask16>(
@@ -613,15 +634,14 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
         gz[k] = std::numeric_limits<float>::infinity();
       }
       std::uint64_t lower = 0, upper = 0;
+      // The top taken from the chunks' bounds.
       if (lanes == 16) {
-        float top = -std::numeric_limits<float>::infinity();
-        for (int k = 0; k < m; ++k) top = std::max(top, gz[k]);
         const auto whole = m <= 16   ? WholeColumnAvx512<1>
                            : m <= 32 ? WholeColumnAvx512<2>
                            : m <= 48 ? WholeColumnAvx512<3>
                                      : WholeColumnAvx512<4>;
-        whole(gx, gy, gz, m, top, test, lower, upper, pairs_tested, pairs_compatible);
-      } else {  // the top taken from the chunks' bounds
+        whole(gx, gy, gz, m, test, lower, upper, pairs_tested, pairs_compatible);
+      } else {
         const auto whole = m <= 8    ? WholeColumnAvx2<1>
                            : m <= 16 ? WholeColumnAvx2<2>
                            : m <= 24 ? WholeColumnAvx2<3>
