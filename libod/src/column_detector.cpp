@@ -125,8 +125,9 @@ constexpr std::uint8_t kBitCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3
 // images) by windows.
 constexpr int kDirectPoints = 48;
 // Columns of at most this many points (a LiDAR column) are searched whole, unsorted, where the
-// processor has AVX2 or AVX-512F: each point with something more than HT above it meets every
-// point of the column, eight or sixteen at a time, with no keys, sort or bins to pay for. (Four
+// processor has AVX2 or AVX-512F: each point with something more than HT above it is tested as
+// if against every point of the column (only chunks that no window reaches are passed over),
+// eight or sixteen at a time, with no keys, sort or bins to pay for. (Four
 // lanes test a whole column slower than its bins: KITTI 5.1 -> 7.7 ms, BENCHMARKS.md; eight are
 // quicker than four by bins on AMD EPYC: KITTI 5.7 -> 4.4 ms, RELLIS 3.6 -> 2.4.)
 constexpr int kWholeColumn = 64;
@@ -279,11 +280,11 @@ __attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
 }
 
 // WholeColumnAvx512 eight points at a time (AVX2): a whole column of m <= 8 kChunks points,
-// padded by the caller to 8 kChunks with points infinitely high, each chunk read from memory
-// (sixteen registers hold too few to keep the column), the column's top found here. A point
-// meets only the chunks whose heights' bounds leave room for a window: where the highest is HT
-// or less above it, or the lowest Hmax or more, no point of the chunk is in its window (the
-// difference is rounded monotonically), so the counts are as if every chunk were tested.
+// padded by the caller to 8 kChunks with points infinitely high, each chunk read from memory,
+// the column's top found here. A point meets only the chunks whose heights' bounds leave room for a
+// window: where the highest is HT or less above it, or the lowest Hmax or more, no point of the
+// chunk is in its window (the difference is rounded monotonically), so the counts are as if every
+// chunk were tested.
 template <int kChunks>
 __attribute__((target("avx2,popcnt"))) void WholeColumnAvx2(
     const float* cx, const float* cy, const float* cz, int m, const PairTest& t,
@@ -473,23 +474,24 @@ __attribute__((target("avx2"))) void ColumnKeysAvx2(const float* x, const float*
 
 // The compatible pairs within each column, fast. Where the processor has AVX2 or AVX-512F
 // (simd.hpp), a column of at most kWholeColumn points (a LiDAR column) is searched whole,
-// unsorted: each point with something more than HT above it meets every point of the column,
-// eight or sixteen at a time (sixteen held in registers), the window a mask, and every pair is
-// found. Larger columns, and every column on narrower vectors, are cut into bins. A partner q of
-// a lower point p lies less than reach = Hmax / tan(theta) from it horizontally, so less than reach
-// along any horizontal direction: the column's points are put in bins of that width along the
-// column's mean horizontal direction u, each bin sorted by height, and p meets the points of its
-// own and the two neighbouring bins from the first more than HT above it (as the pair test rounds
-// the difference, which grows with the upper height) to the last less than Hmax above. Where the
-// three bins hold at most kDirectPoints, p meets all of them four or sixteen at a time
-// (DirectAvx512), every pair found. Where they hold more (a dense image's column, whose faces hold
-// hundreds of points each within Hmax of another), and always without SSE2 or with the lanes capped
-// to one, a point needs only one partner each way: p's window is searched up to its first hit
-// (four points at a time, sixteen with AVX-512F, every hit among them marked), and then each point
-// not yet marked as an upper point searches the window below it, nearest first, up to its first
-// hit. The points of a bin stop at the first with no point of those bins more than HT above it. The
-// columns are gathered kBlockColumns at a time, row by row, bottom row first, into reused buffers
-// (with AVX2, eight rows of eight columns at a time), and only their points in a pair are marked.
+// unsorted: each point with something more than HT above it is tested as if against every
+// point of the column (chunks that no window reaches are passed over), eight or sixteen at a
+// time, the window a mask, and every pair is found. Larger columns, and every column on narrower
+// vectors, are cut into bins. A partner q of a lower point p lies less than reach = Hmax /
+// tan(theta) from it horizontally, so less than reach along any horizontal direction: the column's
+// points are put in bins of that width along the column's mean horizontal direction u, each bin
+// sorted by height, and p meets the points of its own and the two neighbouring bins from the first
+// more than HT above it (as the pair test rounds the difference, which grows with the upper height)
+// to the last less than Hmax above. Where the three bins hold at most kDirectPoints, p meets all of
+// them four or sixteen at a time (DirectAvx512), every pair found. Where they hold more (a dense
+// image's column, whose faces hold hundreds of points each within Hmax of another), and always
+// without SSE2 or with the lanes capped to one, a point needs only one partner each way: p's window
+// is searched up to its first hit (four points at a time, sixteen with AVX-512F, every hit among
+// them marked), and then each point not yet marked as an upper point searches the window below it,
+// nearest first, up to its first hit. The points of a bin stop at the first with no point of those
+// bins more than HT above it. The columns are gathered kBlockColumns at a time, row by row, bottom
+// row first, into reused buffers (with AVX2, eight rows of eight columns at a time), and only their
+// points in a pair are marked.
 ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& test, int width,
                             int height) {
   const int n = width * height;
@@ -616,9 +618,9 @@ ColumnPairs FindColumnPairs(const internal::LevelPoints& level, const PairTest& 
     const std::int32_t* const grow = block_row.data() + b * block_stride;
 #if defined(CAIRN_OD_WIDE_VECTORS)
     if (lanes >= 8 && m <= kWholeColumn) {
-      // Few points (a LiDAR column): each meets every point of the column, unsorted and
-      // without bins, where it was gathered; only a point with nothing more than HT above it
-      // is passed over.
+      // Few points (a LiDAR column): each tested as if against every point of the column, unsorted
+      // and without bins, where it was gathered; only a point with nothing more than HT above it is
+      // passed over.
       if (m == 0) continue;  // no point, no direction
       if (!all_whole) {
         // The next column may be binned: its bins follow this column's direction.
