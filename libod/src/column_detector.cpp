@@ -209,6 +209,30 @@ __attribute__((target("avx512f,popcnt"))) bool WindowAvx512(
   return false;
 }
 
+// The whole-column kernels' chunk bounds: lane c of `lo` and `hi` gets the lowest and highest
+// of the points [kWidth c, kWidth c + kWidth) of cz[0, m) for each of the `chunks` chunks (the
+// padding after m left out: it is in no window), +inf and -inf in the `lanes` - `chunks` lanes
+// after them (never met); returns the column's top.
+template <int kWidth>
+float ChunkBounds(const float* cz, int m, int chunks, int lanes, float* lo, float* hi) {
+  for (int c = 0; c < lanes; ++c) {
+    lo[c] = std::numeric_limits<float>::infinity();
+    hi[c] = -std::numeric_limits<float>::infinity();
+  }
+  float top = -std::numeric_limits<float>::infinity();
+  for (int c = 0; c < chunks; ++c) {
+    float chunk_lo = lo[c], chunk_hi = hi[c];  // in registers (lo and hi may alias cz)
+    for (int k = kWidth * c; k < std::min(kWidth * c + kWidth, m); ++k) {
+      chunk_lo = std::min(chunk_lo, cz[k]);
+      chunk_hi = std::max(chunk_hi, cz[k]);
+    }
+    lo[c] = chunk_lo;
+    hi[c] = chunk_hi;
+    top = std::max(top, chunk_hi);
+  }
+  return top;
+}
+
 // A whole column of m <= 16 kChunks points, unsorted, padded by the caller to 16 kChunks with
 // points infinitely high (x = y = 0), which no window holds (infinity is not less than Hmax):
 // each point p with more than HT between it and the column's top meets, sixteen at a time, the
@@ -221,24 +245,8 @@ __attribute__((target("avx512f,popcnt"))) void WholeColumnAvx512(
     const float* cx, const float* cy, const float* cz, int m, const PairTest& t,
     std::uint64_t& lower, std::uint64_t& upper, std::int64_t& tested, std::int64_t& compatible) {
   static_assert(kChunks <= 4);
-  // Lane c: the lowest and highest point of chunk c (the padding left out; chunks past the
-  // last are +inf and -inf, and never met); and the column's top.
   alignas(16) float chunk_lo[4], chunk_hi[4];
-  for (int c = 0; c < 4; ++c) {
-    chunk_lo[c] = std::numeric_limits<float>::infinity();
-    chunk_hi[c] = -std::numeric_limits<float>::infinity();
-  }
-  float top = -std::numeric_limits<float>::infinity();
-  for (int c = 0; c < kChunks; ++c) {
-    float lo = cz[16 * c], hi = lo;
-    for (int k = 16 * c + 1; k < std::min(16 * c + 16, m); ++k) {
-      lo = std::min(lo, cz[k]);
-      hi = std::max(hi, cz[k]);
-    }
-    chunk_lo[c] = lo;
-    chunk_hi[c] = hi;
-    top = std::max(top, hi);
-  }
+  const float top = ChunkBounds<16>(cz, m, kChunks, 4, chunk_lo, chunk_hi);
   const __m128 lo_z = _mm_load_ps(chunk_lo), hi_z = _mm_load_ps(chunk_hi);
   const __m128 ht4 = _mm_set1_ps(t.min_height), h4 = _mm_set1_ps(t.max_height);
   const __m512 vht = _mm512_set1_ps(t.min_height), vh = _mm512_set1_ps(t.max_height);
@@ -292,24 +300,8 @@ __attribute__((target("avx2,popcnt"))) void WholeColumnAvx2(
   static_assert(kChunks <= 8);
   const __m256 vht = _mm256_set1_ps(t.min_height), vh = _mm256_set1_ps(t.max_height);
   const __m256 vt = _mm256_set1_ps(t.tan2_theta);
-  // Lane c: the lowest and highest point of chunk c (the padding left out: it is in no window;
-  // chunks past the last are +inf and -inf, and never met); and the column's top.
   alignas(32) float chunk_lo[8], chunk_hi[8];
-  for (int c = 0; c < 8; ++c) {
-    chunk_lo[c] = std::numeric_limits<float>::infinity();
-    chunk_hi[c] = -std::numeric_limits<float>::infinity();
-  }
-  float top = -std::numeric_limits<float>::infinity();
-  for (int c = 0; c < kChunks; ++c) {
-    float lo = cz[8 * c], hi = lo;
-    for (int k = 8 * c + 1; k < std::min(8 * c + 8, m); ++k) {
-      lo = std::min(lo, cz[k]);
-      hi = std::max(hi, cz[k]);
-    }
-    chunk_lo[c] = lo;
-    chunk_hi[c] = hi;
-    top = std::max(top, hi);
-  }
+  const float top = ChunkBounds<8>(cz, m, kChunks, 8, chunk_lo, chunk_hi);
   const __m256 lo_z = _mm256_load_ps(chunk_lo), hi_z = _mm256_load_ps(chunk_hi);
   std::uint64_t lo = 0, up = 0;
   int in_window = 0, hit = 0;
