@@ -187,16 +187,26 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
 namespace {
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
+// From each point's count of points below it (rank[0, m), m <= 64) to its rank: without ties
+// the counts are the ranks (each from 0 to m - 1 once); the points of one height all counted the
+// same b points below them (points of different heights count differently), and take b, b + 1,
+// ... in index order.
+void TakeTiesInIndexOrder(int* rank, int m) {
+  std::uint64_t seen = 0;
+  for (int k = 0; k < m; ++k) seen |= std::uint64_t{1} << rank[k];
+  if (seen == (m < 64 ? (std::uint64_t{1} << m) - 1 : ~std::uint64_t{0})) return;
+  std::uint8_t taken[PointTree::kMaxLeafPoints] = {};
+  for (int k = 0; k < m; ++k) rank[k] += taken[rank[k]]++;
+}
+
 // Each point's rank among zs[0, m) by ascending height, ties in index order (m <= 64, zs
 // padded to a multiple of eight), as PointTree::Build's scalar loop ranks them, eight points at
-// a time (AVX2). Each point's count of points below it, summed in a register: without ties,
-// these are the ranks (each from 0 to m - 1 once); points that tie count the same b, and take
-// b, b + 1, ... in index order.
-__attribute__((target("avx2,popcnt"))) void RanksAvx2(const float* zs, int m, int* rank) {
+// a time (AVX2): each point's count of points below it, summed in a register, then the ties
+// taken in index order.
+__attribute__((target("avx2"))) void RanksAvx2(const float* zs, int m, int* rank) {
   const int chunks = (m + 7) / 8;
   __m256 z[8];
   for (int c = 0; c < chunks; ++c) z[c] = _mm256_loadu_ps(zs + 8 * c);
-  std::uint64_t seen = 0;
   for (int k = 0; k < m; ++k) {
     const __m256 zk = _mm256_set1_ps(zs[k]);
     __m256i below = _mm256_setzero_si256();  // all ones (-1) for each point below
@@ -207,19 +217,14 @@ __attribute__((target("avx2,popcnt"))) void RanksAvx2(const float* zs, int m, in
     sum = _mm_add_epi32(sum, _mm_shuffle_epi32(sum, _MM_SHUFFLE(1, 0, 3, 2)));
     sum = _mm_add_epi32(sum, _mm_shuffle_epi32(sum, _MM_SHUFFLE(2, 3, 0, 1)));
     rank[k] = _mm_cvtsi128_si32(sum);
-    seen |= std::uint64_t{1} << rank[k];
   }
-  if (seen == (m < 64 ? (std::uint64_t{1} << m) - 1 : ~std::uint64_t{0})) return;
-  // Ties: the points of one height all counted the same b points below them (points of
-  // different heights count differently), and take b, b + 1, ... in index order.
-  std::uint8_t taken[PointTree::kMaxLeafPoints] = {};
-  for (int k = 0; k < m; ++k) rank[k] += taken[rank[k]]++;
+  TakeTiesInIndexOrder(rank, m);
 }
 // RanksAvx2's ranks sixteen points at a time (AVX-512F; zs padded to a multiple of sixteen,
 // `rank` with room for as many): each lane counts the points below its own, one broadcast and
 // one masked add per point, with no sum across lanes (on Zen 4 faster than the two compares,
-// mask moves and population counts per point it replaces, BENCHMARKS.md); ties as RanksAvx2
-// takes them.
+// mask moves and population counts per point it replaces, BENCHMARKS.md); then the ties taken
+// in index order.
 __attribute__((target("avx512f"))) void RanksAvx512(const float* zs, int m, int* rank) {
   const int chunks = (m + 15) / 16;
   __m512 z[4];
@@ -236,12 +241,8 @@ __attribute__((target("avx512f"))) void RanksAvx512(const float* zs, int m, int*
           _mm512_mask_add_epi32(below[c], _mm512_cmp_ps_mask(zj, z[c], _CMP_LT_OQ), below[c], one);
     }
   }
-  std::uint64_t seen = 0;
   for (int c = 0; c < chunks; ++c) _mm512_storeu_si512(rank + 16 * c, below[c]);
-  for (int k = 0; k < m; ++k) seen |= std::uint64_t{1} << rank[k];
-  if (seen == (m < 64 ? (std::uint64_t{1} << m) - 1 : ~std::uint64_t{0})) return;
-  std::uint8_t taken[PointTree::kMaxLeafPoints] = {};
-  for (int k = 0; k < m; ++k) rank[k] += taken[rank[k]]++;
+  TakeTiesInIndexOrder(rank, m);
 }
 #endif
 
