@@ -244,6 +244,70 @@ __attribute__((target("avx512f"))) void RanksAvx512(const float* zs, int m, int*
   for (int c = 0; c < chunks; ++c) _mm512_storeu_si512(rank + 16 * c, below[c]);
   TakeTiesInIndexOrder(rank, m);
 }
+
+CAIRN_OD_AVX512_KERNELS_BEGIN
+// PointTree::Build's gathering of a leaf, sixteen pixels at a time (AVX-512F): the points of the
+// pixels [r0, r1) x [c0, c1) that `mask` holds, in pixel order, their coordinates to xs, ys, zs
+// and their image indices to `at`, each row's pixels taken sixteen at a time with a compress of
+// the masked lanes (no branch per pixel, which the processor mispredicts on a scan's holes), their
+// box to lo and hi (each bound the scalar loop's, but for the sign of a zero where +0 and -0 are
+// both there). Returns how many.
+__attribute__((target("avx512f,popcnt"))) int GatherLeafAvx512(
+    const float* x, const float* y, const float* z, const std::uint8_t* mask, int width, int r0,
+    int r1, int c0, int c1, float* xs, float* ys, float* zs, std::int32_t* at, float* lo,
+    float* hi) {
+  const float inf = std::numeric_limits<float>::infinity();
+  __m512 lo_x = _mm512_set1_ps(inf), lo_y = lo_x, lo_z = lo_x;
+  __m512 hi_x = _mm512_set1_ps(-inf), hi_y = hi_x, hi_z = hi_x;
+  const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  int m = 0;
+  for (int r = r0; r < r1; ++r) {
+    for (int c = c0; c < c1; c += 16) {
+      const int i0 = r * width + c, w = std::min(16, c1 - c);
+      // The mask's bytes as bits: sixteen loaded at once where the row has them, else one by one
+      // (no byte read past the leaf's columns, which may be the image's last).
+      unsigned bits = 0;
+      int k = 0;
+      if (w == 16) {
+        const __m512i b =
+            _mm512_cvtepu8_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(mask + i0)));
+        bits = _mm512_test_epi32_mask(b, b);
+        k = 16;
+      } else if (w >= 8) {
+        const __m512i b =
+            _mm512_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(mask + i0)));
+        bits = _mm512_test_epi32_mask(b, b) & 0xffu;
+        k = 8;
+      }
+      for (; k < w; ++k) bits |= static_cast<unsigned>(mask[i0 + k] != 0) << k;
+      if (bits == 0) continue;
+      const auto take = static_cast<__mmask16>(bits);
+      // Masked loads: lanes not taken are not read.
+      const __m512 px = _mm512_maskz_loadu_ps(take, x + i0);
+      const __m512 py = _mm512_maskz_loadu_ps(take, y + i0);
+      const __m512 pz = _mm512_maskz_loadu_ps(take, z + i0);
+      lo_x = _mm512_mask_min_ps(lo_x, take, px, lo_x);
+      lo_y = _mm512_mask_min_ps(lo_y, take, py, lo_y);
+      lo_z = _mm512_mask_min_ps(lo_z, take, pz, lo_z);
+      hi_x = _mm512_mask_max_ps(hi_x, take, px, hi_x);
+      hi_y = _mm512_mask_max_ps(hi_y, take, py, hi_y);
+      hi_z = _mm512_mask_max_ps(hi_z, take, pz, hi_z);
+      CompressStore(xs + m, take, px);
+      CompressStore(ys + m, take, py);
+      CompressStore(zs + m, take, pz);
+      CompressStore(at + m, take, _mm512_add_epi32(_mm512_set1_epi32(i0), lane));
+      m += __builtin_popcount(bits);
+    }
+  }
+  lo[0] = _mm512_reduce_min_ps(lo_x);
+  lo[1] = _mm512_reduce_min_ps(lo_y);
+  lo[2] = _mm512_reduce_min_ps(lo_z);
+  hi[0] = _mm512_reduce_max_ps(hi_x);
+  hi[1] = _mm512_reduce_max_ps(hi_y);
+  hi[2] = _mm512_reduce_max_ps(hi_z);
+  return m;
+}
+CAIRN_OD_AVX512_KERNELS_END
 #endif
 
 }  // namespace
@@ -280,23 +344,33 @@ std::int32_t PointTree::Build(const LevelPoints& level, const std::vector<std::u
     // The leaf's points in pixel order, then each stored at its rank by ascending height
     // (ties in pixel order, as a stable sort has them), counted without a branch: cheaper
     // than sorting them, whose every step the processor mispredicts.
-    float zs[kMaxLeafPoints + 15];
+    float xs[kMaxLeafPoints], ys[kMaxLeafPoints], zs[kMaxLeafPoints + 15];
     std::int32_t at[kMaxLeafPoints];
     int m = 0;
     Node leaf{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}, stored_, stored_, {-1, -1}, -1};
-    for (int r = r0; r < r1; ++r) {
-      for (int c = c0; c < c1; ++c) {
-        const int i = r * width + c;
-        if (!mask[i]) continue;
-        const float qx = level.x[i], qy = level.y[i], qz = level.z[i];
-        zs[m] = qz;
-        at[m++] = i;
-        leaf.lo[0] = std::min(leaf.lo[0], qx);
-        leaf.lo[1] = std::min(leaf.lo[1], qy);
-        leaf.lo[2] = std::min(leaf.lo[2], qz);
-        leaf.hi[0] = std::max(leaf.hi[0], qx);
-        leaf.hi[1] = std::max(leaf.hi[1], qy);
-        leaf.hi[2] = std::max(leaf.hi[2], qz);
+#if defined(CAIRN_OD_WIDE_VECTORS)
+    if (VectorLanes() == 16) {
+      m = GatherLeafAvx512(level.x.data(), level.y.data(), level.z.data(), mask.data(), width, r0,
+                           r1, c0, c1, xs, ys, zs, at, leaf.lo, leaf.hi);
+    } else
+#endif
+    {
+      for (int r = r0; r < r1; ++r) {
+        for (int c = c0; c < c1; ++c) {
+          const int i = r * width + c;
+          if (!mask[i]) continue;
+          const float qx = level.x[i], qy = level.y[i], qz = level.z[i];
+          xs[m] = qx;
+          ys[m] = qy;
+          zs[m] = qz;
+          at[m++] = i;
+          leaf.lo[0] = std::min(leaf.lo[0], qx);
+          leaf.lo[1] = std::min(leaf.lo[1], qy);
+          leaf.lo[2] = std::min(leaf.lo[2], qz);
+          leaf.hi[0] = std::max(leaf.hi[0], qx);
+          leaf.hi[1] = std::max(leaf.hi[1], qy);
+          leaf.hi[2] = std::max(leaf.hi[2], qz);
+        }
       }
     }
     if (m == 0) return -1;
@@ -320,11 +394,11 @@ std::int32_t PointTree::Build(const LevelPoints& level, const std::vector<std::u
       }
     }
     for (int k = 0; k < m; ++k) {
-      const int to = stored_ + ranks[k], i = at[k];
-      x[to] = level.x[i];
-      y[to] = level.y[i];
+      const int to = stored_ + ranks[k];
+      x[to] = xs[k];
+      y[to] = ys[k];
       z[to] = zs[k];
-      pixel[to] = i;
+      pixel[to] = at[k];
     }
     stored_ += m;
     leaf.end = stored_;
