@@ -132,9 +132,14 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   ParallelFor(
       kParts, threads,
       [&](int k) {
+        // Without a branch (which the processor mispredicts at every edge of a segment): a
+        // select that the compiler does sixteen pixels at a time.
+        const std::uint8_t* const is_lower = found.lower.data();
+        const std::uint8_t* const is_raised = found.raised.data();
+        std::int32_t* const name = component.data();
         const int end = internal::PartBegin(n, k + 1, kParts);
         for (int i = internal::PartBegin(n, k, kParts); i < end; ++i) {
-          if (!found.lower[i] && !found.raised[i]) component[i] = -1;
+          name[i] = (is_lower[i] | is_raised[i]) != 0 ? name[i] : -1;
         }
       },
       1);

@@ -77,7 +77,8 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
   const int ny = static_cast<int>((y_hi - y_lo) / side) + 1;
   const int rings = std::max(1, static_cast<int>(std::ceil(reach / side)));
   const std::size_t cells = static_cast<std::size_t>(nx) * ny;
-  // Each point's cell (-1: none), written by the first pass below, so not filled first.
+  // Each point's cell (a hole's the first), written by the first pass below, so not filled
+  // first.
   std::vector<std::int32_t, DefaultInitAllocator<std::int32_t>> cell(n);
   // Each worker's highest and lowest point per cell, then the workers' together.
   // Rounding may put a point lying on a cell boundary in the neighbouring cell (off by far
@@ -110,7 +111,7 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
         for (int i = part_begin(k); i < end; ++i) {
           const float zi = z[i];
           if (std::isnan(zi)) {
-            cells_of[i] = -1;
+            cells_of[i] = 0;  // any cell: a NaN height is below and above none (last pass)
             continue;
           }
           const int cx = std::clamp(static_cast<int>((x[i] - x0) * scale), 0, cols - 1);
@@ -173,9 +174,8 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
         std::uint8_t* is_lower = lower.data();
         std::uint8_t* is_upper = upper.data();
         const int end = part_begin(k + 1);
-        for (int i = part_begin(k); i < end; ++i) {
+        for (int i = part_begin(k); i < end; ++i) {  // a hole's NaN height is neither
           const std::int32_t j = cells_of[i];
-          if (j < 0) continue;
           is_lower[i] = z[i] < lo[j];
           is_upper[i] = z[i] > hi[j];
         }
