@@ -133,7 +133,7 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
       kParts, threads,
       [&](int k) {
         // Without a branch (which the processor mispredicts at every edge of a segment): a
-        // select that the compiler does sixteen pixels at a time.
+        // select, which GCC vectorizes.
         const std::uint8_t* const is_lower = found.lower.data();
         const std::uint8_t* const is_raised = found.raised.data();
         std::int32_t* const name = component.data();

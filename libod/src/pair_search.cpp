@@ -77,8 +77,8 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
   const int ny = static_cast<int>((y_hi - y_lo) / side) + 1;
   const int rings = std::max(1, static_cast<int>(std::ceil(reach / side)));
   const std::size_t cells = static_cast<std::size_t>(nx) * ny;
-  // Each point's cell (a hole's the first), written by the first pass below, so not filled
-  // first.
+  // Each point's cell (a hole gets cell 0, which always exists here), written by the first pass
+  // below, so not filled first.
   std::vector<std::int32_t, DefaultInitAllocator<std::int32_t>> cell(n);
   // Each worker's highest and lowest point per cell, then the workers' together.
   // Rounding may put a point lying on a cell boundary in the neighbouring cell (off by far
@@ -111,7 +111,7 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
         for (int i = part_begin(k); i < end; ++i) {
           const float zi = z[i];
           if (std::isnan(zi)) {
-            cells_of[i] = 0;  // any cell: a NaN height is below and above none (last pass)
+            cells_of[i] = 0;  // any cell: the last pass compares a NaN height as false
             continue;
           }
           const int cx = std::clamp(static_cast<int>((x[i] - x0) * scale), 0, cols - 1);
@@ -174,7 +174,8 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
         std::uint8_t* is_lower = lower.data();
         std::uint8_t* is_upper = upper.data();
         const int end = part_begin(k + 1);
-        for (int i = part_begin(k); i < end; ++i) {  // a hole's NaN height is neither
+        // A hole's NaN height makes it neither lower nor upper.
+        for (int i = part_begin(k); i < end; ++i) {
           const std::int32_t j = cells_of[i];
           is_lower[i] = z[i] < lo[j];
           is_upper[i] = z[i] > hi[j];
@@ -246,12 +247,12 @@ __attribute__((target("avx512f"))) void RanksAvx512(const float* zs, int m, int*
 }
 
 CAIRN_OD_AVX512_KERNELS_BEGIN
-// PointTree::Build's gathering of a leaf, sixteen pixels at a time (AVX-512F): the points of the
-// pixels [r0, r1) x [c0, c1) that `mask` holds, in pixel order, their coordinates to xs, ys, zs
-// and their image indices to `at`, each row's pixels taken sixteen at a time with a compress of
-// the masked lanes (no branch per pixel, which the processor mispredicts on a scan's holes), their
-// box to lo and hi (each bound the scalar loop's, but for the sign of a zero where +0 and -0 are
-// both there). Returns how many.
+// PointTree::Build's gathering of a leaf, sixteen pixels at a time (AVX-512F). The points of the
+// pixels [r0, r1) x [c0, c1) that `mask` holds go, in pixel order, to xs, ys, zs (coordinates)
+// and `at` (image indices). Each row's pixels are taken sixteen at a time: a compress of the
+// lanes the mask holds, with no branch per pixel (the scalar loop's mispredicts on every pixel
+// the mask leaves out). Their box goes to lo and hi: each bound the scalar loop's, but for the
+// sign of a zero where +0 and -0 are both there. Returns how many.
 __attribute__((target("avx512f,popcnt"))) int GatherLeafAvx512(
     const float* x, const float* y, const float* z, const std::uint8_t* mask, int width, int r0,
     int r1, int c0, int c1, float* xs, float* ys, float* zs, std::int32_t* at, float* lo,
@@ -264,8 +265,9 @@ __attribute__((target("avx512f,popcnt"))) int GatherLeafAvx512(
   for (int r = r0; r < r1; ++r) {
     for (int c = c0; c < c1; c += 16) {
       const int i0 = r * width + c, w = std::min(16, c1 - c);
-      // The mask's bytes as bits: sixteen loaded at once where the row has them, else one by one
-      // (no byte read past the leaf's columns, which may be the image's last).
+      // The mask's bytes as bits: sixteen at once when the leaf's row has sixteen more columns,
+      // else eight at once when it has eight, then one at a time. No byte past the leaf's
+      // columns is read: they may be the image's last.
       unsigned bits = 0;
       int k = 0;
       if (w == 16) {
