@@ -247,6 +247,48 @@ __attribute__((target("avx512f"))) void RanksAvx512(const float* zs, int m, int*
 }
 
 CAIRN_OD_AVX512_KERNELS_BEGIN
+// The least and the greatest of sixteen lanes (GCC 12's _mm512_reduce_min_ps warns of an
+// uninitialised variable).
+template <bool kMax>
+__attribute__((target("avx512f"))) inline float Extreme16(__m512 v) {
+  __m512 other = _mm512_shuffle_f32x4(v, v, _MM_SHUFFLE(1, 0, 3, 2));  // the other half
+  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
+  other = _mm512_shuffle_f32x4(v, v, _MM_SHUFFLE(2, 3, 0, 1));  // the other quarter
+  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
+  other = _mm512_permute_ps(v, _MM_SHUFFLE(1, 0, 3, 2));  // the other pair of lanes
+  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
+  other = _mm512_permute_ps(v, _MM_SHUFFLE(2, 3, 0, 1));  // the other lane
+  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
+  return _mm512_cvtss_f32(v);
+}
+
+// A box of points taken sixteen at a time (AVX-512F): each lane's bounds kept with masked minima
+// and maxima in std::min's and std::max's operand order (a NaN never taken, the bound met first
+// kept on a tie), then the lanes' together (Extreme16).
+struct Box16 {
+  __m512 lo[3], hi[3];
+  __attribute__((target("avx512f"))) Box16() {
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = _mm512_set1_ps(std::numeric_limits<float>::infinity());
+      hi[d] = _mm512_set1_ps(-std::numeric_limits<float>::infinity());
+    }
+  }
+  // The points of the lanes `take` of q (x, y, z).
+  __attribute__((target("avx512f"))) void Add(__mmask16 take, const __m512* q) {
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = _mm512_mask_min_ps(lo[d], take, q[d], lo[d]);
+      hi[d] = _mm512_mask_max_ps(hi[d], take, q[d], hi[d]);
+    }
+  }
+  // The box's bounds (infinite and empty when no point was added).
+  __attribute__((target("avx512f"))) void Into(float* box_lo, float* box_hi) const {
+    for (int d = 0; d < 3; ++d) {
+      box_lo[d] = Extreme16<false>(lo[d]);
+      box_hi[d] = Extreme16<true>(hi[d]);
+    }
+  }
+};
+
 // PointTree::Build's gathering of a leaf, sixteen pixels at a time (AVX-512F). The points of the
 // pixels [r0, r1) x [c0, c1) that `mask` holds go, in pixel order, to xs, ys, zs (coordinates)
 // and `at` (image indices). Each row's pixels are taken sixteen at a time: a compress of the
@@ -257,9 +299,7 @@ __attribute__((target("avx512f,popcnt"))) int GatherLeafAvx512(
     const float* x, const float* y, const float* z, const std::uint8_t* mask, int width, int r0,
     int r1, int c0, int c1, float* xs, float* ys, float* zs, std::int32_t* at, float* lo,
     float* hi) {
-  const float inf = std::numeric_limits<float>::infinity();
-  __m512 lo_x = _mm512_set1_ps(inf), lo_y = lo_x, lo_z = lo_x;
-  __m512 hi_x = _mm512_set1_ps(-inf), hi_y = hi_x, hi_z = hi_x;
+  Box16 box;
   const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   int m = 0;
   for (int r = r0; r < r1; ++r) {
@@ -285,28 +325,17 @@ __attribute__((target("avx512f,popcnt"))) int GatherLeafAvx512(
       if (bits == 0) continue;
       const auto take = static_cast<__mmask16>(bits);
       // Masked loads: lanes not taken are not read.
-      const __m512 px = _mm512_maskz_loadu_ps(take, x + i0);
-      const __m512 py = _mm512_maskz_loadu_ps(take, y + i0);
-      const __m512 pz = _mm512_maskz_loadu_ps(take, z + i0);
-      lo_x = _mm512_mask_min_ps(lo_x, take, px, lo_x);
-      lo_y = _mm512_mask_min_ps(lo_y, take, py, lo_y);
-      lo_z = _mm512_mask_min_ps(lo_z, take, pz, lo_z);
-      hi_x = _mm512_mask_max_ps(hi_x, take, px, hi_x);
-      hi_y = _mm512_mask_max_ps(hi_y, take, py, hi_y);
-      hi_z = _mm512_mask_max_ps(hi_z, take, pz, hi_z);
-      CompressStore(xs + m, take, px);
-      CompressStore(ys + m, take, py);
-      CompressStore(zs + m, take, pz);
+      const __m512 q[3] = {_mm512_maskz_loadu_ps(take, x + i0), _mm512_maskz_loadu_ps(take, y + i0),
+                           _mm512_maskz_loadu_ps(take, z + i0)};
+      box.Add(take, q);
+      CompressStore(xs + m, take, q[0]);
+      CompressStore(ys + m, take, q[1]);
+      CompressStore(zs + m, take, q[2]);
       CompressStore(at + m, take, _mm512_add_epi32(_mm512_set1_epi32(i0), lane));
       m += __builtin_popcount(bits);
     }
   }
-  lo[0] = _mm512_reduce_min_ps(lo_x);
-  lo[1] = _mm512_reduce_min_ps(lo_y);
-  lo[2] = _mm512_reduce_min_ps(lo_z);
-  hi[0] = _mm512_reduce_max_ps(hi_x);
-  hi[1] = _mm512_reduce_max_ps(hi_y);
-  hi[2] = _mm512_reduce_max_ps(hi_z);
+  box.Into(lo, hi);
   return m;
 }
 CAIRN_OD_AVX512_KERNELS_END
@@ -741,21 +770,6 @@ __attribute__((target("avx512f"))) inline __mmask16 NotRejected16(const __m512* 
                          _CMP_GT_OQ));
 }
 
-// The least and the greatest of sixteen lanes (GCC 12's _mm512_reduce_min_ps warns of an
-// uninitialised variable).
-template <bool kMax>
-__attribute__((target("avx512f"))) inline float Extreme16(__m512 v) {
-  __m512 other = _mm512_shuffle_f32x4(v, v, _MM_SHUFFLE(1, 0, 3, 2));  // the other half
-  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
-  other = _mm512_shuffle_f32x4(v, v, _MM_SHUFFLE(2, 3, 0, 1));  // the other quarter
-  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
-  other = _mm512_permute_ps(v, _MM_SHUFFLE(1, 0, 3, 2));  // the other pair of lanes
-  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
-  other = _mm512_permute_ps(v, _MM_SHUFFLE(2, 3, 0, 1));  // the other lane
-  v = kMax ? _mm512_max_ps(v, other) : _mm512_min_ps(v, other);
-  return _mm512_cvtss_f32(v);
-}
-
 // Search::NearLower sixteen points at a time: the bits of the points [0, count) of x, y, z
 // that the box a_lo..a_hi (the lower leaf's) does not reject, and their box.
 __attribute__((target("avx512f"))) std::uint64_t NearAvx512(const float* x, const float* y,
@@ -767,9 +781,7 @@ __attribute__((target("avx512f"))) std::uint64_t NearAvx512(const float* x, cons
                             _mm512_set1_ps(a_lo[2])};
   const __m512 box_hi[3] = {_mm512_set1_ps(a_hi[0]), _mm512_set1_ps(a_hi[1]),
                             _mm512_set1_ps(a_hi[2])};
-  const __m512 inf = _mm512_set1_ps(std::numeric_limits<float>::infinity());
-  const __m512 minus_inf = _mm512_set1_ps(-std::numeric_limits<float>::infinity());
-  __m512 x_lo = inf, y_lo = inf, z_lo = inf, x_hi = minus_inf, y_hi = minus_inf, z_hi = minus_inf;
+  Box16 box;
   std::uint64_t near = 0;
   for (int j = 0; j < count; j += 16) {
     const auto in_leaf = static_cast<__mmask16>(count - j >= 16 ? 0xffff : (1 << (count - j)) - 1);
@@ -778,19 +790,9 @@ __attribute__((target("avx512f"))) std::uint64_t NearAvx512(const float* x, cons
                          _mm512_maskz_loadu_ps(in_leaf, z + j)};
     const auto kept = static_cast<__mmask16>(in_leaf & NotRejected16(box_lo, box_hi, q, q, t));
     near |= static_cast<std::uint64_t>(kept) << j;
-    x_lo = _mm512_mask_min_ps(x_lo, kept, x_lo, q[0]);
-    y_lo = _mm512_mask_min_ps(y_lo, kept, y_lo, q[1]);
-    z_lo = _mm512_mask_min_ps(z_lo, kept, z_lo, q[2]);
-    x_hi = _mm512_mask_max_ps(x_hi, kept, x_hi, q[0]);
-    y_hi = _mm512_mask_max_ps(y_hi, kept, y_hi, q[1]);
-    z_hi = _mm512_mask_max_ps(z_hi, kept, z_hi, q[2]);
+    box.Add(kept, q);
   }
-  lo[0] = Extreme16<false>(x_lo);
-  lo[1] = Extreme16<false>(y_lo);
-  lo[2] = Extreme16<false>(z_lo);
-  hi[0] = Extreme16<true>(x_hi);
-  hi[1] = Extreme16<true>(y_hi);
-  hi[2] = Extreme16<true>(z_hi);
+  box.Into(lo, hi);
   return near;
 }
 
