@@ -318,7 +318,7 @@ __attribute__((target("avx512f,popcnt"))) int GatherLeafAvx512(
       } else if (w >= 8) {
         const __m512i b =
             _mm512_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(mask + i0)));
-        bits = _mm512_test_epi32_mask(b, b) & 0xffu;
+        bits = _mm512_test_epi32_mask(b, b);  // the upper eight bytes load as zero
         k = 8;
       }
       for (; k < w; ++k) bits |= static_cast<unsigned>(mask[i0 + k] != 0) << k;
