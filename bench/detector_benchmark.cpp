@@ -527,7 +527,7 @@ void BM_Candidates(benchmark::State& state, const std::string& name) {
 }
 
 // The exact detector's trees (od::internal::PointTree) of the lower and the upper candidates,
-// one thread, with Detect's leaves: checked to hold every candidate once (each tree's stored
+// one thread, with Detect's blocks: checked to hold every candidate once (each tree's stored
 // pixels, sorted, are its candidates; its root spans them all).
 void BM_Trees(benchmark::State& state, const std::string& name) {
   Frame* f = FrameOrSkip(state, name);
@@ -536,14 +536,14 @@ void BM_Trees(benchmark::State& state, const std::string& name) {
   const od::internal::LevelPoints level(f->image, 1, config.min_range_m);
   const od::internal::Candidates candidates =
       od::internal::FindCandidates(level, od::PairTest(config), 1);
-  const od::internal::LeafShape leaf = std::holds_alternative<od::SphericalModel>(f->image.model())
-                                           ? od::internal::kLidarLeaf
-                                           : od::internal::kCameraLeaf;
+  const od::internal::BlockShape block =
+      std::holds_alternative<od::SphericalModel>(f->image.model()) ? od::internal::kLidarBlock
+                                                                   : od::internal::kCameraBlock;
   const int width = f->image.width(), height = f->image.height();
   std::optional<od::internal::PointTree> lower, upper;
   for (auto _ : state) {
-    lower.emplace(level, candidates.lower, width, height, leaf.rows, leaf.cols);
-    upper.emplace(level, candidates.upper, width, height, leaf.rows, leaf.cols);
+    lower.emplace(level, candidates.lower, width, height, block.rows, block.cols);
+    upper.emplace(level, candidates.upper, width, height, block.rows, block.cols);
     benchmark::DoNotOptimize(lower->nodes.data());
     benchmark::DoNotOptimize(upper->nodes.data());
   }

@@ -626,8 +626,9 @@ TEST(PairSearch, EveryVectorWidthFindsTheSamePairs) {
     scan_config.threads = 1;
     widest_scan = *Detect(*scan, scan_config);
   }
-  // The point trees of the lattice (many equal heights) and of a random view (few), leaves of
-  // 2 x 32 and of 8 x 8, one at a time: each leaf's points by height, ties in pixel order.
+  // The point trees of the lattice (many equal heights) and of a random view (few), blocks of
+  // 2 x 32 and of 8 x 8 (each one leaf) and Detect's (split in space), one at a time: each
+  // leaf's points by height, ties in pixel order.
   const auto trees = [&] {
     std::vector<std::vector<float>> stored;
     std::vector<std::size_t> tree_images = {0};
@@ -636,9 +637,11 @@ TEST(PairSearch, EveryVectorWidthFindsTheSamePairs) {
       const internal::LevelPoints level(images[k]);
       std::vector<std::uint8_t> all(images[k].size());
       for (int i = 0; i < images[k].size(); ++i) all[i] = images[k].valid(i);
-      for (const int rows : {2, 8}) {
-        const internal::PointTree tree(level, all, images[k].width(), images[k].height(), rows,
-                                       64 / rows);
+      for (const internal::BlockShape block :
+           {internal::BlockShape{2, 32}, internal::BlockShape{8, 8}, internal::kLidarBlock,
+            internal::kCameraBlock}) {
+        const internal::PointTree tree(level, all, images[k].width(), images[k].height(),
+                                       block.rows, block.cols);
         stored.push_back(tree.z);
         stored.emplace_back(tree.pixel.begin(), tree.pixel.end());
       }
@@ -718,6 +721,92 @@ RangeImage DemoFrame() {
 DetectorConfig DemoConfig() {
   return io::LoadDetectSettings(kSource + "/config/default.yaml", {"map", "tilt", "frames"})
       ->detector;
+}
+
+// Detect's trees (blocks of pixels, each split in space into leaves): every point stored once,
+// leaves of at most kMaxLeafPoints by height (ties in pixel order), each node's box the exact
+// box of its points, each leaf within one block, and each split of a block's points at a plane
+// across the longest side of its box, which leaves its two parts apart on that side (unless
+// that side is one float step long). Blocks with more points than a leaf are split, on every
+// image kind.
+TEST(PairSearch, TheTreesSplitEachBlockInSpaceIntoLeavesOfNearbyPoints) {
+  std::mt19937 rng(2207);
+  std::vector<RangeImage> images = {RandomView(71, 0.0, 0.05), RandomView(72, 0.03, 0.2),
+                                    RandomScan(rng, "OS1-64", 256), LatticeImage(rng, 40, 30, 12.0),
+                                    DemoFrame()};
+  for (std::size_t k = 0; k < images.size(); ++k) {
+    const RangeImage& image = images[k];
+    const internal::LevelPoints level(image);
+    const internal::BlockShape block = std::holds_alternative<SphericalModel>(image.model())
+                                           ? internal::kLidarBlock
+                                           : internal::kCameraBlock;
+    std::vector<std::uint8_t> mask(image.size());
+    for (int i = 0; i < image.size(); ++i) mask[i] = image.valid(i) && rng() % 4 != 0;
+    const internal::PointTree tree(level, mask, image.width(), image.height(), block.rows,
+                                   block.cols);
+    const std::string what = "image " + std::to_string(k);
+    std::vector<std::int32_t> stored = tree.pixel, wanted;
+    std::sort(stored.begin(), stored.end());
+    for (int i = 0; i < image.size(); ++i) {
+      if (mask[i]) wanted.push_back(i);
+    }
+    ASSERT_EQ(stored, wanted) << what;
+    ASSERT_EQ(tree.roots.size(), 1u);
+    ASSERT_GE(tree.roots[0], 0);
+    EXPECT_EQ(tree.nodes[tree.roots[0]].begin, 0) << what;
+    EXPECT_EQ(tree.nodes[tree.roots[0]].end, tree.size()) << what;
+    const auto block_of = [&](int pixel) {
+      return std::pair(pixel / image.width() / block.rows, pixel % image.width() / block.cols);
+    };
+    int splits = 0;
+    for (std::size_t n = 0; n < tree.nodes.size(); ++n) {
+      const internal::PointTree::Node& node = tree.nodes[n];
+      const std::string at = what + ", node " + std::to_string(n);
+      ASSERT_LT(node.begin, node.end) << at;
+      float lo[3] = {tree.x[node.begin], tree.y[node.begin], tree.z[node.begin]};
+      float hi[3] = {lo[0], lo[1], lo[2]};
+      bool one_block = true;
+      for (int j = node.begin; j < node.end; ++j) {
+        const float q[3] = {tree.x[j], tree.y[j], tree.z[j]};
+        for (int d = 0; d < 3; ++d) {
+          lo[d] = std::min(lo[d], q[d]);
+          hi[d] = std::max(hi[d], q[d]);
+        }
+        one_block = one_block && block_of(tree.pixel[j]) == block_of(tree.pixel[node.begin]);
+      }
+      for (int d = 0; d < 3; ++d) {
+        EXPECT_EQ(node.lo[d], lo[d]) << at;
+        EXPECT_EQ(node.hi[d], hi[d]) << at;
+      }
+      if (node.child[0] < 0) {
+        EXPECT_LE(node.end - node.begin, internal::PointTree::kMaxLeafPoints) << at;
+        EXPECT_TRUE(one_block) << at;
+        for (int j = node.begin + 1; j < node.end; ++j) {
+          EXPECT_TRUE(tree.z[j - 1] < tree.z[j] ||
+                      (tree.z[j - 1] == tree.z[j] && tree.pixel[j - 1] < tree.pixel[j]))
+              << at;
+        }
+        continue;
+      }
+      const internal::PointTree::Node& a = tree.nodes[node.child[0]];
+      const internal::PointTree::Node& b = tree.nodes[node.child[1]];
+      EXPECT_EQ(a.parent, static_cast<int>(n)) << at;
+      EXPECT_EQ(b.parent, static_cast<int>(n)) << at;
+      EXPECT_EQ(a.begin, node.begin) << at;
+      EXPECT_EQ(a.end, b.begin) << at;
+      EXPECT_EQ(b.end, node.end) << at;
+      if (!one_block) continue;
+      ++splits;
+      EXPECT_GT(node.end - node.begin, internal::PointTree::kMaxLeafPoints) << at;
+      int axis = 0;
+      for (int d = 1; d < 3; ++d) {
+        if (hi[d] - lo[d] > hi[axis] - lo[axis]) axis = d;
+      }
+      const bool one_step = std::nextafter(lo[axis], hi[axis] + 1.0f) >= hi[axis];
+      EXPECT_TRUE(one_step || a.hi[axis] < b.lo[axis]) << at << ": parts not apart";
+    }
+    EXPECT_GT(splits, 0) << what << ": no block split";
+  }
 }
 
 TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {
@@ -838,9 +927,9 @@ TEST(PairSearch, FeaturesOfTheDemoFrameAreTheSameOnAnyThreadsAndMatchTheirDefini
     const PairTest test(config);
     const internal::Candidates candidates = internal::FindCandidates(level, test, 1);
     const internal::PointTree lower(level, candidates.lower, image.width(), image.height(),
-                                    internal::kCameraLeaf.rows, internal::kCameraLeaf.cols);
+                                    internal::kCameraBlock.rows, internal::kCameraBlock.cols);
     const internal::PointTree upper(level, candidates.upper, image.width(), image.height(),
-                                    internal::kCameraLeaf.rows, internal::kCameraLeaf.cols);
+                                    internal::kCameraBlock.rows, internal::kCameraBlock.cols);
     const internal::PairSearchResult found =
         internal::SearchPairs(lower, upper, image.size(), test, internal::PairSearchOptions{});
     ExpectFeetFollowTheirDefinition(one, level, found.raised, test.min_height, "demo frame");

@@ -99,6 +99,16 @@ constexpr double kInclinationPoly[6] = {-0.058377893120734145, 0.104805952743506
                                         -0.1422416064933773,   0.19997023132834191,
                                         -0.33333271105929246,  0.99999999627057046};
 
+/// The box lo..hi (x, y, z) grown to hold the point (x, y, z).
+inline void ExtendBox(float* lo, float* hi, float x, float y, float z) {
+  lo[0] = std::min(lo[0], x);
+  lo[1] = std::min(lo[1], y);
+  lo[2] = std::min(lo[2], z);
+  hi[0] = std::max(hi[0], x);
+  hi[1] = std::max(hi[1], y);
+  hi[2] = std::max(hi[2], z);
+}
+
 /// atan2(horizontal, vertical) for horizontal, vertical >= 0, not both 0: the angle from
 /// the vertical axis in [0, pi/2]. Each of the three pieces [0, pi/8], [pi/8, 3pi/8] and
 /// [3pi/8, pi/2] takes one division and an odd polynomial of degree 11 in t with |t| <=

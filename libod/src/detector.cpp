@@ -106,9 +106,9 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   // (and the image's ranges of segment points, which are none of them).
   const internal::LevelPoints level(image, threads, config.min_range_m);
   const PairTest test(config);
-  const internal::LeafShape leaf = std::holds_alternative<SphericalModel>(image.model())
-                                       ? internal::kLidarLeaf
-                                       : internal::kCameraLeaf;
+  const internal::BlockShape block = std::holds_alternative<SphericalModel>(image.model())
+                                         ? internal::kLidarBlock
+                                         : internal::kCameraBlock;
   internal::PairSearchOptions options;
   options.threads = threads;
   const internal::Candidates candidates = internal::FindCandidates(level, test, threads);
@@ -120,7 +120,7 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
         const bool is_lower = tree == 0;
         (is_lower ? lower : upper)
             .emplace(level, is_lower ? candidates.lower : candidates.upper, image.width(),
-                     image.height(), leaf.rows, leaf.cols);
+                     image.height(), block.rows, block.cols);
       },
       1);
   internal::PairSearchResult found = internal::SearchPairs(*lower, *upper, n, test, options);

@@ -631,12 +631,7 @@ Detection BuildDetection(const RangeImage& image, const LevelPoints& level,
           for (int j = 0; j < len; ++j) {
             const int i = i0 + j;
             const float x = level.x[i], y = level.y[i], z = level.z[i];
-            lo[0] = std::min(lo[0], x);
-            lo[1] = std::min(lo[1], y);
-            lo[2] = std::min(lo[2], z);
-            hi[0] = std::max(hi[0], x);
-            hi[1] = std::max(hi[1], y);
-            hi[2] = std::max(hi[2], z);
+            ExtendBox(lo, hi, x, y, z);
             sx += x;
             sy += y;
             sz += z;

@@ -185,6 +185,14 @@ Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int th
   return c;
 }
 
+// The two parts of a split block's points (PointTree::Split), each in pixel order.
+struct PointTree::SplitParts {
+  float x[2][kMaxBlockPixels], y[2][kMaxBlockPixels], z[2][kMaxBlockPixels];
+  std::int32_t at[2][kMaxBlockPixels];
+  int count[2];
+  float lo[2][3], hi[2][3];
+};
+
 namespace {
 
 #if defined(CAIRN_OD_WIDE_VECTORS)
@@ -338,15 +346,51 @@ __attribute__((target("avx512f,popcnt"))) int GatherLeafAvx512(
   box.Into(lo, hi);
   return m;
 }
+// PointTree::Split's partition, sixteen points at a time (AVX-512F): the points [0, m) of x, y,
+// z, at go, in their order, to part 0 of q when their coordinate `axis` is below `mid` (when
+// `by_index`: the first m / 2 of them) and to part 1 otherwise, each part's box with them
+// (Box16).
+__attribute__((target("avx512f,popcnt"))) void SplitAvx512(const float* x, const float* y,
+                                                           const float* z, const std::int32_t* at,
+                                                           int m, int axis, float mid,
+                                                           bool by_index,
+                                                           PointTree::SplitParts& q) {
+  Box16 box[2];
+  const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  q.count[0] = q.count[1] = 0;
+  for (int k = 0; k < m; k += 16) {
+    const auto valid = static_cast<__mmask16>(m - k >= 16 ? 0xffff : (1u << (m - k)) - 1);
+    const __m512 p[3] = {_mm512_maskz_loadu_ps(valid, x + k), _mm512_maskz_loadu_ps(valid, y + k),
+                         _mm512_maskz_loadu_ps(valid, z + k)};
+    const __m512i index = _mm512_maskz_loadu_epi32(valid, at + k);
+    const __mmask16 first =
+        by_index ? _mm512_cmplt_epi32_mask(_mm512_add_epi32(_mm512_set1_epi32(k), lane),
+                                           _mm512_set1_epi32(m / 2))
+                 : _mm512_cmp_ps_mask(p[axis], _mm512_set1_ps(mid), _CMP_LT_OQ);
+    const __mmask16 take[2] = {static_cast<__mmask16>(valid & first),
+                               static_cast<__mmask16>(valid & ~first)};
+    for (int part = 0; part < 2; ++part) {
+      const int c = q.count[part];
+      CompressStore(q.x[part] + c, take[part], p[0]);
+      CompressStore(q.y[part] + c, take[part], p[1]);
+      CompressStore(q.z[part] + c, take[part], p[2]);
+      CompressStore(q.at[part] + c, take[part], index);
+      box[part].Add(take[part], p);
+      q.count[part] = c + __builtin_popcount(take[part]);
+    }
+  }
+  box[0].Into(q.lo[0], q.hi[0]);
+  box[1].Into(q.lo[1], q.hi[1]);
+}
 CAIRN_OD_AVX512_KERNELS_END
 #endif
 
 }  // namespace
 
 PointTree::PointTree(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width,
-                     int height, int leaf_rows, int leaf_cols, bool per_column) {
-  leaf_rows = std::clamp(leaf_rows, 1, kMaxLeafPoints);
-  leaf_cols = std::clamp(leaf_cols, 1, kMaxLeafPoints / leaf_rows);
+                     int height, int block_rows, int block_cols, bool per_column) {
+  block_rows = std::clamp(block_rows, 1, kMaxBlockPixels);
+  block_cols = std::clamp(block_cols, 1, kMaxBlockPixels / block_rows);
   const std::size_t n = static_cast<std::size_t>(width) * height;
   std::size_t count = 0;
   for (std::size_t i = 0; i < n; ++i) count += mask[i] != 0;
@@ -357,32 +401,30 @@ PointTree::PointTree(const LevelPoints& level, const std::vector<std::uint8_t>& 
   pixel.assign(count, 0);
   if (per_column) {
     for (int c = 0; c < width; ++c) {
-      roots.push_back(Build(level, mask, width, 0, height, c, c + 1, leaf_rows, 1));
+      roots.push_back(Build(level, mask, width, 0, height, c, c + 1, block_rows, 1));
     }
   } else {
-    roots.push_back(Build(level, mask, width, 0, height, 0, width, leaf_rows, leaf_cols));
+    roots.push_back(Build(level, mask, width, 0, height, 0, width, block_rows, block_cols));
   }
 }
 
 // Builds the subtree of pixels [r0, r1) x [c0, c1); returns its node, or -1 when it holds no
 // point. A node with one non-empty half is that half.
 std::int32_t PointTree::Build(const LevelPoints& level, const std::vector<std::uint8_t>& mask,
-                              int width, int r0, int r1, int c0, int c1, int leaf_rows,
-                              int leaf_cols) {
-  constexpr float kInf = std::numeric_limits<float>::infinity();
+                              int width, int r0, int r1, int c0, int c1, int block_rows,
+                              int block_cols) {
   const int rows = r1 - r0, cols = c1 - c0;
-  if (rows <= leaf_rows && cols <= leaf_cols) {
-    // The leaf's points in pixel order, then each stored at its rank by ascending height
-    // (ties in pixel order, as a stable sort has them), counted without a branch: cheaper
-    // than sorting them, whose every step the processor mispredicts.
-    float xs[kMaxLeafPoints], ys[kMaxLeafPoints], zs[kMaxLeafPoints + 15];
-    std::int32_t at[kMaxLeafPoints];
+  if (rows <= block_rows && cols <= block_cols) {
+    // The block's points in pixel order, and their box.
+    float xs[kMaxBlockPixels], ys[kMaxBlockPixels], zs[kMaxBlockPixels];
+    std::int32_t at[kMaxBlockPixels];
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    float lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
     int m = 0;
-    Node leaf{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}, stored_, stored_, {-1, -1}, -1};
 #if defined(CAIRN_OD_WIDE_VECTORS)
     if (VectorLanes() == 16) {
       m = GatherLeafAvx512(level.x.data(), level.y.data(), level.z.data(), mask.data(), width, r0,
-                           r1, c0, c1, xs, ys, zs, at, leaf.lo, leaf.hi);
+                           r1, c0, c1, xs, ys, zs, at, lo, hi);
     } else
 #endif
     {
@@ -395,61 +437,139 @@ std::int32_t PointTree::Build(const LevelPoints& level, const std::vector<std::u
           ys[m] = qy;
           zs[m] = qz;
           at[m++] = i;
-          leaf.lo[0] = std::min(leaf.lo[0], qx);
-          leaf.lo[1] = std::min(leaf.lo[1], qy);
-          leaf.lo[2] = std::min(leaf.lo[2], qz);
-          leaf.hi[0] = std::max(leaf.hi[0], qx);
-          leaf.hi[1] = std::max(leaf.hi[1], qy);
-          leaf.hi[2] = std::max(leaf.hi[2], qz);
+          ExtendBox(lo, hi, qx, qy, qz);
         }
       }
     }
     if (m == 0) return -1;
-    int ranks[kMaxLeafPoints];
-#if defined(CAIRN_OD_WIDE_VECTORS)
-    if (VectorLanes() == 16) {
-      for (int k = m; k < ((m + 15) & ~15); ++k) zs[k] = kInf;
-      RanksAvx512(zs, m, ranks);
-    } else if (VectorLanes() == 8) {
-      for (int k = m; k < ((m + 7) & ~7); ++k) zs[k] = kInf;
-      RanksAvx2(zs, m, ranks);
-    } else
-#endif
-    {
-      for (int k = 0; k < m; ++k) {
-        const float zk = zs[k];
-        int rank = 0;
-        for (int j = 0; j < k; ++j) rank += zs[j] <= zk;
-        for (int j = k + 1; j < m; ++j) rank += zs[j] < zk;
-        ranks[k] = rank;
-      }
-    }
-    for (int k = 0; k < m; ++k) {
-      const int to = stored_ + ranks[k];
-      x[to] = xs[k];
-      y[to] = ys[k];
-      z[to] = zs[k];
-      pixel[to] = at[k];
-    }
-    stored_ += m;
-    leaf.end = stored_;
-    nodes.push_back(leaf);
-    return static_cast<std::int32_t>(nodes.size()) - 1;
+    SplitParts parts;
+    return Split(xs, ys, zs, at, m, lo, hi, parts);
   }
-  // Split the longer side, in units of leaves, at a leaf boundary. Children first, so that
+  // Split the longer side, in units of blocks, at a block boundary. Children first, so that
   // a node with one non-empty half can be that half.
-  const bool split_rows = (rows + leaf_rows - 1) / leaf_rows > (cols + leaf_cols - 1) / leaf_cols;
+  const bool split_rows =
+      (rows + block_rows - 1) / block_rows > (cols + block_cols - 1) / block_cols;
   std::int32_t a, b;
   if (split_rows) {
-    const int half = ((rows + leaf_rows - 1) / leaf_rows + 1) / 2 * leaf_rows;
-    a = Build(level, mask, width, r0, r0 + half, c0, c1, leaf_rows, leaf_cols);
-    b = Build(level, mask, width, r0 + half, r1, c0, c1, leaf_rows, leaf_cols);
+    const int half = ((rows + block_rows - 1) / block_rows + 1) / 2 * block_rows;
+    a = Build(level, mask, width, r0, r0 + half, c0, c1, block_rows, block_cols);
+    b = Build(level, mask, width, r0 + half, r1, c0, c1, block_rows, block_cols);
   } else {
-    const int half = ((cols + leaf_cols - 1) / leaf_cols + 1) / 2 * leaf_cols;
-    a = Build(level, mask, width, r0, r1, c0, c0 + half, leaf_rows, leaf_cols);
-    b = Build(level, mask, width, r0, r1, c0 + half, c1, leaf_rows, leaf_cols);
+    const int half = ((cols + block_cols - 1) / block_cols + 1) / 2 * block_cols;
+    a = Build(level, mask, width, r0, r1, c0, c0 + half, block_rows, block_cols);
+    b = Build(level, mask, width, r0, r1, c0 + half, c1, block_rows, block_cols);
   }
   if (a < 0 || b < 0) return a >= 0 ? a : b;
+  return Join(a, b);
+}
+
+// The m points xs, ys, zs, at (in pixel order, box lo..hi) as a subtree: one leaf when they fit
+// in one, else two subtrees, split at the middle of the box's longest side. (All of them fall
+// on one side only when that side is at most one float step long, as when every point is one:
+// then the first half of them and the rest.) `parts` is scratch; the points are split in
+// place, so that the depth costs no memory.
+std::int32_t PointTree::Split(float* xs, float* ys, float* zs, std::int32_t* at, int m,
+                              const float* lo, const float* hi, SplitParts& parts) {
+  if (m <= kMaxLeafPoints) return Leaf(xs, ys, zs, at, m, lo, hi);
+  int axis = 0;
+  for (int d = 1; d < 3; ++d) {
+    if (hi[d] - lo[d] > hi[axis] - lo[axis]) axis = d;
+  }
+  const float* key = axis == 0 ? xs : axis == 1 ? ys : zs;
+  const float mid = lo[axis] + 0.5f * (hi[axis] - lo[axis]);
+  int below = 0;
+  for (int k = 0; k < m; ++k) below += key[k] < mid;
+  const bool by_index = below == 0 || below == m;
+#if defined(CAIRN_OD_WIDE_VECTORS)
+  if (VectorLanes() == 16) {
+    SplitAvx512(xs, ys, zs, at, m, axis, mid, by_index, parts);
+  } else
+#endif
+  {
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    for (int part = 0; part < 2; ++part) {
+      int c = 0;
+      float* l = parts.lo[part];
+      float* h = parts.hi[part];
+      for (int d = 0; d < 3; ++d) {
+        l[d] = kInf;
+        h[d] = -kInf;
+      }
+      for (int k = 0; k < m; ++k) {
+        const bool first = by_index ? k < m / 2 : key[k] < mid;
+        if (first != (part == 0)) continue;
+        parts.x[part][c] = xs[k];
+        parts.y[part][c] = ys[k];
+        parts.z[part][c] = zs[k];
+        parts.at[part][c++] = at[k];
+        ExtendBox(l, h, xs[k], ys[k], zs[k]);
+      }
+      parts.count[part] = c;
+    }
+  }
+  // Back in place, the first part first; the boxes kept for the two calls.
+  const int first = parts.count[0];
+  std::copy(parts.x[0], parts.x[0] + first, xs);
+  std::copy(parts.y[0], parts.y[0] + first, ys);
+  std::copy(parts.z[0], parts.z[0] + first, zs);
+  std::copy(parts.at[0], parts.at[0] + first, at);
+  std::copy(parts.x[1], parts.x[1] + m - first, xs + first);
+  std::copy(parts.y[1], parts.y[1] + m - first, ys + first);
+  std::copy(parts.z[1], parts.z[1] + m - first, zs + first);
+  std::copy(parts.at[1], parts.at[1] + m - first, at + first);
+  float box_lo[2][3], box_hi[2][3];
+  std::copy(&parts.lo[0][0], &parts.lo[0][0] + 6, &box_lo[0][0]);
+  std::copy(&parts.hi[0][0], &parts.hi[0][0] + 6, &box_hi[0][0]);
+  const std::int32_t a = Split(xs, ys, zs, at, first, box_lo[0], box_hi[0], parts);
+  const std::int32_t b =
+      Split(xs + first, ys + first, zs + first, at + first, m - first, box_lo[1], box_hi[1], parts);
+  return Join(a, b);
+}
+
+// The m <= kMaxLeafPoints points xs, ys, zs, at (in pixel order, box lo..hi) as a leaf: each
+// stored at its rank by ascending height (ties in pixel order, as a stable sort has them),
+// counted without a branch: cheaper than sorting them, whose every step the processor
+// mispredicts.
+std::int32_t PointTree::Leaf(const float* xs, const float* ys, const float* zs,
+                             const std::int32_t* at, int m, const float* lo, const float* hi) {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  // The heights padded for the widest loads.
+  float heights[kMaxLeafPoints + 15];
+  std::copy(zs, zs + m, heights);
+  int ranks[kMaxLeafPoints];
+#if defined(CAIRN_OD_WIDE_VECTORS)
+  if (VectorLanes() == 16) {
+    for (int k = m; k < ((m + 15) & ~15); ++k) heights[k] = kInf;
+    RanksAvx512(heights, m, ranks);
+  } else if (VectorLanes() == 8) {
+    for (int k = m; k < ((m + 7) & ~7); ++k) heights[k] = kInf;
+    RanksAvx2(heights, m, ranks);
+  } else
+#endif
+  {
+    for (int k = 0; k < m; ++k) {
+      const float zk = heights[k];
+      int rank = 0;
+      for (int j = 0; j < k; ++j) rank += heights[j] <= zk;
+      for (int j = k + 1; j < m; ++j) rank += heights[j] < zk;
+      ranks[k] = rank;
+    }
+  }
+  for (int k = 0; k < m; ++k) {
+    const int to = stored_ + ranks[k];
+    x[to] = xs[k];
+    y[to] = ys[k];
+    z[to] = zs[k];
+    pixel[to] = at[k];
+  }
+  Node leaf{{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}, stored_, stored_ + m, {-1, -1}, -1};
+  stored_ += m;
+  nodes.push_back(leaf);
+  return static_cast<std::int32_t>(nodes.size()) - 1;
+}
+
+// The parent of nodes a and b, stored one after the other.
+std::int32_t PointTree::Join(std::int32_t a, std::int32_t b) {
   Node node;
   const Node& na = nodes[a];
   const Node& nb = nodes[b];

@@ -54,7 +54,8 @@ struct Candidates {
 };
 Candidates FindCandidates(const LevelPoints& level, const PairTest& test, int threads = 1);
 
-/// Points of an image (those with mask[pixel] != 0) in a binary tree of pixel rectangles.
+/// Points of an image (those with mask[pixel] != 0) in a binary tree of pixel rectangles
+/// (blocks), each block's points split in space (below).
 struct PointTree {
   struct Node {
     float lo[3], hi[3];     // level-frame box of its points [m]
@@ -75,28 +76,40 @@ struct PointTree {
 
   /// The most points a leaf holds (the search keeps a leaf's points as bits of one word).
   static constexpr int kMaxLeafPoints = 64;
-  /// Leaves hold at most leaf_rows x leaf_cols pixels, leaf_cols cut down so that the product
-  /// is at most kMaxLeafPoints (a larger shape asked for gets fewer columns). With
-  /// `per_column`, one tree per image column (leaves of leaf_rows pixels): pairs are then only
-  /// searched within a column.
-  PointTree(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width,
-            int height, int leaf_rows, int leaf_cols, bool per_column = false);
+  /// The most pixels of a block (below).
+  static constexpr int kMaxBlockPixels = 256;
+  /// The image is cut into blocks of at most block_rows x block_cols pixels (block_cols cut
+  /// down so that the product is at most kMaxBlockPixels), split in halves of whole blocks
+  /// along the longer side. A block's points are then split in space, each part at the middle
+  /// of its box's longest side, until each part fits in a leaf: a leaf holds nearby points
+  /// only, not the near and the far side of an edge in the image (BENCHMARKS.md, 2026-12-07).
+  /// With `per_column`, one tree per image column (blocks of block_rows pixels): pairs are
+  /// then only searched within a column.
+  PointTree(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width, int height,
+            int block_rows, int block_cols, bool per_column = false);
 
   int size() const { return static_cast<int>(pixel.size()); }
 
+  struct SplitParts;
+
  private:
   std::int32_t Build(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width,
-                     int r0, int r1, int c0, int c1, int leaf_rows, int leaf_cols);
+                     int r0, int r1, int c0, int c1, int block_rows, int block_cols);
+  std::int32_t Split(float* xs, float* ys, float* zs, std::int32_t* at, int m, const float* lo,
+                     const float* hi, SplitParts& parts);
+  std::int32_t Leaf(const float* xs, const float* ys, const float* zs, const std::int32_t* at,
+                    int m, const float* lo, const float* hi);
+  std::int32_t Join(std::int32_t a, std::int32_t b);
   std::int32_t stored_ = 0;  // points stored so far (Build)
 };
 
-/// Detect's leaves: 2 x 32 pixels on a LiDAR scan, 8 x 8 on camera images, the fastest of the
-/// shapes tried on the benchmark frames once a leaf's points are filtered by the other leaf's
-/// box (BENCHMARKS.md; 2 x 16 and 4 x 8 before, one ring of 16 one point at a time).
-struct LeafShape {
+/// Detect's blocks (PointTree): 4 x 64 pixels on a LiDAR scan, 16 x 16 on camera images, the
+/// fastest of the shapes tried on the benchmark frames (BENCHMARKS.md, 2026-12-07; before the
+/// blocks were split in space, leaves were blocks of 2 x 32 and 8 x 8 pixels).
+struct BlockShape {
   int rows, cols;
 };
-constexpr LeafShape kLidarLeaf{2, 32}, kCameraLeaf{8, 8};
+constexpr BlockShape kLidarBlock{4, 64}, kCameraBlock{16, 16};
 
 struct PairSearchOptions {
   /// Build the sets (the cone detector). Off (the mask alone) and the per-column trees were

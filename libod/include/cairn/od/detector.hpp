@@ -8,11 +8,11 @@
 //  - an obstacle point has at least one compatible partner;
 //  - a segment is a connected component of the graph whose edges are the compatible pairs.
 // Each pair is found once, from its lower point. Detect bounds blocks of points (a tree of
-// pixel rectangles with their 3-D boxes): block pairs that provably hold no compatible pair
-// are skipped, block pairs that provably hold only compatible pairs are joined at once, and
-// block pairs that can change nothing are skipped; the result equals DetectBruteForce's,
-// point for point and segment for segment. DetectRegionScan, the earlier method,
-// scans for each point the pixels onto which its upper cone (height HT..Hmax above it,
+// pixel rectangles, each rectangle's points split in space, with their 3-D boxes): block pairs that
+// provably hold no compatible pair are skipped, block pairs that provably hold only compatible
+// pairs are joined at once, and block pairs that can change nothing are skipped; the result equals
+// DetectBruteForce's, point for point and segment for segment. DetectRegionScan, the earlier
+// method, scans for each point the pixels onto which its upper cone (height HT..Hmax above it,
 // half-angle 90 deg - theta about `up`) can project; it is kept as the reference that
 // benchmarks and tests compare with, and it runs the paper's square window.
 #pragma once
