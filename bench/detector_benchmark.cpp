@@ -536,9 +536,7 @@ void BM_Trees(benchmark::State& state, const std::string& name) {
   const od::internal::LevelPoints level(f->image, 1, config.min_range_m);
   const od::internal::Candidates candidates =
       od::internal::FindCandidates(level, od::PairTest(config), 1);
-  const od::internal::BlockShape block =
-      std::holds_alternative<od::SphericalModel>(f->image.model()) ? od::internal::kLidarBlock
-                                                                   : od::internal::kCameraBlock;
+  const od::internal::BlockShape block = od::internal::BlockShapeFor(f->image);
   const int width = f->image.width(), height = f->image.height();
   std::optional<od::internal::PointTree> lower, upper;
   for (auto _ : state) {

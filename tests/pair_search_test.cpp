@@ -628,7 +628,8 @@ TEST(PairSearch, EveryVectorWidthFindsTheSamePairs) {
   }
   // The point trees of the lattice (many equal heights) and of a random view (few), blocks of
   // 2 x 32 and of 8 x 8 (each one leaf) and Detect's (split in space), one at a time: each
-  // leaf's points by height, ties in pixel order.
+  // leaf's points by height, ties in pixel order, and the same nodes (their points, children,
+  // parents and boxes; a box's zero may differ in sign only, which == does not see).
   const auto trees = [&] {
     std::vector<std::vector<float>> stored;
     std::vector<std::size_t> tree_images = {0};
@@ -644,6 +645,15 @@ TEST(PairSearch, EveryVectorWidthFindsTheSamePairs) {
                                        block.rows, block.cols);
         stored.push_back(tree.z);
         stored.emplace_back(tree.pixel.begin(), tree.pixel.end());
+        std::vector<float> nodes;
+        for (const internal::PointTree::Node& node : tree.nodes) {
+          nodes.insert(nodes.end(),
+                       {node.lo[0], node.lo[1], node.lo[2], node.hi[0], node.hi[1], node.hi[2],
+                        static_cast<float>(node.begin), static_cast<float>(node.end),
+                        static_cast<float>(node.child[0]), static_cast<float>(node.child[1]),
+                        static_cast<float>(node.parent)});
+        }
+        stored.push_back(std::move(nodes));
       }
     }
     return stored;
@@ -727,8 +737,8 @@ DetectorConfig DemoConfig() {
 // leaves of at most kMaxLeafPoints by height (ties in pixel order), each node's box the exact
 // box of its points, each leaf within one block, and each split of a block's points at a plane
 // across the longest side of its box, which leaves its two parts apart on that side (unless
-// that side is one float step long). Blocks with more points than a leaf are split, on every
-// image kind.
+// that side is at most one float step long). Blocks with more points than a leaf are split, on
+// every image kind; a block of one point many times is halved in pixel order.
 TEST(PairSearch, TheTreesSplitEachBlockInSpaceIntoLeavesOfNearbyPoints) {
   std::mt19937 rng(2207);
   std::vector<RangeImage> images = {RandomView(71, 0.0, 0.05), RandomView(72, 0.03, 0.2),
@@ -737,9 +747,7 @@ TEST(PairSearch, TheTreesSplitEachBlockInSpaceIntoLeavesOfNearbyPoints) {
   for (std::size_t k = 0; k < images.size(); ++k) {
     const RangeImage& image = images[k];
     const internal::LevelPoints level(image);
-    const internal::BlockShape block = std::holds_alternative<SphericalModel>(image.model())
-                                           ? internal::kLidarBlock
-                                           : internal::kCameraBlock;
+    const internal::BlockShape block = internal::BlockShapeFor(image);
     std::vector<std::uint8_t> mask(image.size());
     for (int i = 0; i < image.size(); ++i) mask[i] = image.valid(i) && rng() % 4 != 0;
     const internal::PointTree tree(level, mask, image.width(), image.height(), block.rows,
@@ -751,8 +759,9 @@ TEST(PairSearch, TheTreesSplitEachBlockInSpaceIntoLeavesOfNearbyPoints) {
       if (mask[i]) wanted.push_back(i);
     }
     ASSERT_EQ(stored, wanted) << what;
-    ASSERT_EQ(tree.roots.size(), 1u);
+    ASSERT_EQ(tree.roots.size(), 1u) << what;
     ASSERT_GE(tree.roots[0], 0);
+    EXPECT_EQ(tree.nodes[tree.roots[0]].parent, -1) << what;
     EXPECT_EQ(tree.nodes[tree.roots[0]].begin, 0) << what;
     EXPECT_EQ(tree.nodes[tree.roots[0]].end, tree.size()) << what;
     const auto block_of = [&](int pixel) {
@@ -807,6 +816,35 @@ TEST(PairSearch, TheTreesSplitEachBlockInSpaceIntoLeavesOfNearbyPoints) {
     }
     EXPECT_GT(splits, 0) << what << ": no block split";
   }
+  // A block whose points all coincide (a camera block of 16 x 16 on the random view, every
+  // pixel made one point): no side to split, so halves in pixel order, down to four leaves of
+  // 64, each in pixel order.
+  const RangeImage& view = images[0];
+  internal::LevelPoints level(view);
+  std::vector<std::uint8_t> mask(view.size(), 0);
+  const int side = internal::kCameraBlock.rows;
+  ASSERT_EQ(internal::kCameraBlock.cols, side);
+  ASSERT_EQ(side * side, 4 * internal::PointTree::kMaxLeafPoints);
+  for (int r = 0; r < side; ++r) {
+    for (int c = 0; c < side; ++c) {
+      const int i = r * view.width() + c;
+      level.x[i] = 1.0f;
+      level.y[i] = 2.0f;
+      level.z[i] = 0.5f;
+      mask[i] = 1;
+    }
+  }
+  const internal::PointTree tree(level, mask, view.width(), view.height(), side, side);
+  ASSERT_EQ(tree.size(), side * side);
+  int leaves = 0;
+  for (const internal::PointTree::Node& node : tree.nodes) {
+    if (node.child[0] >= 0) continue;
+    ++leaves;
+    EXPECT_EQ(node.end - node.begin, internal::PointTree::kMaxLeafPoints);
+    for (int j = node.begin + 1; j < node.end; ++j) EXPECT_LT(tree.pixel[j - 1], tree.pixel[j]);
+  }
+  EXPECT_EQ(leaves, 4);
+  for (int j = 1; j < tree.size(); ++j) EXPECT_LT(tree.pixel[j - 1], tree.pixel[j]);
 }
 
 TEST(PairSearch, EqualsTheRegionScanOnTheDemoFrame) {

@@ -106,9 +106,7 @@ Expected<Detection> Detect(const RangeImage& image, const DetectorConfig& config
   // (and the image's ranges of segment points, which are none of them).
   const internal::LevelPoints level(image, threads, config.min_range_m);
   const PairTest test(config);
-  const internal::BlockShape block = std::holds_alternative<SphericalModel>(image.model())
-                                         ? internal::kLidarBlock
-                                         : internal::kCameraBlock;
+  const internal::BlockShape block = internal::BlockShapeFor(image);
   internal::PairSearchOptions options;
   options.threads = threads;
   const internal::Candidates candidates = internal::FindCandidates(level, test, threads);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <type_traits>
@@ -209,7 +210,7 @@ void TakeTiesInIndexOrder(int* rank, int m) {
 }
 
 // Each point's rank among zs[0, m) by ascending height, ties in index order (m <= 64, zs
-// padded to a multiple of eight), as PointTree::Build's scalar loop ranks them, eight points at
+// padded to a multiple of eight), as PointTree::Leaf's scalar loop ranks them, eight points at
 // a time (AVX2): each point's count of points below it, summed in a register, then the ties
 // taken in index order.
 __attribute__((target("avx2"))) void RanksAvx2(const float* zs, int m, int* rank) {
@@ -297,13 +298,13 @@ struct Box16 {
   }
 };
 
-// PointTree::Build's gathering of a leaf, sixteen pixels at a time (AVX-512F). The points of the
+// PointTree::Block's gathering of a block, sixteen pixels at a time (AVX-512F). The points of the
 // pixels [r0, r1) x [c0, c1) that `mask` holds go, in pixel order, to xs, ys, zs (coordinates)
 // and `at` (image indices). Each row's pixels are taken sixteen at a time: a compress of the
 // lanes the mask holds, with no branch per pixel (the scalar loop's mispredicts on every pixel
 // the mask leaves out). Their box goes to lo and hi: each bound the scalar loop's, but for the
 // sign of a zero where +0 and -0 are both there. Returns how many.
-__attribute__((target("avx512f,popcnt"))) int GatherLeafAvx512(
+__attribute__((target("avx512f,popcnt"))) int GatherBlockAvx512(
     const float* x, const float* y, const float* z, const std::uint8_t* mask, int width, int r0,
     int r1, int c0, int c1, float* xs, float* ys, float* zs, std::int32_t* at, float* lo,
     float* hi) {
@@ -313,8 +314,8 @@ __attribute__((target("avx512f,popcnt"))) int GatherLeafAvx512(
   for (int r = r0; r < r1; ++r) {
     for (int c = c0; c < c1; c += 16) {
       const int i0 = r * width + c, w = std::min(16, c1 - c);
-      // The mask's bytes as bits: sixteen at once when the leaf's row has sixteen more columns,
-      // else eight at once when it has eight, then one at a time. No byte past the leaf's
+      // The mask's bytes as bits: sixteen at once when the block's row has sixteen more columns,
+      // else eight at once when it has eight, then one at a time. No byte past the block's
       // columns is read: they may be the image's last.
       unsigned bits = 0;
       int k = 0;
@@ -346,6 +347,7 @@ __attribute__((target("avx512f,popcnt"))) int GatherLeafAvx512(
   box.Into(lo, hi);
   return m;
 }
+
 // PointTree::Split's partition, sixteen points at a time (AVX-512F): the points [0, m) of x, y,
 // z, at go, in their order, to part 0 of q when their coordinate `axis` is below `mid` (when
 // `by_index`: the first m / 2 of them) and to part 1 otherwise, each part's box with them
@@ -414,37 +416,7 @@ std::int32_t PointTree::Build(const LevelPoints& level, const std::vector<std::u
                               int width, int r0, int r1, int c0, int c1, int block_rows,
                               int block_cols) {
   const int rows = r1 - r0, cols = c1 - c0;
-  if (rows <= block_rows && cols <= block_cols) {
-    // The block's points in pixel order, and their box.
-    float xs[kMaxBlockPixels], ys[kMaxBlockPixels], zs[kMaxBlockPixels];
-    std::int32_t at[kMaxBlockPixels];
-    constexpr float kInf = std::numeric_limits<float>::infinity();
-    float lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
-    int m = 0;
-#if defined(CAIRN_OD_WIDE_VECTORS)
-    if (VectorLanes() == 16) {
-      m = GatherLeafAvx512(level.x.data(), level.y.data(), level.z.data(), mask.data(), width, r0,
-                           r1, c0, c1, xs, ys, zs, at, lo, hi);
-    } else
-#endif
-    {
-      for (int r = r0; r < r1; ++r) {
-        for (int c = c0; c < c1; ++c) {
-          const int i = r * width + c;
-          if (!mask[i]) continue;
-          const float qx = level.x[i], qy = level.y[i], qz = level.z[i];
-          xs[m] = qx;
-          ys[m] = qy;
-          zs[m] = qz;
-          at[m++] = i;
-          ExtendBox(lo, hi, qx, qy, qz);
-        }
-      }
-    }
-    if (m == 0) return -1;
-    SplitParts parts;
-    return Split(xs, ys, zs, at, m, lo, hi, parts);
-  }
+  if (rows <= block_rows && cols <= block_cols) return Block(level, mask, width, r0, r1, c0, c1);
   // Split the longer side, in units of blocks, at a block boundary. Children first, so that
   // a node with one non-empty half can be that half.
   const bool split_rows =
@@ -463,11 +435,47 @@ std::int32_t PointTree::Build(const LevelPoints& level, const std::vector<std::u
   return Join(a, b);
 }
 
+// The block of pixels [r0, r1) x [c0, c1) as a subtree (Split), or -1 when it holds no point. Not
+// inlined: its arrays would sit in every frame of Build's recursion.
+__attribute__((noinline)) std::int32_t PointTree::Block(const LevelPoints& level,
+                                                        const std::vector<std::uint8_t>& mask,
+                                                        int width, int r0, int r1, int c0, int c1) {
+  // The block's points in pixel order, and their box.
+  float xs[kMaxBlockPixels], ys[kMaxBlockPixels], zs[kMaxBlockPixels];
+  std::int32_t at[kMaxBlockPixels];
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  float lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
+  int m = 0;
+#if defined(CAIRN_OD_WIDE_VECTORS)
+  if (VectorLanes() == 16) {
+    m = GatherBlockAvx512(level.x.data(), level.y.data(), level.z.data(), mask.data(), width, r0,
+                          r1, c0, c1, xs, ys, zs, at, lo, hi);
+  } else
+#endif
+  {
+    for (int r = r0; r < r1; ++r) {
+      for (int c = c0; c < c1; ++c) {
+        const int i = r * width + c;
+        if (!mask[i]) continue;
+        const float qx = level.x[i], qy = level.y[i], qz = level.z[i];
+        xs[m] = qx;
+        ys[m] = qy;
+        zs[m] = qz;
+        at[m++] = i;
+        ExtendBox(lo, hi, qx, qy, qz);
+      }
+    }
+  }
+  if (m == 0) return -1;
+  SplitParts parts;
+  return Split(xs, ys, zs, at, m, lo, hi, parts);
+}
+
 // The m points xs, ys, zs, at (in pixel order, box lo..hi) as a subtree: one leaf when they fit
 // in one, else two subtrees, split at the middle of the box's longest side. (All of them fall
-// on one side only when that side is at most one float step long, as when every point is one:
+// on one side only when that side is at most one float step long, as when the points coincide:
 // then the first half of them and the rest.) `parts` is scratch; the points are split in
-// place, so that the depth costs no memory.
+// place, so that no level keeps scratch of its own.
 std::int32_t PointTree::Split(float* xs, float* ys, float* zs, std::int32_t* at, int m,
                               const float* lo, const float* hi, SplitParts& parts) {
   if (m <= kMaxLeafPoints) return Leaf(xs, ys, zs, at, m, lo, hi);
@@ -518,8 +526,8 @@ std::int32_t PointTree::Split(float* xs, float* ys, float* zs, std::int32_t* at,
   std::copy(parts.z[1], parts.z[1] + m - first, zs + first);
   std::copy(parts.at[1], parts.at[1] + m - first, at + first);
   float box_lo[2][3], box_hi[2][3];
-  std::copy(&parts.lo[0][0], &parts.lo[0][0] + 6, &box_lo[0][0]);
-  std::copy(&parts.hi[0][0], &parts.hi[0][0] + 6, &box_hi[0][0]);
+  std::memcpy(box_lo, parts.lo, sizeof box_lo);
+  std::memcpy(box_hi, parts.hi, sizeof box_hi);
   const std::int32_t a = Split(xs, ys, zs, at, first, box_lo[0], box_hi[0], parts);
   const std::int32_t b =
       Split(xs + first, ys + first, zs + first, at + first, m - first, box_lo[1], box_hi[1], parts);

@@ -8,8 +8,9 @@
 //    cells taken at their least, a margin against rounding): every point that has a partner
 //    stays, most of the open ground goes.
 // 2. Trees. The candidates of each kind are stored in a binary tree over the image grid: a
-//    node is a rectangle of pixels, split along its longer side down to leaves of a few
-//    pixels (sorted by height), with the axis-aligned box of its points in the level frame.
+//    node is a rectangle of pixels, split along its longer side down to blocks of a few
+//    hundred pixels, whose points are split in space down to leaves of at most 64 (sorted by
+//    height); each node has the axis-aligned box of its points in the level frame.
 // 3. Search. Ordered node pairs (lower, upper) are visited from (lower subtree, upper root)
 //    down, the lower tree cut into tasks (4. below, on one thread too). A pair
 //    is rejected when no point of the upper box can lie HT..Hmax above, and steeper than
@@ -39,6 +40,7 @@
 #pragma once
 
 #include <cstdint>
+#include <variant>
 #include <vector>
 
 #include "cairn/od/detector.hpp"
@@ -80,8 +82,8 @@ struct PointTree {
   static constexpr int kMaxBlockPixels = 256;
   /// The image is cut into blocks of at most block_rows x block_cols pixels (block_cols cut
   /// down so that the product is at most kMaxBlockPixels), split in halves of whole blocks
-  /// along the longer side. A block's points are then split in space, each part at the middle
-  /// of its box's longest side, until each part fits in a leaf: a leaf holds nearby points
+  /// along the side longer in blocks. A block's points are then split in space, each part at the
+  /// middle of its box's longest side, until each part fits in a leaf: a leaf holds nearby points
   /// only, not the near and the far side of an edge in the image (BENCHMARKS.md, 2026-12-07).
   /// With `per_column`, one tree per image column (blocks of block_rows pixels): pairs are
   /// then only searched within a column.
@@ -95,12 +97,14 @@ struct PointTree {
  private:
   std::int32_t Build(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width,
                      int r0, int r1, int c0, int c1, int block_rows, int block_cols);
+  std::int32_t Block(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width,
+                     int r0, int r1, int c0, int c1);
   std::int32_t Split(float* xs, float* ys, float* zs, std::int32_t* at, int m, const float* lo,
                      const float* hi, SplitParts& parts);
   std::int32_t Leaf(const float* xs, const float* ys, const float* zs, const std::int32_t* at,
                     int m, const float* lo, const float* hi);
   std::int32_t Join(std::int32_t a, std::int32_t b);
-  std::int32_t stored_ = 0;  // points stored so far (Build)
+  std::int32_t stored_ = 0;  // points stored so far (Leaf)
 };
 
 /// Detect's blocks (PointTree): 4 x 64 pixels on a LiDAR scan, 16 x 16 on camera images, the
@@ -110,6 +114,10 @@ struct BlockShape {
   int rows, cols;
 };
 constexpr BlockShape kLidarBlock{4, 64}, kCameraBlock{16, 16};
+/// The image's kind of block: kLidarBlock on a spherical (LiDAR) image, else kCameraBlock.
+inline BlockShape BlockShapeFor(const RangeImage& image) {
+  return std::holds_alternative<SphericalModel>(image.model()) ? kLidarBlock : kCameraBlock;
+}
 
 struct PairSearchOptions {
   /// Build the sets (the cone detector). Off (the mask alone) and the per-column trees were
