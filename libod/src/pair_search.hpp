@@ -83,8 +83,8 @@ struct PointTree {
   /// The image is cut into blocks of at most block_rows x block_cols pixels (block_cols cut
   /// down so that the product is at most kMaxBlockPixels), split in halves of whole blocks
   /// along the side longer in blocks. A block's points are then split in space, each part at the
-  /// middle of its box's longest side, until each part fits in a leaf: a leaf holds nearby points
-  /// only, not the near and the far side of an edge in the image (BENCHMARKS.md, 2026-12-07).
+  /// middle of its box's longest side, until each part fits in a leaf: fewer leaves hold both
+  /// the near and the far side of an edge in the image (BENCHMARKS.md, 2026-12-07).
   /// With `per_column`, one tree per image column (blocks of block_rows pixels): pairs are
   /// then only searched within a column.
   PointTree(const LevelPoints& level, const std::vector<std::uint8_t>& mask, int width, int height,
