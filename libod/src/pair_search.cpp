@@ -474,8 +474,8 @@ __attribute__((noinline)) std::int32_t PointTree::Block(const LevelPoints& level
 // The m points xs, ys, zs, at (in pixel order, box lo..hi) as a subtree: one leaf when they fit
 // in one, else two subtrees, split at the middle of the box's longest side. (All of them fall
 // on one side only when that side is at most one float step long, as when the points coincide:
-// then the first half of them and the rest.) `parts` is scratch; the points are split in
-// place, so that no level keeps scratch of its own.
+// then they are partitioned again, the first half of them and the rest.) `parts` is scratch; the
+// points are split in place, so that no level keeps scratch of its own.
 std::int32_t PointTree::Split(float* xs, float* ys, float* zs, std::int32_t* at, int m,
                               const float* lo, const float* hi, SplitParts& parts) {
   if (m <= kMaxLeafPoints) return Leaf(xs, ys, zs, at, m, lo, hi);
@@ -485,15 +485,13 @@ std::int32_t PointTree::Split(float* xs, float* ys, float* zs, std::int32_t* at,
   }
   const float* key = axis == 0 ? xs : axis == 1 ? ys : zs;
   const float mid = lo[axis] + 0.5f * (hi[axis] - lo[axis]);
-  int below = 0;
-  for (int k = 0; k < m; ++k) below += key[k] < mid;
-  const bool by_index = below == 0 || below == m;
+  const auto partition = [&](bool by_index) {
 #if defined(CAIRN_OD_WIDE_VECTORS)
-  if (VectorLanes() == 16) {
-    SplitAvx512(xs, ys, zs, at, m, axis, mid, by_index, parts);
-  } else
+    if (VectorLanes() == 16) {
+      SplitAvx512(xs, ys, zs, at, m, axis, mid, by_index, parts);
+      return;
+    }
 #endif
-  {
     constexpr float kInf = std::numeric_limits<float>::infinity();
     for (int part = 0; part < 2; ++part) {
       int c = 0;
@@ -514,7 +512,9 @@ std::int32_t PointTree::Split(float* xs, float* ys, float* zs, std::int32_t* at,
       }
       parts.count[part] = c;
     }
-  }
+  };
+  partition(false);
+  if (parts.count[0] == 0 || parts.count[0] == m) partition(true);
   // Back in place, the first part first; the boxes kept for the two calls.
   const int first = parts.count[0];
   std::copy(parts.x[0], parts.x[0] + first, xs);
